@@ -1,0 +1,1 @@
+"""nav2 simple-commander facade over a swarm navigator's topics."""

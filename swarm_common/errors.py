@@ -1,0 +1,51 @@
+"""The exit-code contract of every command (SPEC §2).
+
+``0`` success, ``2`` bad input (one line on stderr naming the flag or file and what is wrong, no
+traceback), ``1`` runtime failure.  Loaders raise :class:`InputError`; command entry points wrap
+their body in :func:`run_cli`, which turns it into that one line and exit code 2.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable
+
+EXIT_OK = 0
+EXIT_RUNTIME = 1
+EXIT_BAD_INPUT = 2
+
+
+class InputError(ValueError):
+    """Bad user input: a flag, a file or a value. The message is the whole line shown to the user.
+
+    It should name the flag or file first, e.g. ``"--swarm-size: must be a positive integer, got -3"``
+    or ``"worlds/foo.yaml: unknown key 'workstaions' (did you mean 'workstations'?)"``.
+    """
+
+
+def did_you_mean(word: str, choices) -> str:
+    """Return ``" (did you mean 'x'?)"`` for the closest of ``choices``, or ``""`` if none is close."""
+    import difflib
+
+    close = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)
+    return f" (did you mean '{close[0]}'?)" if close else ""
+
+
+def run_cli(prog: str, body: Callable[[], int | None]) -> int:
+    """Run a command's body and map errors onto the exit-code contract.
+
+    Args:
+        prog: the command's name, prefixed to the one-line error (``"swarm-sim: ..."``).
+        body: the command; returns an exit code or ``None`` for 0.
+
+    Returns:
+        The exit code: the body's, or 2 for :class:`InputError`, 130 for Ctrl-C.
+    """
+    try:
+        code = body()
+    except InputError as exc:
+        print(f"{prog}: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        return 130
+    return EXIT_OK if code is None else int(code)

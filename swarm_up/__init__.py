@@ -1,0 +1,1 @@
+"""The orchestrator (``swarm-up``), metrics and the benchmark (``swarm-bench``)."""

@@ -1,0 +1,42 @@
+"""Shared test fixtures.
+
+Every test session claims its own ``ROS_DOMAIN_ID`` (an flock on ``/tmp/swarm_wb_domain_<id>.lock``
+held for the whole session) and sets ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, so two test runs
+on one machine never hear each other.  Processes started by tests inherit both.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import os
+from pathlib import Path
+
+import pytest
+
+_DOMAIN_LOCK = None
+
+
+def _claim_domain_id() -> int:
+    global _DOMAIN_LOCK
+    for domain in range(101, 200):
+        fh = open(f"/tmp/swarm_wb_domain_{domain}.lock", "w")  # noqa: SIM115 - held for the session
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            fh.close()
+            continue
+        _DOMAIN_LOCK = fh
+        return domain
+    raise RuntimeError("no free ROS_DOMAIN_ID in 101..199 for this test session")
+
+
+def pytest_configure(config):
+    if "SWARM_WB_TEST_DOMAIN" not in os.environ:
+        os.environ["SWARM_WB_TEST_DOMAIN"] = str(_claim_domain_id())
+    os.environ["ROS_DOMAIN_ID"] = os.environ["SWARM_WB_TEST_DOMAIN"]
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+
+
+@pytest.fixture(scope="session")
+def repo_root() -> Path:
+    return Path(__file__).resolve().parents[1]
