@@ -18,13 +18,13 @@ EXIT_BAD_INPUT = 2
 class InputError(ValueError):
     """Bad user input: a flag, a file or a value. The message is the whole line shown to the user.
 
-    It should name the flag or file first, e.g. ``"--swarm-size: must be a positive integer, got -3"``
-    or ``"worlds/foo.yaml: unknown key 'workstaions' (did you mean 'workstations'?)"``.
+    It should name the flag or file first, e.g.
+    ``"--swarm-size: must be a positive integer, got -3"`` or ``"worlds/foo.yaml: unknown key 'workstaions' (did you mean 'workstations'?)"``.
     """
 
 
 def did_you_mean(word: str, choices) -> str:
-    """Return ``" (did you mean 'x'?)"`` for the closest of ``choices``, or ``""`` if none is close."""
+    """Return ``" (did you mean 'x'?)"`` for the closest of ``choices``, else ``""``."""
     import difflib
 
     close = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)
