@@ -19,7 +19,8 @@ class InputError(ValueError):
     """Bad user input: a flag, a file or a value. The message is the whole line shown to the user.
 
     It should name the flag or file first, e.g.
-    ``"--swarm-size: must be a positive integer, got -3"`` or ``"worlds/foo.yaml: unknown key 'workstaions' (did you mean 'workstations'?)"``.
+    ``"--swarm-size: must be a positive integer, got -3"`` or
+    ``"worlds/foo.yaml: unknown key 'workstaions' (did you mean 'workstations'?)"``.
     """
 
 
