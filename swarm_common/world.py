@@ -1,0 +1,703 @@
+"""Gazebo worlds (SDF 1.6/1.7, later versions where they agree): the static collision geometry.
+
+A world is read down to what a 2D swarm on one floor needs: every ``<collision>`` of every model,
+as a box, cylinder, sphere or mesh with its full 6-DoF pose in the world frame (= ``map``).
+Poses compose world ∘ model (∘ nested model ...) ∘ link ∘ collision, as SDF defines them: a
+``<pose>`` is ``x y z roll pitch yaw`` (fixed axes, R = Rz(yaw) Ry(pitch) Rx(roll)) in its
+parent's frame, or in the frame its ``relative_to`` attribute names (SDF 1.7 pose frame
+semantics; SDF 1.6's ``frame`` attribute is read the same way; SDF 1.9's ``degrees`` and
+``rotation_format`` are honoured).
+
+A world saved by Gazebo applies its ``<state>`` on load: a model pose there overrides the
+model's own ``<pose>``, here too.
+
+Skipped silently: ``<include>`` of ``ground_plane`` and ``sun``, ``<light>``, horizontal
+``<plane>`` collisions (a floor) and world settings (physics, scene, gui, plugins ...). An
+``<include>`` of any other model is loaded when its ``model://`` directory is found on the Gazebo
+model path (``GZ_SIM_RESOURCE_PATH``, ``IGN_GAZEBO_RESOURCE_PATH``, ``GAZEBO_MODEL_PATH``,
+``SDF_PATH``, the world's own directory and its ``models/``, ``~/.gazebo/models``). Everything
+else that cannot be represented (actors, unresolvable includes, heightmap/polyline/capsule/...
+geometry, meshes that are not STL/OBJ or cannot be found) is skipped and named once in
+:attr:`World.skipped`. Models that are not ``<static>`` are kept, at their initial pose: they are
+obstacles at the start.
+
+Sources: SDFormat specification (sdformat.org/spec, world/model/link/collision/geometry, and
+"Pose frame semantics" for SDF 1.7), Gazebo classic's model path conventions.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import os
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from swarm_common.errors import InputError, did_you_mean
+from swarm_common.paths import WORLDS_DIR
+
+WORLD_SUFFIXES = (".world", ".sdf")
+POLYGON_SIDES = 32  # cylinders and spheres become circumscribed 32-gons in world_polygons
+MESH_SUFFIXES = (".stl", ".obj")
+
+# World children that carry no geometry: ignored without a report.
+_WORLD_SETTINGS = {
+    "physics", "scene", "gui", "plugin", "gravity", "magnetic_field", "atmosphere", "wind",
+    "spherical_coordinates", "state", "audio", "frame", "joint", "light", "model", "include",
+    "actor", "population", "road",
+}
+_SILENT_INCLUDES = {"ground_plane", "groundplane", "sun"}
+_MAX_INCLUDE_DEPTH = 16
+
+
+@dataclass(frozen=True)
+class CollisionShape:
+    """One collision geometry of a world, posed in the world frame.
+
+    Attributes:
+        name: ``"<model>::<link>::<collision>"`` (nested models add ``::`` levels).
+        kind: ``"box"``, ``"cylinder"``, ``"sphere"`` or ``"mesh"``.
+        pose: (6,) read-only array: x, y, z [m] and roll, pitch, yaw [rad] of the shape's centre
+            (the collision frame's origin) in the world frame (= ``map``); fixed-axis RPY.
+        size: box ``(sx, sy, sz)`` [m]; cylinder ``(radius, length)`` [m], axis along its local
+            z; sphere ``(radius,)`` [m]; mesh: the scale ``(sx, sy, sz)`` applied to its vertices.
+        mesh_path: the resolved STL/OBJ file for a mesh, else ``None``.
+    """
+
+    name: str
+    kind: str
+    pose: np.ndarray
+    size: tuple[float, ...]
+    mesh_path: Path | None = None
+
+
+@dataclass(frozen=True)
+class World:
+    """A loaded world.
+
+    Attributes:
+        name: the file's stem (``"slim_blockage"`` for ``worlds/slim_blockage.world``).
+        source: the file it was read from, resolved.
+        shapes: every supported collision shape, in document order.
+        skipped: one entry per unsupported element, e.g. ``"actor 'walker'"``, each named once.
+    """
+
+    name: str
+    source: Path
+    shapes: tuple[CollisionShape, ...]
+    skipped: tuple[str, ...] = field(default_factory=tuple)
+
+
+# --------------------------------------------------------------------------------------- resolve
+
+
+def available_worlds() -> list[str]:
+    """Names of the worlds bundled under ``worlds/`` (``.world`` and ``.sdf`` files), sorted."""
+    if not WORLDS_DIR.is_dir():
+        return []
+    return sorted({p.stem for p in WORLDS_DIR.iterdir() if p.suffix in WORLD_SUFFIXES})
+
+
+def resolve_world(name_or_path: str | Path) -> Path:
+    """Find a world file: a name under ``worlds/`` or a path to a ``.world``/``.sdf`` file.
+
+    Args:
+        name_or_path: ``"slim_blockage"`` (looked up as ``worlds/slim_blockage.world``, then
+            ``.sdf``), or a path. Anything with a directory part or a suffix is taken as a path.
+
+    Returns:
+        The resolved path of an existing file.
+
+    Raises:
+        InputError: the file does not exist, or the name is unknown (the message lists the
+            available names with a did-you-mean).
+    """
+    text = str(name_or_path)
+    path = Path(text).expanduser()
+    if path.is_file():
+        return path.resolve()
+    is_path = isinstance(name_or_path, Path) or os.sep in text or path.suffix != ""
+    if is_path:
+        if path.is_dir():
+            raise InputError(f"{text}: is a directory, not a .world/.sdf file")
+        raise InputError(f"{text}: no such world file")
+    for suffix in WORLD_SUFFIXES:
+        candidate = WORLDS_DIR / f"{text}{suffix}"
+        if candidate.is_file():
+            return candidate.resolve()
+    names = available_worlds()
+    listing = ", ".join(names) if names else "none"
+    raise InputError(
+        f"unknown world '{text}'{did_you_mean(text, names)}; available: {listing}"
+        " (or give a path to a .world/.sdf file)"
+    )
+
+
+# ------------------------------------------------------------------------------------ pose maths
+
+
+def rpy_to_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """Rotation matrix (3, 3) of fixed-axis roll, pitch, yaw [rad]: Rz(yaw) Ry(pitch) Rx(roll).
+
+    This is SDF's (and URDF's) ``rpy`` convention.
+    """
+    cr, sr = math.cos(roll), math.sin(roll)
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    return np.array([
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ])
+
+
+def matrix_to_rpy(rot: np.ndarray) -> tuple[float, float, float]:
+    """Fixed-axis roll, pitch, yaw [rad] of a (3, 3) rotation matrix (inverse of rpy_to_matrix).
+
+    At gimbal lock (pitch = ±pi/2) roll is set to 0 and the rotation is put into yaw.
+    """
+    pitch = math.asin(max(-1.0, min(1.0, -rot[2, 0])))
+    if abs(rot[2, 0]) < 1.0 - 1e-12:
+        roll = math.atan2(rot[2, 1], rot[2, 2])
+        yaw = math.atan2(rot[1, 0], rot[0, 0])
+    else:
+        roll = 0.0
+        yaw = math.atan2(-rot[0, 1], rot[1, 1])
+    return roll, pitch, yaw
+
+
+def pose_to_matrix(pose) -> np.ndarray:
+    """Homogeneous (4, 4) transform of a (6,) pose x, y, z [m], roll, pitch, yaw [rad]."""
+    x, y, z, roll, pitch, yaw = (float(v) for v in pose)
+    tf = np.eye(4)
+    tf[:3, :3] = rpy_to_matrix(roll, pitch, yaw)
+    tf[:3, 3] = (x, y, z)
+    return tf
+
+
+def matrix_to_pose(tf: np.ndarray) -> np.ndarray:
+    """The (6,) pose x, y, z [m], roll, pitch, yaw [rad] of a homogeneous (4, 4) transform."""
+    return np.array([*tf[:3, 3], *matrix_to_rpy(tf[:3, :3])], dtype=float) + 0.0  # no -0.0
+
+
+def _quat_matrix(qx: float, qy: float, qz: float, qw: float) -> np.ndarray:
+    n = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw) or 1.0
+    x, y, z, w = qx / n, qy / n, qz / n, qw / n
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+# --------------------------------------------------------------------------------------- parsing
+
+
+class _Loader:
+    """One load: the file, the search path, the shapes found and the skip report."""
+
+    def __init__(self, source: Path):
+        self.source = source
+        self.shapes: list[CollisionShape] = []
+        self.skipped: list[str] = []
+
+    # -- helpers ------------------------------------------------------------------------------
+
+    def skip(self, what: str) -> None:
+        if what not in self.skipped:
+            self.skipped.append(what)
+
+    def fail(self, where: str, problem: str, source: Path | None = None) -> InputError:
+        return InputError(f"{source or self.source}: {where}: {problem}")
+
+    def floats(self, el: ET.Element, count: int, where: str, src: Path) -> list[float]:
+        text = (el.text or "").strip()
+        try:
+            values = [float(v) for v in text.split()]
+        except ValueError:
+            values = []
+        if len(values) != count or not all(math.isfinite(v) for v in values):
+            raise self.fail(where, f"<{el.tag}> must be {count} numbers, got '{text}'", src)
+        return values
+
+    def scalar(self, parent: ET.Element, tag: str, where: str, src: Path,
+               default: float | None = None) -> float:
+        el = parent.find(tag)
+        if el is None:
+            if default is None:
+                raise self.fail(where, f"missing <{tag}>", src)
+            return default
+        return self.floats(el, 1, where, src)[0]
+
+    def pose(self, el: ET.Element | None, where: str, src: Path) -> np.ndarray:
+        """(4, 4) transform of a ``<pose>`` element (identity if absent or empty)."""
+        if el is None or not (el.text or "").strip():
+            return np.eye(4)
+        text = el.text.strip()
+        fmt = el.get("rotation_format", "euler_rpy")
+        count = 7 if fmt == "quat_xyzw" else 6
+        values = self.floats(el, count, where, src)
+        tf = np.eye(4)
+        tf[:3, 3] = values[:3]
+        if fmt == "quat_xyzw":
+            tf[:3, :3] = _quat_matrix(*values[3:])
+        elif fmt == "euler_rpy":
+            angles = values[3:]
+            if el.get("degrees", "false").strip().lower() in ("true", "1"):
+                angles = [math.radians(a) for a in angles]
+            tf[:3, :3] = rpy_to_matrix(*angles)
+        else:
+            raise self.fail(where, f"<pose rotation_format='{fmt}'> is not euler_rpy or "
+                            f"quat_xyzw (pose '{text}')", src)
+        return tf
+
+    @staticmethod
+    def relative_to(el: ET.Element | None) -> str | None:
+        if el is None:
+            return None
+        name = el.get("relative_to") or el.get("frame")
+        return name.strip() if name and name.strip() else None
+
+    # -- documents ----------------------------------------------------------------------------
+
+    def parse_file(self, path: Path) -> ET.Element:
+        try:
+            text = path.read_bytes()
+        except FileNotFoundError:
+            raise InputError(f"{path}: no such file") from None
+        except OSError as exc:
+            raise InputError(f"{path}: cannot read: {exc.strerror or exc}") from None
+        try:
+            root = ET.fromstring(text)
+        except ET.ParseError as exc:
+            raise InputError(f"{path}: malformed XML: {exc}") from None
+        return root
+
+    def load(self) -> None:
+        root = self.parse_file(self.source)
+        base = self.source.parent
+        if root.tag not in ("sdf", "world", "model"):
+            raise InputError(f"{self.source}: not an SDF file (root element <{root.tag}>, "
+                             "expected <sdf>)")
+        worlds = [root] if root.tag == "world" else root.findall("world")
+        if worlds:
+            self.world(worlds[0], base)
+            return
+        models = [root] if root.tag == "model" else root.findall("model")
+        if not models:
+            raise InputError(f"{self.source}: no <world> or <model> element in <sdf>")
+        for model in models:  # a model file loaded as a world of its own
+            self.model(model, np.eye(4), "", base, self.source, depth=0)
+
+    def world(self, world: ET.Element, base: Path) -> None:
+        frames = _Frames(self, world, "world", base, self.source)
+        # A world saved by Gazebo carries a <state> whose model poses (world frame) are applied
+        # on load and override the models' own <pose>s (e.g. objects that settled).
+        state = {}
+        for state_el in world.findall("state"):
+            for m in state_el.findall("model"):
+                if m.get("name") and m.find("pose") is not None:
+                    state[m.get("name")] = self.pose(m.find("pose"), f"state::{m.get('name')}",
+                                                     self.source)
+        for child in world:
+            tag = child.tag
+            if tag == "model":
+                name = child.get("name", "model")
+                pose = state[name] if name in state else frames.element_pose(child)
+                self.model(child, pose, "", base, self.source, depth=0)
+            elif tag == "include":
+                self.include(child, frames, "", base, self.source, depth=0, state=state)
+            elif tag in ("actor", "population", "road"):
+                self.skip(f"{tag} '{child.get('name', '?')}'")
+            elif tag not in _WORLD_SETTINGS:
+                self.skip(f"<{tag}>")
+
+    def model(self, model: ET.Element, world_T_model: np.ndarray, prefix: str, base: Path,
+              src: Path, depth: int, name: str | None = None) -> None:
+        name = name or model.get("name", "model")
+        scoped = f"{prefix}{name}"
+        frames = _Frames(self, model, "__model__", base, src, scope=scoped)
+        for link in model.findall("link"):
+            link_name = link.get("name", "link")
+            world_T_link = world_T_model @ frames.element_pose(link)
+            for col in link.findall("collision"):
+                where = f"{scoped}::{link_name}::{col.get('name', 'collision')}"
+                pose_el = col.find("pose")
+                rel = self.relative_to(pose_el)
+                parent = world_T_link if rel is None else world_T_model @ frames.pose_of(rel)
+                self.collision(col, parent @ self.pose(pose_el, where, src), where, base, src)
+        for nested in model.findall("model"):
+            self.model(nested, world_T_model @ frames.element_pose(nested), f"{scoped}::",
+                       base, src, depth)
+        for inc in model.findall("include"):
+            self.include(inc, frames, f"{scoped}::", base, src, depth, world_T_model)
+
+    def collision(self, col: ET.Element, world_T_col: np.ndarray, where: str, base: Path,
+                  src: Path) -> None:
+        geometry = col.find("geometry")
+        shape = None if geometry is None else next(iter(geometry), None)
+        if shape is None or shape.tag == "empty":
+            return
+        kind = shape.tag
+        pose = matrix_to_pose(world_T_col)
+        pose.setflags(write=False)
+        size: tuple[float, ...]
+        mesh_path = None
+        if kind == "box":
+            size = tuple(self.floats(_required(shape, "size", self, where, src), 3, where, src))
+        elif kind == "cylinder":
+            size = (self.scalar(shape, "radius", where, src),
+                    self.scalar(shape, "length", where, src))
+        elif kind == "sphere":
+            size = (self.scalar(shape, "radius", where, src),)
+        elif kind == "plane":
+            normal_el = shape.find("normal")
+            normal = [0.0, 0.0, 1.0] if normal_el is None else self.floats(
+                normal_el, 3, where, src)
+            world_normal = world_T_col[:3, :3] @ np.asarray(normal, dtype=float)
+            if abs(world_normal[2]) >= (1.0 - 1e-6) * np.linalg.norm(world_normal):
+                return  # a floor: nothing a robot on it can hit
+            self.skip(f"plane '{where}'")
+            return
+        elif kind == "mesh":
+            mesh_path = self.mesh_file(shape, where, base, src)
+            if mesh_path is None:
+                return
+            scale_el = shape.find("scale")
+            size = (1.0, 1.0, 1.0) if scale_el is None else tuple(
+                self.floats(scale_el, 3, where, src))
+        else:
+            self.skip(f"{kind} '{where}'")
+            return
+        degenerate = (0.0 in size) if kind == "mesh" else (min(size) <= 0.0)
+        if degenerate:
+            self.skip(f"{kind} '{where}' (size {' '.join(f'{s:g}' for s in size)})")
+            return
+        self.shapes.append(CollisionShape(where, kind, pose, tuple(float(s) for s in size),
+                                          mesh_path))
+
+    def mesh_file(self, mesh: ET.Element, where: str, base: Path, src: Path) -> Path | None:
+        uri_el = mesh.find("uri")
+        uri = (uri_el.text or "").strip() if uri_el is not None else ""
+        if not uri:
+            raise self.fail(where, "<mesh> without <uri>", src)
+        path = _resolve_uri(uri, base)
+        if path is None or not path.is_file():
+            self.skip(f"mesh '{where}' ({uri} not found)")
+            return None
+        if path.suffix.lower() not in MESH_SUFFIXES:
+            self.skip(f"mesh '{where}' ({path.suffix or uri}: only STL and OBJ are loaded)")
+            return None
+        try:
+            _mesh_vertices(path)
+        except ValueError as exc:
+            self.skip(f"mesh '{where}' ({path.name}: {exc})")
+            return None
+        return path
+
+    def include(self, inc: ET.Element, frames: _Frames, prefix: str, base: Path, src: Path,
+                depth: int, world_T_scope: np.ndarray | None = None,
+                state: dict[str, np.ndarray] | None = None) -> None:
+        uri_el = inc.find("uri")
+        uri = (uri_el.text or "").strip() if uri_el is not None else ""
+        if _include_base_name(uri) in _SILENT_INCLUDES:
+            return
+        label = f"include '{uri or inc.findtext('name', '?')}'"
+        model_file = _find_model_file(uri, base) if uri else None
+        if model_file is None or depth >= _MAX_INCLUDE_DEPTH:
+            self.skip(label)
+            return
+        root = self.parse_file(model_file)
+        model = root if root.tag == "model" else root.find("model")
+        if model is None:
+            self.skip(f"{label} (no <model> in {model_file.name})")
+            return
+        name = (inc.findtext("name") or "").strip() or model.get("name", "model")
+        pose_el = inc.find("pose")
+        if pose_el is None:
+            pose_el = model.find("pose")
+            local = self.pose(pose_el, f"{prefix}{name}", model_file)
+            parent = np.eye(4)
+        else:
+            local = self.pose(pose_el, f"{prefix}{name}", src)
+            rel = self.relative_to(pose_el)
+            parent = np.eye(4) if rel is None else frames.pose_of(rel)
+        scope_tf = np.eye(4) if world_T_scope is None else world_T_scope
+        pose = scope_tf @ parent @ local
+        if state and name in state:
+            pose = state[name]
+        self.model(model, pose, prefix, model_file.parent, model_file, depth + 1, name=name)
+
+
+def _required(el: ET.Element, tag: str, loader: _Loader, where: str, src: Path) -> ET.Element:
+    child = el.find(tag)
+    if child is None:
+        raise loader.fail(where, f"<{el.tag}> without <{tag}>", src)
+    return child
+
+
+class _Frames:
+    """Poses of the named frames of one scope (a world or a model) in the scope's own frame.
+
+    SDF 1.7 pose frame semantics: links, nested models and ``<frame>`` elements are posed in the
+    scope frame unless ``relative_to`` names another frame of the same scope (``<frame>``
+    defaults to its ``attached_to``); joints default to their child link.
+    """
+
+    def __init__(self, loader: _Loader, scope_el: ET.Element, root: str, base: Path, src: Path,
+                 scope: str = "world"):
+        self.loader, self.root, self.src, self.scope = loader, root, src, scope
+        self.elements: dict[str, tuple[ET.Element, str]] = {}
+        for child in scope_el:
+            name = child.get("name")
+            if not name:
+                continue
+            if child.tag in ("link", "model", "frame"):
+                default = root
+                if child.tag == "frame":
+                    default = child.get("attached_to") or root
+                self.elements.setdefault(name, (child, default))
+            elif child.tag == "joint":
+                self.elements.setdefault(name, (child, child.findtext("child", root).strip()))
+        self.cache: dict[str, np.ndarray] = {root: np.eye(4)}
+        if root == "world":
+            self.cache["__model__"] = np.eye(4)
+
+    def pose_of(self, name: str, chain: tuple[str, ...] = ()) -> np.ndarray:
+        """(4, 4) pose of frame ``name`` in the scope frame; InputError on unknown names/cycles."""
+        if name in self.cache:
+            return self.cache[name]
+        if name in chain:
+            raise InputError(f"{self.src}: {self.scope}: pose frames form a cycle: "
+                             f"{' -> '.join((*chain, name))}")
+        if name not in self.elements:
+            names = [self.root, *self.elements]
+            raise InputError(f"{self.src}: {self.scope}: relative_to '{name}' names no frame"
+                             f"{did_you_mean(name, names)}")
+        el, default = self.elements[name]
+        tf = self._compose(el, default, (*chain, name))
+        self.cache[name] = tf
+        return tf
+
+    def element_pose(self, el: ET.Element) -> np.ndarray:
+        """(4, 4) pose in the scope frame of a link, nested model or frame element of the scope."""
+        default = self.root
+        if el.tag == "frame":
+            default = el.get("attached_to") or self.root
+        return self._compose(el, default, (el.get("name", el.tag),))
+
+    def _compose(self, el: ET.Element, default: str, chain: tuple[str, ...]) -> np.ndarray:
+        pose_el = el.find("pose")
+        rel = _Loader.relative_to(pose_el) or default
+        local = self.loader.pose(pose_el, f"{self.scope}::{chain[-1]}", self.src)
+        return self.pose_of(rel, chain) @ local
+
+
+def _include_base_name(uri: str) -> str:
+    """``"model://sun"`` → ``"sun"``; Fuel's ``.../models/Ground Plane/2`` → ``"ground_plane"``."""
+    parts = [p for p in uri.replace("\\", "/").split("/") if p and not p.isdigit()]
+    last = parts[-1] if parts else ""
+    return last.strip().lower().replace(" ", "_")
+
+
+def _model_search_path(base: Path) -> list[Path]:
+    dirs: list[Path] = []
+    for var in ("GZ_SIM_RESOURCE_PATH", "IGN_GAZEBO_RESOURCE_PATH", "GAZEBO_MODEL_PATH",
+                "SDF_PATH"):
+        dirs += [Path(p) for p in os.environ.get(var, "").split(os.pathsep) if p]
+    dirs += [base, base / "models", Path.home() / ".gazebo" / "models"]
+    return dirs
+
+
+def _resolve_uri(uri: str, base: Path) -> Path | None:
+    """A file path for a ``model://``, ``file://``, absolute or relative URI; None if remote."""
+    if uri.startswith("model://"):
+        rest = uri[len("model://"):]
+        for d in _model_search_path(base):
+            candidate = d / rest
+            if candidate.exists():
+                return candidate
+        return None
+    if uri.startswith("file://"):
+        return Path(uri[len("file://"):])
+    if "://" in uri:
+        return None  # package://, http(s):// (Fuel): not resolvable here
+    path = Path(uri).expanduser()
+    return path if path.is_absolute() else base / path
+
+
+def _find_model_file(uri: str, base: Path) -> Path | None:
+    """The SDF file of an included model directory (via its model.config), or None."""
+    target = _resolve_uri(uri, base)
+    if target is None or not target.exists():
+        return None
+    if target.is_file():
+        return target
+    config = target / "model.config"
+    if config.is_file():
+        try:
+            root = ET.parse(config).getroot()
+        except ET.ParseError:
+            root = None
+        if root is not None:
+            candidates = sorted(
+                root.findall("sdf"),
+                key=lambda e: tuple(int(p) for p in e.get("version", "0").split(".")
+                                    if p.isdigit()),
+            )
+            for el in reversed(candidates):
+                path = target / (el.text or "").strip()
+                if path.is_file():
+                    return path
+    for fname in ("model.sdf", "model-1_7.sdf", "model-1_6.sdf"):
+        if (target / fname).is_file():
+            return target / fname
+    return None
+
+
+@functools.lru_cache(maxsize=64)
+def _mesh_vertices_cached(path: str, mtime: float) -> np.ndarray:
+    import trimesh
+
+    try:
+        mesh = trimesh.load(path, force="mesh", process=False)
+    except Exception as exc:  # trimesh raises many kinds on bad files
+        raise ValueError(f"cannot load mesh: {exc}") from None
+    vertices = np.asarray(getattr(mesh, "vertices", np.zeros((0, 3))), dtype=float)
+    if vertices.ndim != 2 or vertices.shape[0] < 3:
+        raise ValueError("mesh has no vertices")
+    vertices.setflags(write=False)
+    return vertices
+
+
+def _mesh_vertices(path: Path) -> np.ndarray:
+    """(V, 3) vertices [mesh units] of an STL/OBJ file (cached); ValueError if unreadable."""
+    return _mesh_vertices_cached(str(path), path.stat().st_mtime)
+
+
+def load_world(name_or_path: str | Path) -> World:
+    """Load a Gazebo world (or a model SDF) into its collision shapes.
+
+    Args:
+        name_or_path: a world name under ``worlds/`` or a path (see :func:`resolve_world`).
+
+    Returns:
+        The :class:`World`; its ``skipped`` names each unsupported element once.
+
+    Raises:
+        InputError: unknown name, missing file, malformed XML, a malformed number or pose, or a
+            ``relative_to`` that names no frame (message: the file, then the problem).
+    """
+    source = resolve_world(name_or_path)
+    loader = _Loader(source)
+    loader.load()
+    return World(name=source.stem, source=source, shapes=tuple(loader.shapes),
+                 skipped=tuple(loader.skipped))
+
+
+# ----------------------------------------------------------------------------------- outlines
+
+
+def _shape_points(shape: CollisionShape) -> np.ndarray:
+    """(P, 3) points in the world frame whose convex hull bounds the shape (conservatively)."""
+    tf = pose_to_matrix(shape.pose)
+    if shape.kind == "box":
+        h = np.asarray(shape.size) / 2.0
+        local = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * h
+    elif shape.kind in ("cylinder", "sphere"):
+        radius = shape.size[0] / math.cos(math.pi / POLYGON_SIDES)  # circumscribed polygon
+        ang = 2.0 * math.pi * (np.arange(POLYGON_SIDES) + 0.5) / POLYGON_SIDES
+        ring = np.column_stack((radius * np.cos(ang), radius * np.sin(ang)))
+        if shape.kind == "cylinder":
+            half = shape.size[1] / 2.0
+            local = np.vstack((np.column_stack((ring, np.full(len(ring), -half))),
+                               np.column_stack((ring, np.full(len(ring), half)))))
+        else:  # a sphere projects to the same circle whatever its orientation
+            centre = tf[:3, 3]
+            pts = np.column_stack((ring + centre[:2], np.full(len(ring), centre[2])))
+            r = shape.size[0]
+            return np.vstack((pts, [[*centre[:2], centre[2] - r], [*centre[:2], centre[2] + r]]))
+    elif shape.kind == "mesh":
+        local = _mesh_vertices(shape.mesh_path) * np.asarray(shape.size)
+    else:
+        raise ValueError(f"unknown shape kind {shape.kind!r}")
+    return local @ tf[:3, :3].T + tf[:3, 3]
+
+
+def convex_hull_2d(points: np.ndarray) -> np.ndarray | None:
+    """Counter-clockwise convex hull (K, 2) of (P, 2) points; None if it has no area."""
+    pts = np.unique(np.round(np.asarray(points, dtype=float), 12), axis=0)
+    if len(pts) < 3:
+        return None
+    pts = pts[np.lexsort((pts[:, 1], pts[:, 0]))]
+
+    def half(seq):
+        chain: list[np.ndarray] = []
+        for p in seq:
+            while len(chain) >= 2:
+                a, b = chain[-2], chain[-1]
+                if (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0]) > 1e-15:
+                    break
+                chain.pop()
+            chain.append(p)
+        return chain
+
+    if len(pts) > 2000:  # big meshes: let Qhull do it
+        from scipy.spatial import ConvexHull, QhullError
+
+        try:
+            hull = ConvexHull(pts)
+        except QhullError:
+            return None
+        return pts[hull.vertices]
+    lower, upper = half(pts), half(pts[::-1])
+    hull = np.array(lower[:-1] + upper[:-1])
+    if len(hull) < 3:
+        return None
+    x, y = hull[:, 0], hull[:, 1]
+    area = 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+    return hull if area > 1e-12 else None
+
+
+def world_polygons(world: World, z_min: float = 0.0, z_max: float = 2.0) -> list[np.ndarray]:
+    """The 2D outlines of the shapes that reach into a height band.
+
+    Args:
+        world: the loaded world.
+        z_min: bottom of the band [m] (a shape must reach strictly above it: a floor slab whose
+            top is at ``z_min`` is not an obstacle).
+        z_max: top of the band [m] (a shape must start strictly below it).
+
+    Returns:
+        One convex polygon per shape whose z-extent overlaps ``(z_min, z_max)``, in the order of
+        ``world.shapes``: a (K, 2) array of x, y [m] in ``map``, counter-clockwise. Boxes are
+        exact (the hull of the projected corners, any orientation); cylinders and spheres are
+        circumscribed 32-gons (so they contain the true outline); meshes are the convex hull of
+        their projected vertices. Shapes with no area in plan view are left out.
+    """
+    polygons = []
+    for shape in world.shapes:
+        pts = _shape_points(shape)
+        lo, hi = float(pts[:, 2].min()), float(pts[:, 2].max())
+        if shape.kind in ("cylinder", "sphere"):
+            lo, hi = _round_extent_z(shape, lo, hi)
+        if hi <= z_min + 1e-9 or lo >= z_max - 1e-9:
+            continue
+        hull = convex_hull_2d(pts[:, :2])
+        if hull is not None:
+            polygons.append(hull)
+    return polygons
+
+
+def _round_extent_z(shape: CollisionShape, lo: float, hi: float) -> tuple[float, float]:
+    """Exact z-extent [m] of a cylinder or sphere (the polygon points overshoot slightly)."""
+    z = float(shape.pose[2])
+    if shape.kind == "sphere":
+        return z - shape.size[0], z + shape.size[0]
+    axis_z = pose_to_matrix(shape.pose)[2, 2]  # z component of the cylinder axis
+    r, half = shape.size[0], shape.size[1] / 2.0
+    reach = half * abs(axis_z) + r * math.sqrt(max(0.0, 1.0 - axis_z * axis_z))
+    return z - reach, z + reach

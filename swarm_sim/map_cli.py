@@ -1,0 +1,105 @@
+"""``swarm-map WORLD``: rasterise a Gazebo world into a nav2 map_server map (YAML + PGM).
+
+Examples::
+
+    swarm-map slim_blockage                      # writes slim_blockage.yaml + .pgm here
+    swarm-map my_hall.world --resolution 0.1 --output maps/my_hall
+
+Exit codes (SPEC §2): 0 written, 2 bad input (one line on stderr), 1 runtime failure.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+from swarm_common.errors import InputError, run_cli
+from swarm_common.map_io import save_map
+from swarm_common.rasterize import rasterize_world
+from swarm_common.world import load_world
+
+PROG = "swarm-map"
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that reports usage errors as one InputError line instead of usage + error."""
+
+    def error(self, message: str):  # argparse calls this on a usage error
+        raise InputError(message)
+
+
+def _metres(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: '{text}'") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"not a finite number: '{text}'")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``swarm-map``."""
+    parser = _Parser(
+        prog=PROG,
+        description="Rasterise a Gazebo world (SDF) into a nav2 map_server map: PREFIX.yaml + "
+                    "PREFIX.pgm (trinary: 254 free, 0 occupied). A cell is occupied when any "
+                    "collision shape between --z-min and --z-max overlaps it.",
+        epilog="Example: swarm-map slim_blockage --output maps/slim_blockage",
+    )
+    parser.add_argument("world", metavar="WORLD",
+                        help="a world name under worlds/ (e.g. slim_blockage) or a path to a "
+                             ".world/.sdf file")
+    parser.add_argument("--resolution", type=_metres, default=0.05, metavar="M",
+                        help="cell size [m/cell] (default: 0.05)")
+    parser.add_argument("--output", "-o", metavar="PREFIX", default=None,
+                        help="output path without suffix (default: the world's name, in the "
+                             "current directory)")
+    parser.add_argument("--padding", type=_metres, default=0.5, metavar="M",
+                        help="free margin around the world's shapes [m] (default: 0.5)")
+    parser.add_argument("--z-min", type=_metres, default=0.0, metavar="M",
+                        help="bottom of the robots' height band [m] (default: 0.0)")
+    parser.add_argument("--z-max", type=_metres, default=2.0, metavar="M",
+                        help="top of the robots' height band [m] (default: 2.0)")
+    return parser
+
+
+def _run(argv: list[str] | None) -> int:
+    args = build_parser().parse_args(argv)
+    if args.resolution <= 0.0:
+        raise InputError(f"--resolution: must be a positive number of metres per cell, got "
+                         f"{args.resolution:g}")
+    if args.padding < 0.0:
+        raise InputError(f"--padding: must be >= 0 m, got {args.padding:g}")
+    if args.z_max <= args.z_min:
+        raise InputError(f"--z-max: must be above --z-min ({args.z_min:g} m), got "
+                         f"{args.z_max:g}")
+    prefix = Path(args.output) if args.output else None
+    if prefix is not None and prefix.suffix in (".yaml", ".pgm"):
+        prefix = prefix.with_suffix("")
+    if prefix is not None and not prefix.parent.is_dir():
+        raise InputError(f"--output: directory '{prefix.parent}' does not exist")
+    world = load_world(args.world)
+    if world.skipped:
+        print(f"{PROG}: warning: {world.source.name}: skipped unsupported elements: "
+              f"{', '.join(world.skipped)}", file=sys.stderr)
+    occ = rasterize_world(world, resolution=args.resolution, padding=args.padding,
+                          z_min=args.z_min, z_max=args.z_max)
+    prefix = prefix or Path(world.name)
+    yaml_path, image_path = save_map(occ, prefix)
+    occupied = int((occ.data == 100).sum())
+    print(f"wrote {yaml_path} and {image_path}: {occ.width} x {occ.height} cells at "
+          f"{occ.resolution:g} m/cell, origin ({occ.origin[0]:g}, {occ.origin[1]:g}) m, "
+          f"{occupied} occupied, from {len(world.shapes)} shapes of {world.source}")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``swarm-map``; returns the exit code (0, 1 or 2)."""
+    return run_cli(PROG, lambda: _run(argv))
+
+
+if __name__ == "__main__":
+    sys.exit(main())

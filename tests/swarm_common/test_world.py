@@ -1,0 +1,358 @@
+"""swarm_common.world: SDF loading, pose composition, skipping, outlines."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from swarm_common.errors import InputError
+from swarm_common.world import (
+    World,
+    load_world,
+    matrix_to_rpy,
+    pose_to_matrix,
+    resolve_world,
+    rpy_to_matrix,
+    world_polygons,
+)
+
+DATA = Path(__file__).resolve().parents[1] / "data"
+
+# shared/reference/seed_facts.md, "World slim_blockage": x range, y range [m].
+SEED_WALLS = {
+    "bottom": ((-8.475, 9.525), (-4.974, -4.824)),
+    "top": ((-8.475, 9.525), (9.376, 9.526)),
+    "left": ((-8.475, -8.325), (-4.974, 9.526)),
+    "right": ((9.375, 9.525), (-4.974, 9.526)),
+    "blockage_left": ((-5.262, -5.112), (-3.016, 7.484)),
+    "blockage_right": ((-3.912, -3.762), (-3.016, 7.484)),
+    "blockage_bottom": ((-5.262, -3.762), (-3.016, -2.866)),
+    "blockage_top": ((-5.262, -3.762), (7.334, 7.484)),
+    "pocket_vertical": ((3.909, 4.059), (-4.912, -1.412)),
+    "pocket_horizontal": ((3.909, 9.409), (-1.562, -1.412)),
+}
+
+
+def _shape(world: World, name: str):
+    matches = [s for s in world.shapes if s.name == name]
+    assert len(matches) == 1, [s.name for s in world.shapes]
+    return matches[0]
+
+
+def _compose(*poses) -> np.ndarray:
+    """Independent reference: compose (6,) poses with scipy (extrinsic xyz = SDF rpy)."""
+    tf = np.eye(4)
+    for p in poses:
+        step = np.eye(4)
+        step[:3, :3] = Rotation.from_euler("xyz", p[3:]).as_matrix()
+        step[:3, 3] = p[:3]
+        tf = tf @ step
+    return tf
+
+
+# ------------------------------------------------------------------------------ slim_blockage
+
+
+@pytest.fixture(scope="module")
+def slim() -> World:
+    return load_world("slim_blockage")
+
+
+def test_slim_blockage_has_exactly_the_ten_seed_walls(slim):
+    assert slim.name == "slim_blockage"
+    assert slim.skipped == ()
+    assert sorted(s.name.split("::")[1] for s in slim.shapes) == sorted(SEED_WALLS)
+    assert all(s.kind == "box" for s in slim.shapes)
+
+
+@pytest.mark.parametrize("wall", sorted(SEED_WALLS))
+def test_slim_blockage_wall_extent_matches_seed_table(slim, wall):
+    (x0, x1), (y0, y1) = SEED_WALLS[wall]
+    shape = _shape(slim, f"slim_blockage::{wall}::collision")
+    poly = world_polygons(World("w", slim.source, (shape,)))[0]
+    assert poly.min(axis=0) == pytest.approx([x0, y0], abs=1e-6)  # to the micrometre
+    assert poly.max(axis=0) == pytest.approx([x1, y1], abs=1e-6)
+    assert min(shape.size[:2]) == pytest.approx(0.15, abs=1e-9)  # 0.15 m thick
+    assert shape.size[2] == pytest.approx(2.5)  # 2.5 m high, standing on the floor
+    assert shape.pose[2] == pytest.approx(1.25)
+
+
+# --------------------------------------------------------------------------- pose composition
+
+
+@pytest.fixture(scope="module")
+def composition() -> World:
+    return load_world(DATA / "world_composition.sdf")
+
+
+def test_rotated_model_offset_link_and_collision_compose(composition):
+    # model (1, 2, 0) yaw pi/2; link (1, 0, 0.5); collision (0, 0.5, 0) yaw pi/4:
+    # link at (1, 2) + Rz(pi/2)(1, 0) = (1, 3); collision at (1, 3) + Rz(pi/2)(0, 0.5) = (0.5, 3)
+    shape = _shape(composition, "rotated::arm::block")
+    assert shape.kind == "box"
+    assert shape.size == (0.4, 0.2, 1.0)
+    assert shape.pose == pytest.approx([0.5, 3.0, 0.5, 0.0, 0.0, 3 * math.pi / 4], abs=1e-12)
+    # its outline: a 0.4 x 0.2 rectangle turned by 3pi/4 about (0.5, 3.0)
+    poly = world_polygons(World("w", composition.source, (shape,)))[0]
+    half_diag = (0.2 + 0.1) * math.sqrt(0.5)  # |0.2 cos 45| + |0.1 sin 45|
+    assert poly.min(axis=0) == pytest.approx([0.5 - half_diag, 3.0 - half_diag], abs=1e-12)
+    assert poly.max(axis=0) == pytest.approx([0.5 + half_diag, 3.0 + half_diag], abs=1e-12)
+
+
+def test_full_6dof_composition_matches_independent_reference(composition):
+    expected = _compose([-3, 0, 1, 0.3, -0.4, 0.5], [0.2, -0.1, 0.3, 0.1, 0.2, -0.3],
+                        [0.5, 0.0, -0.2, -0.6, 0.25, 1.0])
+    shape = _shape(composition, "tilted::l::c")
+    got = pose_to_matrix(shape.pose)
+    np.testing.assert_allclose(got, expected, atol=1e-12)
+    assert shape.pose[:3] == pytest.approx(expected[:3, 3], abs=1e-12)
+
+
+def test_relative_to_a_model_frame(composition):
+    # frame 'mount' at (0, 2) yaw pi/2 in model 'framed' at (5, 0):
+    # link 'base' = mount ∘ (1, 0, 0) → (5, 3); collision of 'other' = mount ∘ (0, 1, 0.5) → (4, 2)
+    assert _shape(composition, "framed::base::c").pose == pytest.approx(
+        [5.0, 3.0, 0.0, 0.0, 0.0, math.pi / 2], abs=1e-12)
+    assert _shape(composition, "framed::other::c").pose == pytest.approx(
+        [4.0, 2.0, 0.5, 0.0, 0.0, math.pi / 2], abs=1e-12)
+
+
+def test_nested_model_composes_and_is_named_with_both_models(composition):
+    # outer at (0, -5) yaw pi; inner at (2, 0) in outer → (-2, -5)
+    shape = _shape(composition, "outer::inner::l::c")
+    assert shape.pose[:3] == pytest.approx([-2.0, -5.0, 0.5], abs=1e-12)
+    assert abs(shape.pose[5]) == pytest.approx(math.pi, abs=1e-12)
+
+
+def test_stl_mesh_outline_is_the_projected_hull(composition):
+    shape = _shape(composition, "crate::l::c")
+    assert shape.kind == "mesh"
+    assert shape.mesh_path == DATA / "world_cube.stl"
+    assert shape.size == (2.0, 1.0, 1.0)
+    poly = world_polygons(World("w", composition.source, (shape,)))[0]
+    # a 2 x 1 rectangle turned by pi/4 about (10, 0): corners at (10, 0) + R (±1, ±0.5)
+    corners = np.array([[c * 1.0, s * 0.5] for c in (-1, 1) for s in (-1, 1)])
+    rot = np.array([[math.cos(math.pi / 4), -math.sin(math.pi / 4)],
+                    [math.sin(math.pi / 4), math.cos(math.pi / 4)]])
+    expected = corners @ rot.T + [10.0, 0.0]
+    assert len(poly) == 4
+    for corner in expected:
+        assert np.min(np.linalg.norm(poly - corner, axis=1)) < 1e-9
+
+
+def test_composition_fixture_skips_ground_plane_sun_light_silently(composition):
+    assert composition.skipped == ()
+    assert len(composition.shapes) == 6
+
+
+@pytest.mark.parametrize("rpy", [(0.3, -0.4, 0.5), (-2.9, 1.2, 3.0), (0.0, 0.0, -math.pi),
+                                 (1.0, math.pi / 2, 0.2)])
+def test_rpy_matrix_round_trip(rpy):
+    rot = rpy_to_matrix(*rpy)
+    np.testing.assert_allclose(rot, Rotation.from_euler("xyz", rpy).as_matrix(), atol=1e-12)
+    np.testing.assert_allclose(rpy_to_matrix(*matrix_to_rpy(rot)), rot, atol=1e-9)
+
+
+# --------------------------------------------------------------------------- skipping
+
+
+def test_unsupported_elements_reported_once_each_by_name():
+    world = load_world(DATA / "world_unsupported.world")
+    assert world.skipped == (
+        "include 'model://turtlebot3_world'",  # included twice, reported once
+        "actor 'walker'",
+        "road 'lane'",
+        "heightmap 'terrain::link::collision'",
+        "polyline 'fence::link::collision'",
+        "polyline 'fence::link::collision_2'",
+        "mesh 'statue::link::collision' (meshes/missing_statue.stl not found)",
+    )
+    # ground_plane, sun, light, scene, gui and the horizontal floor plane: silent
+    assert not any("ground" in s or "sun" in s or "bulb" in s or "floor" in s
+                   for s in world.skipped)
+    # what is supported still loads
+    assert [s.name for s in world.shapes] == ["wall::link::collision"]
+    assert world.shapes[0].pose[:3] == pytest.approx([0.0, 3.0, 1.0])
+
+
+def _write_world(tmp_path: Path, body: str, name: str = "w.world") -> Path:
+    path = tmp_path / name
+    path.write_text(f'<?xml version="1.0"?>\n<sdf version="1.6"><world name="w">{body}'
+                    "</world></sdf>\n")
+    return path
+
+
+def _collision_model(name: str, geometry: str, pose: str = "0 0 0 0 0 0") -> str:
+    return (f'<model name="{name}"><static>true</static><pose>{pose}</pose><link name="l">'
+            f'<collision name="c"><geometry>{geometry}</geometry></collision></link></model>')
+
+
+def test_vertical_plane_reported_dae_mesh_reported(tmp_path):
+    (tmp_path / "statue.dae").write_text("<COLLADA/>")
+    path = _write_world(tmp_path, _collision_model("screen", "<plane><normal>1 0 0</normal>"
+                                                   "</plane>")
+                        + _collision_model("statue", "<mesh><uri>statue.dae</uri></mesh>"))
+    world = load_world(path)
+    assert world.skipped == ("plane 'screen::l::c'",
+                             "mesh 'statue::l::c' (.dae: only STL and OBJ are loaded)")
+    assert world.shapes == ()
+
+
+def test_obj_mesh_loads_and_an_unreadable_stl_is_reported(tmp_path):
+    # an OBJ octagonal prism, radius 0.5 m, height 1 m, about its centre
+    ang = np.arange(8) * math.pi / 4
+    ring = [(0.5 * math.cos(a), 0.5 * math.sin(a)) for a in ang]
+    verts = [f"v {x:.9f} {y:.9f} {z}" for z in (-0.5, 0.5) for x, y in ring]
+    faces = [f"f {i + 1} {(i + 1) % 8 + 1} {(i + 1) % 8 + 9} {i + 9}" for i in range(8)]
+    (tmp_path / "prism.obj").write_text("\n".join(verts + faces) + "\n")
+    (tmp_path / "broken.stl").write_text("solid broken\nfacet garbage\n")
+    path = _write_world(tmp_path, _collision_model(
+        "prism", "<mesh><uri>prism.obj</uri></mesh>", "2 1 0.5 0 0 0")
+        + _collision_model("junk", "<mesh><uri>broken.stl</uri></mesh>"))
+    world = load_world(path)
+    assert world.skipped == ("mesh 'junk::l::c' (broken.stl: mesh has no vertices)",)
+    (poly,) = world_polygons(world)
+    assert len(poly) == 8
+    np.testing.assert_allclose(np.linalg.norm(poly - [2.0, 1.0], axis=1), 0.5, atol=1e-9)
+
+
+def test_include_of_a_model_found_on_the_model_path(tmp_path, monkeypatch):
+    model_dir = tmp_path / "models" / "shelf"
+    (model_dir / "meshes").mkdir(parents=True)
+    (model_dir / "meshes" / "cube.stl").write_text((DATA / "world_cube.stl").read_text())
+    (model_dir / "model.config").write_text(
+        '<?xml version="1.0"?><model><name>shelf</name><sdf version="1.6">model.sdf</sdf>'
+        "</model>")
+    (model_dir / "model.sdf").write_text(
+        '<?xml version="1.0"?><sdf version="1.6"><model name="shelf"><static>true</static>'
+        '<pose>100 100 0 0 0 0</pose><link name="l"><pose>1 0 0 0 0 0</pose>'
+        '<collision name="c"><geometry><mesh><uri>model://shelf/meshes/cube.stl</uri>'
+        "</mesh></geometry></collision></link></model></sdf>")
+    monkeypatch.setenv("GAZEBO_MODEL_PATH", str(tmp_path / "models"))
+    world_dir = tmp_path / "w"
+    world_dir.mkdir()
+    path = _write_world(world_dir, "<include><uri>model://shelf</uri><name>shelf_a</name>"
+                        "<pose>2 3 0 0 0 1.5707963267948966</pose></include>")
+    world = load_world(path)
+    assert world.skipped == ()
+    (shape,) = world.shapes
+    assert shape.name == "shelf_a::l::c"
+    assert shape.mesh_path == model_dir / "meshes" / "cube.stl"
+    # the include's pose replaces the model's own: (2, 3) + Rz(pi/2)(1, 0) = (2, 4)
+    assert shape.pose == pytest.approx([2.0, 4.0, 0.0, 0.0, 0.0, math.pi / 2], abs=1e-12)
+
+
+def test_saved_world_state_overrides_model_pose_and_empty_frame_attribute(tmp_path):
+    """Gazebo classic's 'Save world': <pose frame=''> everywhere and a <state> applied on load."""
+    path = _write_world(tmp_path, (
+        "<model name='cube'><pose frame=''>1.6 -0.3 1.2 0 -0 1.56</pose><link name='link'>"
+        "<pose frame=''>0 0 0.025 0 -0 0</pose><collision name='collision'><geometry><box>"
+        "<size>0.046 0.046 0.046</size></box></geometry></collision></link></model>"
+        "<model name='table'><pose frame=''>3 0 0 0 -0 0</pose><link name='link'>"
+        "<collision name='c'><geometry><box><size>1 1 1</size></box></geometry></collision>"
+        "</link></model>"
+        "<state world_name='default'><sim_time>3028 346000000</sim_time>"
+        "<model name='cube'><pose frame=''>1.6 -0.3 1.012 0 -0 1.56</pose><scale>1 1 1</scale>"
+        "<link name='link'><pose frame=''>1.6 -0.3 1.037 0 -0 1.56</pose></link></model>"
+        "<light name='sun'><pose frame=''>0 0 10 0 -0 0</pose></light></state>"))
+    world = load_world(path)
+    assert world.skipped == ()
+    cube = _shape(world, "cube::link::collision")
+    assert cube.pose == pytest.approx([1.6, -0.3, 1.037, 0.0, 0.0, 1.56], abs=1e-12)
+    assert _shape(world, "table::link::c").pose[:3] == pytest.approx([3.0, 0.0, 0.0])
+
+
+# --------------------------------------------------------------------------- outlines
+
+
+def test_cylinder_and_sphere_are_circumscribed_32_gons(composition):
+    sphere = _shape(composition, "framed::base::c")
+    poly = world_polygons(World("w", composition.source, (sphere,)))[0]
+    assert len(poly) == 32
+    # every vertex at r / cos(pi/32) from the centre, so every edge touches the circle
+    dist = np.linalg.norm(poly - [5.0, 3.0], axis=1)
+    np.testing.assert_allclose(dist, 0.3 / math.cos(math.pi / 32), atol=1e-12)
+    mids = (poly + np.roll(poly, -1, axis=0)) / 2.0
+    np.testing.assert_allclose(np.linalg.norm(mids - [5.0, 3.0], axis=1), 0.3, atol=1e-12)
+    x, y = poly[:, 0], poly[:, 1]
+    assert np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)) > 0  # counter-clockwise
+
+
+@pytest.mark.parametrize(("z_min", "z_max", "kept"), [
+    (0.0, 2.0, ["post", "beam"]),     # default band
+    (0.0, 1.0, ["post"]),             # the beam (z 1.5..1.7) is above the band
+    (1.8, 3.0, ["post"]),             # only the 2 m post reaches 1.8..3
+    (2.5, 3.0, []),
+])
+def test_world_polygons_height_band(tmp_path, z_min, z_max, kept):
+    path = _write_world(tmp_path, "".join([
+        _collision_model("slab", "<box><size>10 10 0.1</size></box>", "0 0 -0.05 0 0 0"),
+        _collision_model("post", "<cylinder><radius>0.1</radius><length>2</length></cylinder>",
+                         "0 0 1 0 0 0"),
+        _collision_model("beam", "<box><size>3 0.2 0.2</size></box>", "5 0 1.6 0 0 0"),
+    ]))
+    world = load_world(path)
+    polys = world_polygons(world, z_min, z_max)
+    centres = [tuple(np.round(p.mean(axis=0), 6)) for p in polys]
+    expected = {"post": (0.0, 0.0), "beam": (5.0, 0.0)}
+    assert centres == [expected[k] for k in kept]  # the floor slab (top at z = 0) never
+
+
+# --------------------------------------------------------------------------- resolve / errors
+
+
+def test_resolve_world_by_name_and_by_path():
+    by_name = resolve_world("slim_blockage")
+    assert by_name.name == "slim_blockage.world"
+    assert resolve_world(str(by_name)) == by_name
+    assert resolve_world(by_name) == by_name
+
+
+def test_unknown_world_name_lists_available_with_did_you_mean():
+    with pytest.raises(InputError) as err:
+        resolve_world("slim_blokage")
+    msg = str(err.value)
+    assert msg.startswith("unknown world 'slim_blokage' (did you mean 'slim_blockage'?)")
+    assert "available: " in msg and "empty" in msg and "factory_floor" in msg
+    assert "\n" not in msg
+
+
+@pytest.mark.parametrize(("content", "problem"), [
+    (None, "no such world file"),
+    ("<sdf><world name='w'><model name='m'></world></sdf>", "malformed XML"),
+    ("", "malformed XML"),
+    ("<robot name='r'/>", "not an SDF file"),
+    ("<sdf version='1.6'></sdf>", "no <world> or <model>"),
+    ("<sdf><world name='w'><model name='m'><pose>1 2 x 0 0 0</pose></model></world></sdf>",
+     "<pose> must be 6 numbers, got '1 2 x 0 0 0'"),
+    ("<sdf><world name='w'><model name='m'><link name='l'><collision name='c'><geometry>"
+     "<box><size>1 1</size></box></geometry></collision></link></model></world></sdf>",
+     "m::l::c: <size> must be 3 numbers"),
+    ("<sdf><world name='w'><model name='m'><link name='l'><collision name='c'><geometry>"
+     "<cylinder><radius>1</radius></cylinder></geometry></collision></link></model></world>"
+     "</sdf>", "missing <length>"),
+    ("<sdf><world name='w'><model name='m'><link name='l'><pose relative_to='mout'>0 0 0 0 0 "
+     "0</pose></link><frame name='mount'/></model></world></sdf>",
+     "relative_to 'mout' names no frame (did you mean 'mount'?)"),
+])
+def test_bad_world_files_raise_one_line_naming_the_file(tmp_path, content, problem):
+    path = tmp_path / "bad.world"
+    if content is not None:
+        path.write_text(content)
+    with pytest.raises(InputError) as err:
+        load_world(path)
+    msg = str(err.value)
+    assert msg.startswith(str(path) if content is not None else str(path))
+    assert problem in msg
+    assert "\n" not in msg
+
+
+def test_world_is_frozen(slim):
+    with pytest.raises(AttributeError):
+        slim.name = "other"
+    with pytest.raises(ValueError):
+        slim.shapes[0].pose[0] = 1.0
