@@ -26,7 +26,7 @@ def _claim_domain_id() -> int:
             fh.close()
             continue
         _DOMAIN_LOCK = fh
-        return domain
+        return domain  # the lock file stays open until pytest_unconfigure
     raise RuntimeError("no free ROS_DOMAIN_ID in 101..199 for this test session")
 
 
@@ -40,3 +40,10 @@ def pytest_configure(config):
 @pytest.fixture(scope="session")
 def repo_root() -> Path:
     return Path(__file__).resolve().parents[1]
+
+
+def pytest_unconfigure(config):
+    global _DOMAIN_LOCK
+    if _DOMAIN_LOCK is not None:
+        _DOMAIN_LOCK.close()
+        _DOMAIN_LOCK = None
