@@ -1,0 +1,371 @@
+"""``swarm-commander NS``: drive one robot through the world's workstations (SPEC §5 Commander).
+
+::
+
+    swarm-commander Srobot3 [--world NAME|PATH] [--route random|PATH.yaml] [--loops N]
+                    [--seed S] [--wait-timeout SEC] [--name-prefix P] [--ros-args ...]
+
+It waits for the robot's navigator (its first ``nav_status``), then visits the stops of the
+route, one task per stop, and prints one line per task::
+
+    [Srobot3] task 4: reached loader2 in 41.2 s (sim)
+    [Srobot3] task 5: failed to reach loader1 after 0.4 s (sim): goal inside an obstacle
+
+and, at the end or on Ctrl-C, a summary line. ``NS`` may also be a robot number, joined to
+``--name-prefix`` (``3`` → ``Srobot3``). The node is ``/<NS>/commander``; it uses simulated time
+unless ``--ros-args -p use_sim_time:=false`` says otherwise.
+
+:class:`CommanderRunner` is the commander without the process around it: it owns the route state
+and is driven by its navigator node's callbacks (a wall-clock timer and the end of each task),
+never by a blocking loop, so the commanders of many robots can share one executor.
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import rclpy
+from geometry_msgs.msg import PoseStamped
+from rclpy._rclpy_pybind11 import RCLInvalidROSArgsError
+from rclpy.clock import Clock, ClockType
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.logging import LoggingSeverity
+from rclpy.parameter import Parameter
+from rclpy.task import Future
+from rclpy.utilities import remove_ros_args
+
+from swarm_commander.robot_navigator import BasicNavigator, TaskResult
+from swarm_commander.route import (
+    FixedRoute,
+    RandomRoute,
+    RouteStop,
+    load_route,
+    route_rng,
+    stops_from_workstations,
+    visits,
+)
+from swarm_common.errors import EXIT_BAD_INPUT, EXIT_OK, EXIT_RUNTIME, InputError, run_cli
+from swarm_common.geometry import yaw_to_quaternion
+from swarm_common.poi import poi_for_world
+from swarm_common.world import resolve_world
+
+PROG = "swarm-commander"
+NODE_NAME = "commander"
+_NAME_TOKEN = r"[A-Za-z_][A-Za-z0-9_]*"
+_NAMESPACE = re.compile(rf"^{_NAME_TOKEN}(/{_NAME_TOKEN})*$")
+
+
+@dataclass(frozen=True)
+class CommanderConfig:
+    """Settings of one robot's commander.
+
+    Attributes:
+        loops: loops over the route; 0 = forever.
+        wait_timeout: [s] wall: how long to wait for the navigator's first ``nav_status``.
+        poll_period: [s] wall: period of the runner's timer (waiting, retries).
+    """
+
+    loops: int = 0
+    wait_timeout: float = 30.0
+    poll_period: float = 0.1
+
+
+class CommanderRunner:
+    """One robot's commander, driven by its navigator node's callbacks.
+
+    It adds a wall-clock timer to ``navigator`` and sets ``navigator.on_task_complete``; whoever
+    spins the node (alone, or with other robots' nodes in one executor) drives it. When the route
+    is done, or the navigator never answers, :attr:`finished` completes with the exit code
+    (0 done; 2 no ``nav_status`` within ``cfg.wait_timeout``; 1 a status but no ``goal_pose``
+    subscriber) and :attr:`error` holds the one-line reason.
+
+    Args:
+        navigator: the robot's :class:`BasicNavigator` (its namespace is the robot's).
+        route: where the stops come from (:class:`RandomRoute` or :class:`FixedRoute`).
+        cfg: the settings.
+        emit: called with each output line (a task's outcome, the summary).
+    """
+
+    def __init__(self, navigator: BasicNavigator, route: RandomRoute | FixedRoute,
+                 cfg: CommanderConfig, emit: Callable[[str], None] = print):
+        self.nav = navigator
+        self.cfg = cfg
+        self.emit = emit
+        self.label = navigator.get_namespace().strip("/") or navigator.get_name()
+        self.tasks = 0
+        self.reached = 0
+        self.failed = 0
+        self.canceled = 0
+        self.error: str | None = None
+        """The one-line error when the commander gave up (no navigator), else None."""
+        self.finished = Future()
+        self._visits = visits(route, cfg.loops)
+        self._started = False
+        self._pending: RouteStop | None = None
+        self._current: RouteStop | None = None
+        self._task_start_ns = 0
+        self._first_start_ns: int | None = None
+        self._deadline = time.monotonic() + cfg.wait_timeout
+        navigator.on_task_complete = self._on_task_complete
+        self._timer = navigator.create_timer(
+            cfg.poll_period, self._on_timer, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    @property
+    def clock_label(self) -> str:
+        """``"sim"`` when the node runs on simulated time, else ``"wall"``."""
+        return "sim" if self.nav.get_parameter("use_sim_time").value else "wall"
+
+    def summary(self) -> str:
+        """The summary line: tasks, outcomes, and the time since the first goal."""
+        elapsed = 0.0
+        if self._first_start_ns is not None:
+            elapsed = (self._now_ns() - self._first_start_ns) / 1e9
+        unfinished = ", 1 unfinished" if self._current is not None else ""
+        return (f"[{self.label}] summary: {self.tasks} tasks: {self.reached} reached, "
+                f"{self.failed} failed, {self.canceled} canceled{unfinished} in {elapsed:.1f} s "
+                f"({self.clock_label})")
+
+    @property
+    def started(self) -> bool:
+        """True once the navigator answered (tasks may have been sent)."""
+        return self._started
+
+    def stop(self) -> None:
+        """Stop driving: cancel the timer and detach from the navigator (the goal runs on)."""
+        self._timer.cancel()
+        if self.nav.on_task_complete == self._on_task_complete:
+            self.nav.on_task_complete = None
+
+    # -- callbacks
+
+    def _on_timer(self) -> None:
+        self._step()
+
+    def _on_task_complete(self, result: TaskResult) -> None:
+        self._step()
+
+    def _step(self) -> None:
+        if self.finished.done():
+            return
+        if not self._started:
+            if self.nav.navigator_ready:
+                self._started = True
+            elif time.monotonic() >= self._deadline:
+                status = self.nav.get_namespace().rstrip("/") + "/nav_status"
+                if self.nav.nav_status_received:
+                    goal = self.nav.get_namespace().rstrip("/") + "/goal_pose"
+                    self._fail(EXIT_RUNTIME, f"{self.label}: the navigator publishes {status} "
+                               f"but nothing subscribes {goal} within {self.cfg.wait_timeout:g} s")
+                else:
+                    self._fail(EXIT_BAD_INPUT, f"{self.label}: no navigator answered on {status} "
+                               f"within {self.cfg.wait_timeout:g} s")
+                return
+            else:
+                return
+        if self._current is not None:
+            if not self.nav.task_complete():
+                return
+            self._report(self.nav.getResult())
+            self._current = None
+        if self._pending is None:
+            visit = next(self._visits, None)
+            if visit is None:
+                self._finish()
+                return
+            self._pending = visit[1]
+        if self.nav.goToPose(_pose_msg(self._pending)):
+            self._current, self._pending = self._pending, None
+            self.tasks += 1
+            self._task_start_ns = self._now_ns()
+            if self._first_start_ns is None:
+                self._first_start_ns = self._task_start_ns
+        # else: the navigator is gone for now; the timer retries
+
+    def _report(self, result: TaskResult) -> None:
+        elapsed = (self._now_ns() - self._task_start_ns) / 1e9
+        head = f"[{self.label}] task {self.tasks}:"
+        name, clock = self._current.name, self.clock_label
+        if result == TaskResult.SUCCEEDED:
+            self.reached += 1
+            self.emit(f"{head} reached {name} in {elapsed:.1f} s ({clock})")
+            return
+        feedback = self.nav.getFeedback()
+        reason = feedback.reason if feedback is not None and feedback.reason else "no reason given"
+        if result == TaskResult.CANCELED:
+            self.canceled += 1
+            self.emit(f"{head} canceled on the way to {name} after {elapsed:.1f} s ({clock}): "
+                      f"{reason}")
+        else:
+            self.failed += 1
+            self.emit(f"{head} failed to reach {name} after {elapsed:.1f} s ({clock}): {reason}")
+
+    def _finish(self) -> None:
+        self.stop()
+        self.finished.set_result(EXIT_OK)
+
+    def _fail(self, code: int, message: str) -> None:
+        self.error = message
+        self.stop()
+        self.finished.set_result(code)
+
+    def _now_ns(self) -> int:
+        return self.nav.get_clock().now().nanoseconds
+
+
+def _pose_msg(stop: RouteStop) -> PoseStamped:
+    msg = PoseStamped()
+    msg.header.frame_id = "map"
+    msg.pose.position.x, msg.pose.position.y = float(stop.pose[0]), float(stop.pose[1])
+    o = msg.pose.orientation
+    o.x, o.y, o.z, o.w = yaw_to_quaternion(float(stop.pose[2]))
+    return msg
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse whose errors are the one-line InputError of the exit-code contract."""
+
+    def error(self, message):
+        raise InputError(message)
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = _Parser(prog=PROG, description="Drive one robot through the world's workstations "
+                "(nav2 simple-commander style), looping, and print each arrival.")
+    p.add_argument("ns", metavar="NS",
+                   help="the robot's namespace (Srobot3, /Srobot3) or number (3, with "
+                        "--name-prefix)")
+    p.add_argument("--world", default="slim_blockage", metavar="NAME|PATH",
+                   help="world whose workstations to visit: a name under worlds/ or a "
+                        ".world/.sdf path (default: %(default)s)")
+    p.add_argument("--route", default="random", metavar="random|PATH.yaml",
+                   help="'random': every workstation once per loop in a seeded random order; "
+                        "or a route file (waypoints: names or {name, x, y, yaw}) "
+                        "(default: %(default)s)")
+    p.add_argument("--loops", type=int, default=0, metavar="N",
+                   help="loops over the route; 0 = forever (default: %(default)s)")
+    p.add_argument("--seed", type=int, default=0, metavar="S",
+                   help="seed of the random order, mixed with NS (default: %(default)s)")
+    p.add_argument("--wait-timeout", type=float, default=30.0, metavar="SEC",
+                   help="wall seconds to wait for the navigator (default: %(default)s)")
+    p.add_argument("--name-prefix", default="Srobot", metavar="PREFIX",
+                   help="prefix of robot namespaces, for a numeric NS (default: %(default)s)")
+    return p
+
+
+def _namespace(ns: str, prefix: str) -> str:
+    if not re.fullmatch(_NAME_TOKEN, prefix):
+        raise InputError(f"--name-prefix: {prefix!r} is not a valid ROS name (letters, digits "
+                         "and _, not starting with a digit)")
+    name = ns.strip()
+    if name.isdigit():
+        name = f"{prefix}{int(name)}"
+    name = name[1:] if name.startswith("/") else name
+    if not _NAMESPACE.match(name):
+        raise InputError(f"NS: {ns!r} is not a valid ROS namespace (letters, digits and _ "
+                         "separated by /, each part not starting with a digit)")
+    return name
+
+
+def _route(opts, ns: str) -> RandomRoute | FixedRoute:
+    try:
+        world = resolve_world(opts.world)
+    except InputError as exc:
+        raise InputError(f"--world: {exc}") from None
+    poi = poi_for_world(world)
+    workstations = poi.workstations if poi is not None else ()
+    if opts.route == "random":
+        if not workstations:
+            where = (f"none in {poi.source}" if poi is not None
+                     else f"no {world.with_suffix('.yaml').name} beside it")
+            raise InputError(f"--world: world {world.stem} has no workstations ({where})")
+        return RandomRoute(stops_from_workstations(workstations), route_rng(opts.seed, ns))
+    return FixedRoute(load_route(opts.route, workstations))
+
+
+def _check(opts) -> None:
+    if opts.loops < 0:
+        raise InputError(f"--loops: must be >= 0 (0 = forever), got {opts.loops}")
+    if opts.seed < 0:
+        raise InputError(f"--seed: must be a non-negative integer, got {opts.seed}")
+    if not opts.wait_timeout > 0:
+        raise InputError(f"--wait-timeout: must be a positive number of seconds, got "
+                         f"{opts.wait_timeout:g}")
+
+
+def _use_sim_time_by_default(node: BasicNavigator) -> None:
+    """Turn ``use_sim_time`` on unless ``--ros-args`` (``-p`` or a params file) set it."""
+    overrides = getattr(node, "_parameter_overrides", {})  # rclpy: the command line's values
+    if "use_sim_time" not in overrides:
+        node.set_parameters([Parameter("use_sim_time", Parameter.Type.BOOL, True)])
+
+
+def _emit(line: str) -> None:
+    print(line, flush=True)
+
+
+def _non_ros_args(argv: list[str]) -> list[str]:
+    """The command line without its ``--ros-args ... [--]`` part; InputError if that is bad."""
+    try:
+        return remove_ros_args([PROG, *argv])[1:]
+    except RCLInvalidROSArgsError as exc:
+        problem = str(exc).split(", at /")[0].removeprefix("Failed to parse ROS arguments: ")
+        raise InputError(f"--ros-args: {problem}") from None
+
+
+def _run(argv: list[str]) -> int:
+    opts = _parser().parse_args(_non_ros_args(argv))
+    _check(opts)
+    ns = _namespace(opts.ns, opts.name_prefix)
+    route = _route(opts, ns)
+    cfg = CommanderConfig(loops=opts.loops, wait_timeout=opts.wait_timeout)
+
+    rclpy.init(args=[PROG, *argv])
+    node = None
+    runner = None
+    executor = SingleThreadedExecutor()
+    code = EXIT_OK
+    try:
+        node = BasicNavigator(node_name=NODE_NAME, namespace=ns)
+        _use_sim_time_by_default(node)
+        node.get_logger().set_level(LoggingSeverity.WARN)  # the task lines say what happens
+        runner = CommanderRunner(node, route, cfg, emit=_emit)
+        executor.add_node(node)
+        executor.spin_until_future_complete(runner.finished)
+        code = runner.finished.result() if runner.finished.done() else EXIT_OK
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if runner is not None:
+            runner.stop()
+            if runner.started:
+                _emit(runner.summary())
+        executor.shutdown(timeout_sec=0)
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    if runner is not None and runner.error:
+        print(f"{PROG}: error: {runner.error}", file=sys.stderr)
+    return code
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point of ``swarm-commander``.
+
+    Args:
+        args: the command line without the program name; ``sys.argv[1:]`` if None.
+
+    Returns:
+        0 when the route is done or on Ctrl-C; 2 on bad input or when no navigator answers;
+        1 when a navigator answers but does not take goals.
+    """
+    argv = list(sys.argv[1:] if args is None else args)
+    return run_cli(PROG, lambda: _run(argv))
+
+
+if __name__ == "__main__":
+    sys.exit(main())
