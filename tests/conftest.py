@@ -2,7 +2,8 @@
 
 Every test session claims its own ``ROS_DOMAIN_ID`` (an flock on ``/tmp/swarm_wb_domain_<id>.lock``
 held for the whole session) and sets ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, so two test runs
-on one machine never hear each other.  Processes started by tests inherit both.
+on one machine never hear each other.  Processes started by tests inherit both.  The session removes orphaned Fast DDS shared-memory
+files before it starts and the ones its own processes left behind when it ends.
 """
 
 from __future__ import annotations
@@ -13,7 +14,10 @@ from pathlib import Path
 
 import pytest
 
+from swarm_up import shm
+
 _DOMAIN_LOCK = None
+_SHM_BEFORE: frozenset[str] = frozenset()
 
 
 def _claim_domain_id() -> int:
@@ -35,6 +39,11 @@ def pytest_configure(config):
         os.environ["SWARM_WB_TEST_DOMAIN"] = str(_claim_domain_id())
     os.environ["ROS_DOMAIN_ID"] = os.environ["SWARM_WB_TEST_DOMAIN"]
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    # Orphans of killed processes (no live process holds them) make Fast DDS print
+    # "Failed init_port ... open_and_lock_file failed" into every node's output: remove them.
+    global _SHM_BEFORE
+    shm.clean_stale(frozenset(), min_age_s=5.0)
+    _SHM_BEFORE = shm.snapshot()
 
 
 @pytest.fixture(scope="session")
@@ -44,6 +53,7 @@ def repo_root() -> Path:
 
 def pytest_unconfigure(config):
     global _DOMAIN_LOCK
+    shm.clean_stale(_SHM_BEFORE, min_age_s=0.0)
     if _DOMAIN_LOCK is not None:
         _DOMAIN_LOCK.close()
         _DOMAIN_LOCK = None

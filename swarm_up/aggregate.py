@@ -1,0 +1,338 @@
+"""Run figures from the navigators' status stream, the swarm events and the simulator's summary.
+
+Pure: no ROS import.  :class:`RunRecorder` is fed plain dicts (the metrics node converts
+``diagnostic_msgs`` messages into them) and :func:`aggregate` turns its state, the simulator's
+``--summary`` JSON and the orchestrator's own figures into the ``--metrics`` dict (SPEC §6).
+
+Definitions (``docs/ARCHITECTURE.md``, ``/<ns>/nav_status``):
+
+- *ready*: the first status a robot's navigator publishes; ``spawn_to_ready_s`` is the wall time
+  from the start of the run (the simulator's launch) to the moment the last robot became ready.
+- *goal reached* / *aborted*: a goal id whose state became ``SUCCEEDED`` / ``ABORTED``; each goal
+  id counts once, however often the status is re-published (and a restarted navigator's
+  re-publication of the same goal is not counted twice).  A status without a goal id counts on the
+  transition into the state.
+- *time to goal*: ``navigation_time_s`` of the first ``SUCCEEDED`` status of a goal [s].
+- *holding time*: the latest ``holding_time_s`` of every goal, summed [s].
+- *task*: one goal reached (every commander goal is one workstation visit), so
+  ``tasks_completed == goals_reached`` and ``throughput_per_hour`` is tasks per simulated hour.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+SUCCEEDED = "SUCCEEDED"
+ABORTED = "ABORTED"
+
+SIM_SUMMARY_KEYS = (
+    "ticks",
+    "sim_time_s",
+    "wall_time_s",
+    "late_ticks",
+    "collisions",
+    "min_separation_m",
+    "per_robot",
+)
+
+
+def _float(value) -> float | None:
+    """A finite float from a string/number, else None."""
+    try:
+        out = float(value)
+    except (TypeError, ValueError):
+        return None
+    return out if math.isfinite(out) else None
+
+
+@dataclass
+class RobotRecord:
+    """What the recorder knows about one robot."""
+
+    ready_wall_s: float | None = None  # [s] since the run's start
+    state: str = ""
+    statuses: int = 0
+    reached: dict[str, float | None] = field(default_factory=dict)  # goal id -> time to goal [s]
+    aborted: set[str] = field(default_factory=set)
+    abort_reasons: dict[str, str] = field(default_factory=dict)
+    holding_s: dict[str, float] = field(default_factory=dict)  # goal id -> latest holding [s]
+    anonymous_reached: int = 0
+    anonymous_aborted: int = 0
+    anonymous_ttg: list[float] = field(default_factory=list)
+    collisions: int = 0  # from /swarm/events
+    spawned: bool = False
+    late_events: int = 0
+
+
+@dataclass
+class RunRecorder:
+    """Incremental state of a run, fed by the metrics node.
+
+    Args:
+        robots: the namespaces, without the leading ``/`` (``Srobot1`` ...).
+    """
+
+    robots: tuple[str, ...]
+    per_robot: dict[str, RobotRecord] = field(default_factory=dict)
+    last_sim_time_s: float | None = None  # [s] latest /clock
+    collision_events: dict[str, int] = field(default_factory=lambda: {"robot_robot": 0,
+                                                                      "robot_wall": 0})
+    fault_events: int = 0
+    spawn_events: int = 0
+
+    def __post_init__(self) -> None:
+        for ns in self.robots:
+            self.per_robot.setdefault(ns, RobotRecord())
+
+    # ---------------------------------------------------------------- inputs
+    def on_status(self, robot: str, values: dict[str, str], wall_s: float,
+                  message: str = "") -> None:
+        """One ``/<ns>/nav_status`` message.
+
+        Args:
+            robot: namespace without ``/``.
+            values: the status's ``values`` as a dict of strings (``state``, ``goal_id``,
+                ``navigation_time_s``, ``holding_time_s``, ``reason``, ...).
+            wall_s: receive time since the run's start [s].
+            message: the status's ``message`` (the state, used if ``values`` has none).
+        """
+        rec = self.per_robot.setdefault(robot, RobotRecord())
+        rec.statuses += 1
+        if rec.ready_wall_s is None:
+            rec.ready_wall_s = wall_s
+        state = (values.get("state") or message or "").strip().upper()
+        goal = (values.get("goal_id") or "").strip()
+        previous, rec.state = rec.state, state
+        holding = _float(values.get("holding_time_s"))
+        if goal and holding is not None:
+            rec.holding_s[goal] = holding
+        if state == SUCCEEDED:
+            ttg = _float(values.get("navigation_time_s"))
+            if goal:
+                if goal not in rec.reached:
+                    rec.reached[goal] = ttg
+            elif previous != SUCCEEDED:
+                rec.anonymous_reached += 1
+                if ttg is not None:
+                    rec.anonymous_ttg.append(ttg)
+        elif state == ABORTED:
+            if goal:
+                if goal not in rec.aborted:
+                    rec.aborted.add(goal)
+                    rec.abort_reasons[goal] = values.get("reason", "")
+            elif previous != ABORTED:
+                rec.anonymous_aborted += 1
+
+    def on_event(self, kind: str, values: dict[str, str]) -> None:
+        """One event (one ``DiagnosticStatus``) of ``/swarm/events``.
+
+        Args:
+            kind: the status ``name``: ``spawn``, ``collision``, ``late``, ``fault``.
+            values: its values (``robot``, ``other`` for robot-robot, ``x``, ``y``, ``t``).
+        """
+        robot = values.get("robot", "").strip().lstrip("/")
+        rec = self.per_robot.get(robot)
+        if kind == "collision":
+            other = values.get("other", "").strip().lstrip("/")
+            if other in self.per_robot:
+                self.collision_events["robot_robot"] += 1
+                self.per_robot[other].collisions += 1
+            else:
+                self.collision_events["robot_wall"] += 1
+            if rec is not None:
+                rec.collisions += 1
+        elif kind == "spawn":
+            self.spawn_events += 1
+            if rec is not None:
+                rec.spawned = True
+        elif kind == "late":
+            if rec is not None:
+                rec.late_events += 1
+        elif kind == "fault":
+            self.fault_events += 1
+
+    def on_clock(self, sim_time_s: float) -> None:
+        """One ``/clock`` message [s]."""
+        self.last_sim_time_s = sim_time_s
+
+    # ---------------------------------------------------------------- queries
+    @property
+    def ready_count(self) -> int:
+        """Robots whose navigator has published at least one status."""
+        return sum(1 for ns in self.robots if self.per_robot[ns].ready_wall_s is not None)
+
+    @property
+    def spawned_count(self) -> int:
+        """Robots with a ``spawn`` event."""
+        return sum(1 for ns in self.robots if self.per_robot[ns].spawned)
+
+    def not_ready(self) -> list[str]:
+        """Namespaces whose navigator has not published yet."""
+        return [ns for ns in self.robots if self.per_robot[ns].ready_wall_s is None]
+
+    def spawn_to_ready_s(self) -> float | None:
+        """Wall time from the run's start until every robot was ready [s]; None if not all were."""
+        times = [self.per_robot[ns].ready_wall_s for ns in self.robots]
+        if not times or any(t is None for t in times):
+            return None
+        return max(times)
+
+
+def load_sim_summary(path: Path | str | None) -> tuple[dict, list[str]]:
+    """Read the simulator's ``--summary`` JSON tolerantly.
+
+    Args:
+        path: the file (None: there is none).
+
+    Returns:
+        ``(summary, warnings)``: every key of :data:`SIM_SUMMARY_KEYS` is present (None when the
+        file or the key is missing), plus any other keys the file has; one warning line per
+        problem.
+    """
+    summary: dict = dict.fromkeys(SIM_SUMMARY_KEYS)
+    warnings: list[str] = []
+    if path is None:
+        return summary, ["no simulator summary; simulator figures are null"]
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except FileNotFoundError:
+        return summary, [f"{path}: simulator summary missing; simulator figures are null"]
+    except (OSError, ValueError) as exc:
+        return summary, [f"{path}: unreadable simulator summary ({exc}); figures are null"]
+    if not isinstance(data, dict):
+        return summary, [f"{path}: simulator summary is not a JSON object; figures are null"]
+    summary.update(data)
+    missing = [k for k in SIM_SUMMARY_KEYS if data.get(k) is None]
+    if missing:
+        warnings.append(f"{path}: simulator summary lacks {', '.join(missing)}; those are null")
+    return summary, warnings
+
+
+def _ratio(num, den) -> float | None:
+    num, den = _float(num), _float(den)
+    if num is None or den is None or den <= 0:
+        return None
+    return num / den
+
+
+def aggregate(
+    recorder: RunRecorder,
+    sim_summary: dict,
+    *,
+    world: str,
+    seed: int,
+    coordination: str,
+    wall_time_s: float,
+    resources: dict | None = None,
+    restarts: int = 0,
+    extra: dict | None = None,
+) -> dict:
+    """The ``--metrics`` dict of a run (SPEC §6).
+
+    Simulator figures (``sim_time_s``, ``rtf``, ticks, collisions, separation, late ticks,
+    distances) come from the simulator's summary; where it lacks them, from the recorder's
+    ``/clock`` and ``/swarm/events`` (collisions, late ticks) or None.
+
+    Args:
+        recorder: the run's recorder.
+        sim_summary: from :func:`load_sim_summary`.
+        world: the world's name.
+        seed: the run's seed.
+        coordination: ``decentralized`` | ``centralized``.
+        wall_time_s: the orchestrator's wall time from start to stop [s] (used when the
+            simulator's own ``wall_time_s`` is missing).
+        resources: ``cpu_percent`` [%] and ``peak_rss_mb_per_robot`` [MB] (ResourceSampler).
+        restarts: restarts of navigators/commanders/groups.
+        extra: more keys to add (run dir, process layout, ...).
+
+    Returns:
+        A JSON-serialisable dict with the keys of SPEC §6 (None where unknown).
+    """
+    robots = recorder.robots
+    n = len(robots)
+    sim_time = _float(sim_summary.get("sim_time_s"))
+    if sim_time is None:
+        sim_time = recorder.last_sim_time_s
+    sim_wall = _float(sim_summary.get("wall_time_s"))
+    wall = sim_wall if sim_wall is not None else wall_time_s
+    ticks = _float(sim_summary.get("ticks"))
+
+    reached = aborted = 0
+    ttgs: list[float] = []
+    holding_total = 0.0
+    sim_per_robot = sim_summary.get("per_robot") or {}
+    if not isinstance(sim_per_robot, dict):
+        sim_per_robot = {}
+    per_robot = {}
+    for ns in robots:
+        rec = recorder.per_robot[ns]
+        r_reached = len(rec.reached) + rec.anonymous_reached
+        r_aborted = len(rec.aborted) + rec.anonymous_aborted
+        ttgs += [t for t in rec.reached.values() if t is not None] + rec.anonymous_ttg
+        r_hold = sum(rec.holding_s.values())
+        reached += r_reached
+        aborted += r_aborted
+        holding_total += r_hold
+        sim_r = sim_per_robot.get(ns) or sim_per_robot.get("/" + ns) or {}
+        collisions = sim_r.get("collisions")
+        per_robot[ns] = {
+            "goals_reached": r_reached,
+            "goals_aborted": r_aborted,
+            "collisions": collisions if collisions is not None else rec.collisions,
+            "distance_m": sim_r.get("distance_m"),
+            "holding_time_s": r_hold,
+            "late_ticks": sim_r.get("late_ticks"),
+            "ready_s": rec.ready_wall_s,
+        }
+
+    collisions = sim_summary.get("collisions")
+    if not isinstance(collisions, dict):
+        collisions = dict(recorder.collision_events)
+    else:
+        collisions = {
+            "robot_robot": collisions.get("robot_robot"),
+            "robot_wall": collisions.get("robot_wall"),
+        }
+    late = sim_summary.get("late_ticks")
+    if late is None and any(r.late_events for r in recorder.per_robot.values()):
+        late = sum(r.late_events for r in recorder.per_robot.values())
+
+    rtf = _ratio(sim_time, wall)
+    robot_ticks = _ratio(ticks * n, wall) if ticks is not None else None
+    hours = sim_time / 3600.0 if sim_time else None
+    resources = resources or {}
+    metrics = {
+        "robots": n,
+        "world": world,
+        "seed": seed,
+        "coordination": coordination,
+        "sim_time_s": sim_time,
+        "wall_time_s": wall,
+        "orchestrator_wall_time_s": wall_time_s,
+        "rtf": rtf,
+        "ticks": int(ticks) if ticks is not None else None,
+        "robot_ticks_per_s": robot_ticks,
+        "spawn_to_ready_s": recorder.spawn_to_ready_s(),
+        "goals_reached": reached,
+        "goals_aborted": aborted,
+        "tasks_completed": reached,
+        "throughput_per_hour": (reached / hours) if hours else None,
+        "collisions": collisions,
+        "min_separation_m": _float(sim_summary.get("min_separation_m")),
+        "mean_time_to_goal_s": (sum(ttgs) / len(ttgs)) if ttgs else None,
+        "holding_time_s": holding_total,
+        "late_ticks": late,
+        "cpu_percent": resources.get("cpu_percent"),
+        "peak_rss_mb_per_robot": resources.get("peak_rss_mb_per_robot"),
+        "sim_peak_rss_mb": resources.get("sim_peak_rss_mb"),
+        "restarts": restarts,
+        "faults": recorder.fault_events,
+        "per_robot": per_robot,
+    }
+    if extra:
+        metrics.update(extra)
+    return metrics

@@ -1,0 +1,142 @@
+"""The orchestrator's metrics node: listens to the swarm and feeds a :class:`RunRecorder`.
+
+It subscribes to ``/<ns>/nav_status`` of every robot (``diagnostic_msgs/DiagnosticStatus``,
+reliable + transient local, depth 1), ``/swarm/events`` (``diagnostic_msgs/DiagnosticArray``,
+reliable, depth 100) and ``/clock``, converts each message to plain values and hands them to the
+pure recorder (``swarm_up.aggregate``).  It spins in a background thread with its own executor
+and context, so the orchestrator's main thread keeps supervising.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+from rosgraph_msgs.msg import Clock
+
+from swarm_up.aggregate import RunRecorder
+
+STATUS_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+EVENTS_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=100, reliability=ReliabilityPolicy.RELIABLE
+)
+CLOCK_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.BEST_EFFORT
+)
+
+
+class MetricsNode(Node):
+    """Converts the swarm's status, events and clock into recorder calls.
+
+    Args:
+        recorder: the recorder to feed (guarded by ``lock``).
+        lock: taken around every recorder call.
+        t0: ``time.monotonic()`` of the run's start [s]; statuses are stamped relative to it.
+        context: the rclpy context to create the node in.
+    """
+
+    def __init__(self, recorder: RunRecorder, lock: threading.Lock, t0: float, context=None):
+        super().__init__("swarm_up_metrics", context=context)
+        # state
+        self._recorder = recorder
+        self._lock = lock
+        self._t0 = t0
+        # subscriptions
+        self._subs = [
+            self.create_subscription(
+                DiagnosticStatus,
+                f"/{ns}/nav_status",
+                lambda msg, ns=ns: self._on_nav_status(ns, msg),
+                STATUS_QOS,
+            )
+            for ns in recorder.robots
+        ]
+        self._subs.append(
+            self.create_subscription(DiagnosticArray, "/swarm/events", self._on_events, EVENTS_QOS)
+        )
+        self._subs.append(self.create_subscription(Clock, "/clock", self._on_clock, CLOCK_QOS))
+
+    def _on_nav_status(self, ns: str, msg: DiagnosticStatus) -> None:
+        values = {kv.key: kv.value for kv in msg.values}
+        wall_s = time.monotonic() - self._t0
+        with self._lock:
+            self._recorder.on_status(ns, values, wall_s, message=msg.message)
+
+    def _on_events(self, msg: DiagnosticArray) -> None:
+        with self._lock:
+            for status in msg.status:
+                self._recorder.on_event(status.name, {kv.key: kv.value for kv in status.values})
+
+    def _on_clock(self, msg: Clock) -> None:
+        sim_s = msg.clock.sec + msg.clock.nanosec * 1e-9
+        with self._lock:
+            self._recorder.on_clock(sim_s)
+
+
+class MetricsListener:
+    """Runs a :class:`MetricsNode` in a background thread with its own context and executor.
+
+    Args:
+        robots: the namespaces, without ``/``.
+        t0: ``time.monotonic()`` of the run's start [s].
+    """
+
+    def __init__(self, robots: tuple[str, ...], t0: float):
+        self.recorder = RunRecorder(robots=tuple(robots))
+        self.lock = threading.Lock()
+        self._t0 = t0
+        self._context = rclpy.Context()
+        self._node: MetricsNode | None = None
+        self._executor: SingleThreadedExecutor | None = None
+        self._thread: threading.Thread | None = None
+        self._running = threading.Event()
+
+    def start(self) -> None:
+        """Create the node and start spinning it."""
+        rclpy.init(context=self._context, signal_handler_options=SignalHandlerOptions.NO)
+        self._node = MetricsNode(self.recorder, self.lock, self._t0, context=self._context)
+        self._executor = SingleThreadedExecutor(context=self._context)
+        self._executor.add_node(self._node)
+        self._running.set()
+        self._thread = threading.Thread(target=self._spin, name="swarm_up_metrics", daemon=True)
+        self._thread.start()
+
+    def _spin(self) -> None:
+        while self._running.is_set() and self._context.ok():
+            try:
+                self._executor.spin_once(timeout_sec=0.1)
+            except Exception:  # a shutdown race must not kill the thread loudly
+                if not self._running.is_set():
+                    break
+                raise
+
+    def stop(self) -> None:
+        """Stop spinning, destroy the node and shut its context down (idempotent)."""
+        self._running.clear()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+            self._thread = None
+        if self._executor is not None:
+            self._executor.shutdown(timeout_sec=1.0)
+            self._executor = None
+        if self._node is not None:
+            self._node.destroy_node()
+            self._node = None
+        if self._context.ok():
+            self._context.try_shutdown()
+
+    def snapshot(self) -> tuple[int, int]:
+        """``(spawned, ready)`` robot counts now."""
+        with self.lock:
+            return self.recorder.spawned_count, self.recorder.ready_count

@@ -1,0 +1,199 @@
+"""Run figures from a synthetic status/event stream and simulator summary (pure, no ROS)."""
+
+import ast
+import json
+from pathlib import Path
+
+import pytest
+
+from swarm_up.aggregate import RunRecorder, aggregate, load_sim_summary
+
+ROBOTS = ("Srobot1", "Srobot2", "Srobot3")
+
+
+def _status(state, goal="", nav_t=None, hold=None, reason=""):
+    values = {"state": state, "goal_id": goal, "reason": reason}
+    if nav_t is not None:
+        values["navigation_time_s"] = str(nav_t)
+    if hold is not None:
+        values["holding_time_s"] = str(hold)
+    return values
+
+
+def _stream(rec: RunRecorder) -> None:
+    """Three robots; readiness at 1.0, 1.5, 2.5 s wall; two goals reached by robot 1."""
+    rec.on_status("Srobot1", _status("IDLE"), 1.0)
+    rec.on_status("Srobot2", _status("IDLE"), 1.5)
+    rec.on_status("Srobot1", _status("DRIVING", "10.000000000", 0.5), 3.0)
+    rec.on_status("Srobot1", _status("HOLDING", "10.000000000", 4.0, hold=2.0), 3.5)
+    rec.on_status("Srobot1", _status("HOLDING", "10.000000000", 6.0, hold=3.5), 4.0)
+    rec.on_status("Srobot1", _status("SUCCEEDED", "10.000000000", 12.0, hold=3.5), 5.0)
+    # re-published at 2 Hz, and again by a restarted navigator: counted once
+    rec.on_status("Srobot1", _status("SUCCEEDED", "10.000000000", 12.5, hold=3.5), 5.5)
+    rec.on_status("Srobot1", _status("SUCCEEDED", "10.000000000", 12.5, hold=3.5), 9.0)
+    rec.on_status("Srobot1", _status("DRIVING", "30.000000000", 0.1), 6.0)
+    rec.on_status("Srobot1", _status("SUCCEEDED", "30.000000000", 8.0, hold=1.0), 7.0)
+    rec.on_status("Srobot3", _status("IDLE"), 2.5)
+    rec.on_status("Srobot3", _status("PLANNING", "11.000000000"), 3.0)
+    rec.on_status("Srobot3", _status("ABORTED", "11.000000000", 0.2, reason="goal in obstacle"),
+                  3.1)
+    rec.on_status("Srobot3", _status("ABORTED", "11.000000000", 0.2), 3.6)
+    rec.on_event("spawn", {"robot": "Srobot1"})
+    rec.on_event("spawn", {"robot": "Srobot2"})
+    rec.on_event("collision", {"robot": "Srobot2", "other": "Srobot3", "x": "1", "y": "2"})
+    rec.on_event("collision", {"robot": "/Srobot2", "other": "wall::link::box"})
+    rec.on_event("late", {"robot": "Srobot2"})
+    rec.on_clock(59.9)
+    rec.on_clock(60.0)
+
+
+SUMMARY = {
+    "ticks": 1200,
+    "sim_time_s": 60.0,
+    "wall_time_s": 20.0,
+    "late_ticks": 4,
+    "collisions": {"robot_robot": 1, "robot_wall": 1},
+    "min_separation_m": 0.42,
+    "per_robot": {
+        "Srobot1": {"distance_m": 12.5, "collisions": 0, "late_ticks": 1},
+        "Srobot2": {"distance_m": 3.0, "collisions": 2, "late_ticks": 3},
+        "Srobot3": {"distance_m": 0.0, "collisions": 1, "late_ticks": 0},
+    },
+}
+
+
+def _metrics(summary=SUMMARY, **kw):
+    rec = RunRecorder(robots=ROBOTS)
+    _stream(rec)
+    args = dict(world="slim_blockage", seed=7, coordination="decentralized", wall_time_s=22.0,
+                resources={"cpu_percent": 150.0, "peak_rss_mb_per_robot": 35.0}, restarts=1)
+    args.update(kw)
+    return rec, aggregate(rec, summary, **args)
+
+
+def test_readiness_and_spawn_to_ready():
+    rec = RunRecorder(robots=ROBOTS)
+    assert rec.ready_count == 0 and rec.spawn_to_ready_s() is None
+    _stream(rec)
+    assert rec.ready_count == 3
+    assert rec.spawned_count == 2
+    assert rec.not_ready() == []
+    assert rec.spawn_to_ready_s() == pytest.approx(2.5)
+
+
+def test_not_all_ready_gives_none():
+    rec = RunRecorder(robots=ROBOTS)
+    rec.on_status("Srobot1", _status("IDLE"), 1.0)
+    assert rec.not_ready() == ["Srobot2", "Srobot3"]
+    assert rec.spawn_to_ready_s() is None
+
+
+def test_goal_counts_time_to_goal_and_holding():
+    _, m = _metrics()
+    assert m["goals_reached"] == 2
+    assert m["tasks_completed"] == 2
+    assert m["goals_aborted"] == 1
+    # time to goal: navigation_time_s of the first SUCCEEDED status of each goal
+    assert m["mean_time_to_goal_s"] == pytest.approx((12.0 + 8.0) / 2)
+    # holding: latest value per goal, summed
+    assert m["holding_time_s"] == pytest.approx(3.5 + 1.0)
+    pr = m["per_robot"]
+    assert pr["Srobot1"]["goals_reached"] == 2 and pr["Srobot1"]["holding_time_s"] == 4.5
+    assert pr["Srobot3"]["goals_aborted"] == 1
+    assert pr["Srobot1"]["ready_s"] == 1.0
+
+
+def test_simulator_figures_and_rates():
+    _, m = _metrics()
+    assert m["robots"] == 3
+    assert (m["world"], m["seed"], m["coordination"]) == ("slim_blockage", 7, "decentralized")
+    assert m["sim_time_s"] == 60.0
+    assert m["wall_time_s"] == 20.0  # the simulator's own wall time wins
+    assert m["rtf"] == pytest.approx(3.0)
+    assert m["robot_ticks_per_s"] == pytest.approx(1200 * 3 / 20.0)
+    assert m["throughput_per_hour"] == pytest.approx(2 / (60.0 / 3600.0))
+    assert m["collisions"] == {"robot_robot": 1, "robot_wall": 1}
+    assert m["min_separation_m"] == 0.42
+    assert m["late_ticks"] == 4
+    assert m["cpu_percent"] == 150.0 and m["peak_rss_mb_per_robot"] == 35.0
+    assert m["restarts"] == 1
+    assert m["per_robot"]["Srobot2"]["distance_m"] == 3.0
+    assert m["per_robot"]["Srobot2"]["collisions"] == 2
+    json.dumps(m)  # serialisable
+
+
+REQUIRED = ("robots world seed coordination sim_time_s wall_time_s rtf robot_ticks_per_s "
+            "spawn_to_ready_s goals_reached goals_aborted tasks_completed throughput_per_hour "
+            "collisions min_separation_m mean_time_to_goal_s holding_time_s late_ticks "
+            "cpu_percent peak_rss_mb_per_robot restarts per_robot").split()
+
+
+def test_required_keys_present_even_without_summary():
+    rec, m = _metrics(summary=load_sim_summary(None)[0], wall_time_s=30.0)
+    assert set(REQUIRED) <= set(m)
+    for ns in ROBOTS:
+        assert set(m["per_robot"][ns]) >= {"goals_reached", "goals_aborted", "collisions",
+                                           "distance_m", "holding_time_s"}
+    # fallbacks: /clock for simulated time, the orchestrator's wall time, events for collisions
+    assert m["sim_time_s"] == 60.0
+    assert m["wall_time_s"] == 30.0
+    assert m["rtf"] == pytest.approx(2.0)
+    assert m["collisions"] == {"robot_robot": 1, "robot_wall": 1}
+    assert m["per_robot"]["Srobot2"]["collisions"] == 2
+    assert m["per_robot"]["Srobot3"]["collisions"] == 1
+    assert m["late_ticks"] == 1
+    assert m["min_separation_m"] is None and m["robot_ticks_per_s"] is None
+
+
+def test_anonymous_goals_count_on_transition():
+    rec = RunRecorder(robots=("a",))
+    for state in ("DRIVING", "SUCCEEDED", "SUCCEEDED", "DRIVING", "SUCCEEDED", "ABORTED"):
+        rec.on_status("a", _status(state, nav_t=4.0), 0.0)
+    m = aggregate(rec, load_sim_summary(None)[0], world="w", seed=0,
+                  coordination="decentralized", wall_time_s=1.0)
+    assert (m["goals_reached"], m["goals_aborted"]) == (2, 1)
+    assert m["mean_time_to_goal_s"] == 4.0
+    assert m["throughput_per_hour"] is None  # no simulated time known
+
+
+def test_malformed_numbers_are_ignored():
+    rec = RunRecorder(robots=("a",))
+    rec.on_status("a", _status("SUCCEEDED", "g", nav_t="nan", hold="x"), 0.0)
+    m = aggregate(rec, load_sim_summary(None)[0], world="w", seed=0,
+                  coordination="decentralized", wall_time_s=1.0)
+    assert m["goals_reached"] == 1
+    assert m["mean_time_to_goal_s"] is None
+    assert m["holding_time_s"] == 0.0
+
+
+def test_load_sim_summary_tolerant(tmp_path: Path):
+    summary, warnings = load_sim_summary(tmp_path / "missing.json")
+    assert summary["sim_time_s"] is None and len(warnings) == 1 and "missing" in warnings[0]
+
+    partial = tmp_path / "partial.json"
+    partial.write_text(json.dumps({"ticks": 10, "sim_time_s": 1.0, "extra": 5}))
+    summary, warnings = load_sim_summary(partial)
+    assert summary["ticks"] == 10 and summary["extra"] == 5 and summary["collisions"] is None
+    assert len(warnings) == 1 and "collisions" in warnings[0]
+
+    bad = tmp_path / "bad.json"
+    bad.write_text("{not json")
+    summary, warnings = load_sim_summary(bad)
+    assert summary["ticks"] is None and len(warnings) == 1
+
+    full = tmp_path / "full.json"
+    full.write_text(json.dumps(SUMMARY))
+    summary, warnings = load_sim_summary(full)
+    assert warnings == [] and summary["ticks"] == 1200
+
+
+def test_aggregate_module_is_pure():
+    tree = ast.parse(Path(__file__).resolve().parents[2].joinpath(
+        "swarm_up", "aggregate.py").read_text())
+    imported = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            imported |= {a.name.split(".")[0] for a in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            imported.add(node.module.split(".")[0])
+    assert not {m for m in imported if m == "rclpy" or m.endswith("_msgs")}

@@ -1,0 +1,88 @@
+"""Every bad input of SPEC §2 exits 2 with one stderr line naming the flag, and no traceback."""
+
+import subprocess
+import sys
+
+import pytest
+
+BAD = [
+    (["--swarm-size", "0"], "--swarm-size"),
+    (["--swarm-size", "-3"], "--swarm-size"),
+    (["--swarm-size", "abc"], "--swarm-size"),
+    (["--swarm-size", "2.5"], "--swarm-size"),
+    (["--swarm-size"], "--swarm-size"),
+    (["--rtf", "-1"], "--rtf"),
+    (["--rtf", "fast"], "--rtf"),
+    (["--rtf", "nan"], "--rtf"),
+    (["--rtf", "inf"], "--rtf"),
+    (["--duration", "-5"], "--duration"),
+    (["--duration", "0"], "--duration"),
+    (["--duration", "1min"], "--duration"),
+    (["--seed", "-1"], "--seed"),
+    (["--seed", "x"], "--seed"),
+    (["--processes", "0"], "--processes"),
+    (["--processes", "-2"], "--processes"),
+    (["--processes", "many"], "--processes"),
+    (["--ready-timeout", "0"], "--ready-timeout"),
+    (["--name-prefix", "3robot"], "--name-prefix"),
+    (["--name-prefix", "my-robot"], "--name-prefix"),
+    (["--coordination", "anarchic"], "--coordination"),
+    (["--coordination", "centralized"], "--coordination"),
+    (["--record", "run.mcap"], "--record"),
+    (["--dashboard"], "--dashboard"),
+    (["--dashboard", "8080"], "--dashboard"),
+    (["--dashboard", "99999"], "--dashboard"),
+    (["--headless", "--gui"], "--gui"),
+    (["--metrics", "/nonexistent_dir_xyz/m.json"], "--metrics"),
+    (["--map", "/nonexistent_dir_xyz/map.yaml"], "--map"),
+    (["--world", "no_such_world"], "--world"),
+    (["--world", "/nonexistent_dir_xyz/w.world"], "--world"),
+    (["--robot", "no_such_robot"], "--robot"),
+    (["--robot", "/nonexistent_dir_xyz/r.urdf"], "--robot"),
+    (["--nav-params", "/nonexistent_dir_xyz/navigator.yaml"], "--nav-params"),
+    (["--bogus"], "--bogus"),
+]
+
+
+def _run(args, cwd):
+    return subprocess.run([sys.executable, "-m", "swarm_up.cli", *args], cwd=cwd,
+                          capture_output=True, text=True, timeout=60)
+
+
+@pytest.mark.parametrize(("args", "flag"), BAD, ids=lambda v: " ".join(v) if isinstance(v, list)
+                         else None)
+def test_bad_input_exits_2_with_one_line(args, flag, tmp_path):
+    res = _run([*args, "--run-dir", str(tmp_path / "run")], tmp_path)
+    lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
+    assert res.returncode == 2, res.stderr
+    assert len(lines) == 1, res.stderr
+    assert lines[0].startswith("swarm-up: error: "), lines[0]
+    assert flag in lines[0]
+    assert "Traceback" not in res.stderr + res.stdout
+    assert not (tmp_path / "run").exists()  # nothing started, nothing written
+
+
+def test_run_dir_that_is_a_file(tmp_path):
+    target = tmp_path / "afile"
+    target.write_text("x")
+    res = _run(["--run-dir", str(target)], tmp_path)
+    assert res.returncode == 2
+    assert res.stderr.strip().splitlines() == [
+        f"swarm-up: error: --run-dir: '{target}' exists and is not a directory"]
+
+
+def test_metrics_path_that_is_a_directory(tmp_path):
+    res = _run(["--metrics", str(tmp_path), "--run-dir", str(tmp_path / "r")], tmp_path)
+    assert res.returncode == 2
+    assert len(res.stderr.strip().splitlines()) == 1 and "--metrics" in res.stderr
+
+
+def test_help_lists_every_option():
+    res = _run(["--help"], None)
+    assert res.returncode == 0
+    for flag in ("--swarm-size", "--world", "--map", "--robot", "--name-prefix", "--seed",
+                 "--rtf", "--duration", "--commanders", "--coordination", "--metrics",
+                 "--record", "--dashboard", "--processes", "--headless", "--gui", "--run-dir",
+                 "--ready-timeout"):
+        assert flag in res.stdout
+    assert "not implemented yet" in res.stdout

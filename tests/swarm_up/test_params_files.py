@@ -1,0 +1,171 @@
+"""One navigator params file per namespace, rooted at /<ns>/navigator, as ROS reads it."""
+
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+import yaml
+
+from swarm_common.errors import InputError
+from swarm_up.cli import (
+    RunConfig,
+    RunError,
+    child_specs,
+    load_nav_template,
+    split_groups,
+    write_params_files,
+)
+
+TEMPLATE = """\
+navigator:
+  ros__parameters:
+    control_rate: 10.0          # [Hz]
+    goal_tolerance_xy: 0.25     # [m]
+    holding_wait: 2.0           # [s]
+    planner_allow_unknown: false
+"""
+
+
+@pytest.fixture
+def cfg(tmp_path) -> RunConfig:
+    world = tmp_path / "w.world"
+    world.write_text("<sdf version='1.6'><world name='w'/></sdf>")
+    poi = tmp_path / "w.yaml"
+    poi.write_text("workstations: []\n")
+    return RunConfig(
+        robots=("Srobot1", "Srobot2", "Srobot3"),
+        name_prefix="Srobot",
+        world_path=world,
+        world_name="w",
+        robot="turtlebot3_waffle",
+        map_path=tmp_path / "map.yaml",
+        poi_path=poi,
+        seed=4,
+        rtf=0.0,
+        duration=30.0,
+        commanders=True,
+        coordination="decentralized",
+        metrics_path=None,
+        groups=None,
+        gui=False,
+        run_dir=tmp_path / "run",
+        ready_timeout=60.0,
+        nav_template=tmp_path / "navigator.yaml",
+    )
+
+
+@pytest.fixture
+def template(cfg) -> dict:
+    cfg.nav_template.write_text(TEMPLATE)
+    return load_nav_template(cfg.nav_template)
+
+
+def test_one_file_per_namespace_rooted_at_ns_navigator(cfg, template):
+    files = write_params_files(cfg, template)
+    assert [f.name for f in files] == ["Srobot1.yaml", "Srobot2.yaml", "Srobot3.yaml"]
+    assert sorted(p.name for p in (cfg.run_dir / "params").iterdir()) == [f.name for f in files]
+    for i, (ns, path) in enumerate(zip(cfg.robots, files, strict=True), start=1):
+        data = yaml.safe_load(path.read_text())
+        assert list(data) == [f"/{ns}/navigator"]
+        params = data[f"/{ns}/navigator"]["ros__parameters"]
+        # the template's keys, unchanged
+        assert params["control_rate"] == 10.0 and params["goal_tolerance_xy"] == 0.25
+        assert params["planner_allow_unknown"] is False
+        # the keys swarm-up adds
+        assert params["use_sim_time"] is True
+        assert params["robot_name"] == ns and params["robot_index"] == i
+        assert params["poi_file"] == str(cfg.poi_path)
+        assert params["map_yaml_path"] == str(cfg.map_path)
+        assert params["robot"] == "turtlebot3_waffle"
+
+
+def test_missing_poi_and_map_give_empty_strings(cfg, template):
+    cfg = replace(cfg, poi_path=None, map_path=None)
+    params = yaml.safe_load(write_params_files(cfg, template)[0].read_text())
+    params = params["/Srobot1/navigator"]["ros__parameters"]
+    assert params["poi_file"] == "" and params["map_yaml_path"] == ""
+
+
+def test_ros_reads_the_file_for_the_namespaced_node(cfg, template):
+    """rcl parses the file and gives its values to /Srobot2/navigator only."""
+    import rclpy
+    from rclpy.node import Node
+
+    path = write_params_files(cfg, template)[1]
+    ctx = rclpy.Context()
+    rclpy.init(args=["--ros-args", "-r", "__ns:=/Srobot2", "--params-file", str(path)],
+               context=ctx)
+    try:
+        node = Node("navigator", context=ctx, automatically_declare_parameters_from_overrides=True)
+        try:
+            assert node.get_fully_qualified_name() == "/Srobot2/navigator"
+            assert node.get_parameter("robot_name").value == "Srobot2"
+            assert node.get_parameter("robot_index").value == 2
+            assert node.get_parameter("use_sim_time").value is True
+            assert node.get_parameter("goal_tolerance_xy").value == 0.25
+        finally:
+            node.destroy_node()
+    finally:
+        ctx.try_shutdown()
+
+
+def test_template_errors(tmp_path):
+    with pytest.raises(RunError, match="navigator.yaml: navigator parameter template missing"):
+        load_nav_template(tmp_path / "navigator.yaml")
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("planner:\n  ros__parameters: {}\n")
+    with pytest.raises(InputError, match="top-level key must be 'navigator'"):
+        load_nav_template(bad)
+    bad.write_text("navigator: [1, 2]\n")
+    with pytest.raises(InputError, match="ros__parameters"):
+        load_nav_template(bad)
+    bad.write_text("navigator: {ros__parameters: {a: 1}}\n")
+    assert load_nav_template(bad) == {"a": 1}
+
+
+@pytest.mark.parametrize(
+    ("n", "k", "sizes"),
+    [(10, 3, [4, 3, 3]), (100, 2, [50, 50]), (3, 5, [1, 1, 1]), (7, 1, [7])],
+)
+def test_split_groups(n, k, sizes):
+    robots = tuple(f"R{i}" for i in range(1, n + 1))
+    groups = split_groups(robots, k)
+    assert [len(g) for g in groups] == sizes
+    assert sum(groups, ()) == robots
+
+
+def test_child_commands_per_robot(cfg):
+    specs = child_specs(cfg)
+    names = [s.name for s in specs]
+    assert names == ["sim", "nav_Srobot1", "nav_Srobot2", "nav_Srobot3",
+                     "cmd_Srobot1", "cmd_Srobot2", "cmd_Srobot3"]
+    sim = specs[0]
+    assert not sim.restart and sim.kind == "sim"
+    argv = list(sim.argv)
+    for flag, value in [("--world", str(cfg.world_path)), ("--robot", "turtlebot3_waffle"),
+                        ("--swarm-size", "3"), ("--name-prefix", "Srobot"), ("--seed", "4"),
+                        ("--rtf", "0.0"), ("--duration", "30.0"), ("--map", str(cfg.map_path)),
+                        ("--summary", str(cfg.run_dir / "sim_summary.json"))]:
+        assert argv[argv.index(flag) + 1] == value
+    assert "--gui" not in argv
+    nav = list(specs[2].argv)
+    assert nav[-5:] == ["--ros-args", "-r", "__ns:=/Srobot2", "--params-file",
+                        str(cfg.run_dir / "params" / "Srobot2.yaml")]
+    assert specs[2].log_path == cfg.run_dir / "logs" / "nav_Srobot2.log"
+    cmd = list(specs[5].argv)
+    assert cmd[-5:] == ["Srobot2", "--world", str(cfg.world_path), "--seed", "4"]
+    assert all(s.restart for s in specs[1:])
+
+
+def test_child_commands_grouped(cfg):
+    cfg = replace(cfg, groups=split_groups(cfg.robots, 2), gui=True, duration=None)
+    specs = child_specs(cfg)
+    assert [s.name for s in specs] == ["sim", "group_1", "group_2"]
+    assert "--gui" in specs[0].argv and "--duration" not in specs[0].argv
+    g1 = list(specs[1].argv)
+    assert g1[:3] == [sys.executable, "-m", "swarm_nav.group"]
+    assert g1[g1.index("--namespaces") + 1] == "Srobot1,Srobot2"
+    assert g1[g1.index("--params-dir") + 1] == str(Path(cfg.run_dir) / "params")
+    assert "--commanders" in g1 and g1[g1.index("--seed") + 1] == "4"
+    assert specs[2].robots == ("Srobot3",)
