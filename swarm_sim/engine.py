@@ -1,0 +1,439 @@
+"""The simulated world without ROS: PyBullet bodies, differential drives, contacts and lidars.
+
+Robots are kinematic: each control tick their commanded twist is limited by the drive's
+velocity and acceleration limits and integrated exactly (:mod:`swarm_sim.kinematics`); PyBullet
+holds the static world and the robots' bodies and finds the contacts.  A robot whose new pose
+penetrates a wall or another robot is put back where it was and stopped (a bumper), so bodies
+never pass through each other; every robot–robot and robot–wall contact *episode* (from the first
+penetration until the two are more than ``contact_release`` apart) is one collision event.
+
+Frames: everything here is in ``map`` (= the world frame); robot ``i``'s pose is ``poses[i]``,
+(3,) x [m], y [m], yaw [rad] of its ``base_footprint``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from swarm_common.errors import InputError
+from swarm_common.geometry import transform_points
+from swarm_common.world import World, world_polygons
+from swarm_sim.kinematics import DriveLimits, integrate_unicycle, limit_twist
+from swarm_sim.lidar import PlanarLidar, ScanPattern, counter_clockwise, polygons_to_segments
+
+
+def _import_pybullet():
+    """Import pybullet without the "pybullet build time" line it prints on the console."""
+    import os
+    import sys
+
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = [os.dup(1), os.dup(2)]
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, 1)
+    os.dup2(devnull, 2)
+    try:
+        import pybullet as module
+    finally:
+        os.dup2(saved[0], 1)
+        os.dup2(saved[1], 2)
+        for fd in (*saved, devnull):
+            os.close(fd)
+    return module
+
+
+pybullet = _import_pybullet()
+
+
+@dataclass(frozen=True)
+class EngineConfig:
+    """Settings of the simulated world.
+
+    Attributes:
+        control_period: simulated time between control ticks [s]; nav2's controller runs at
+            20 Hz and TurtleBot3's drive at 30 Hz, we default to 10 Hz (see docs/ARCHITECTURE.md).
+        physics_substeps: kinematic integration and contact checks per control tick [-].
+        contact_release: separation that ends a contact episode [m].
+        spawn_clearance: minimum gap between a spawned robot's circumscribed circle and any wall
+            or other robot [m].
+    """
+
+    control_period: float = 0.1  # [s]
+    physics_substeps: int = 2  # [-]
+    contact_release: float = 0.02  # [m]
+    spawn_clearance: float = 0.05  # [m]
+
+
+@dataclass(frozen=True)
+class CollisionEvent:
+    """The start of one contact episode.
+
+    Attributes:
+        t: simulated time [s].
+        kind: ``"robot_robot"`` or ``"robot_wall"``.
+        robot: index of the robot (the lower index for robot–robot).
+        other: index of the other robot, or the wall shape's name.
+        x, y: contact point in ``map`` [m].
+    """
+
+    t: float
+    kind: str
+    robot: int
+    other: int | str
+    x: float
+    y: float
+
+
+def spawn_poses(spawn, n: int, radius: float, polygons, clearance: float = 0.05,
+                where: str = "spawn area", keep=None) -> np.ndarray:
+    """Place ``n`` robots on the spawn grid, nearest the grid origin first.
+
+    Grid nodes are ``origin + spacing * (i, j)`` inside ``spawn.area``; robots take row ``j = 0``
+    first, then ``j = 1, 2, ...``, then ``j = -1, -2, ...``, and within a row ``i = 0, 1, ...``
+    then ``i = -1, -2, ...`` (so the default five robots of slim_blockage stand at (0..4, 0), as
+    in the thesis).  A node is used only when a robot's circumscribed circle plus ``clearance``
+    touches no world polygon.
+
+    Args:
+        spawn: a :class:`swarm_common.poi.SpawnArea`.
+        n: number of robots (>= 1).
+        radius: the robot's circumscribed radius [m].
+        polygons: list of (K, 2) world outlines in ``map``.
+        clearance: extra gap to walls [m].
+        where: how to name the area in an error.
+        keep: optional predicate, (M, 2) points -> (M,) bool, that a node must also pass.
+
+    Returns:
+        (n, 3) poses x, y, yaw in ``map``.
+
+    Raises:
+        InputError: the robots do not fit; the message says how many fit.
+    """
+    if spawn.spacing < 2.0 * radius + clearance:
+        raise InputError(
+            f"{where}: spacing {spawn.spacing:g} m is too small for robots of radius"
+            f" {radius:.3f} m"
+        )
+    nodes = spawn.grid_points()
+    segs = polygons_to_segments(polygons)
+    ok = np.ones(len(nodes), dtype=bool)
+    if len(nodes) and len(segs):
+        p0 = segs[None, :, 0:2]
+        e = segs[None, :, 2:4] - p0
+        rel = nodes[:, None, :] - p0
+        u = np.clip(np.einsum("nsi,nsi->ns", rel, e) / np.maximum(
+            np.einsum("nsi,nsi->ns", e, e), 1e-18), 0.0, 1.0)
+        d = np.linalg.norm(rel - u[..., None] * e, axis=-1).min(axis=1)
+        ok &= d >= radius + clearance
+        for poly in polygons:  # a node inside an obstacle is not free either
+            ok &= ~_inside_convex(nodes, poly)
+    if keep is not None and len(nodes):
+        ok &= keep(nodes)
+    nodes = nodes[ok]
+    if len(nodes) < n:
+        raise InputError(
+            f"--swarm-size: {n} robots do not fit in the {where}; at most {len(nodes)} fit"
+        )
+    ij = np.rint((nodes - spawn.origin) / spawn.spacing).astype(int)
+    order = np.lexsort((np.abs(ij[:, 0]), ij[:, 0] < 0, np.abs(ij[:, 1]), ij[:, 1] < 0))
+    chosen = nodes[order[:n]]
+    return np.column_stack((chosen, np.full(n, float(spawn.yaw))))
+
+
+def spawn_poses_free(occ, n: int, radius: float, polygons, clearance: float = 0.05,
+                     where: str = "largest free area") -> np.ndarray:
+    """Spawn for a world without a spawn area: a 1 m grid in its largest free region.
+
+    The grid starts at the free cell farthest from any obstacle (distance transform of the map)
+    and keeps to the connected free region around it, so no robot is shut in a closed pocket.
+    Robots face +x (yaw 0).
+
+    Args:
+        occ: the world's :class:`swarm_common.occupancy.OccupancyMap`.
+        n, radius, polygons, clearance, where: as :func:`spawn_poses`.
+
+    Returns:
+        (n, 3) poses in ``map``.
+
+    Raises:
+        InputError: the robots do not fit; the message says how many fit.
+    """
+    from scipy import ndimage
+
+    from swarm_common.poi import SpawnArea
+
+    free = occ.data == 0
+    labels, _ = ndimage.label(free)
+    clear = ndimage.distance_transform_edt(free)
+    best = np.unravel_index(np.argmax(clear), clear.shape)
+    origin = occ.cell_to_world(np.array(best))
+    region = labels == labels[best]
+    x0, y0 = occ.origin[0], occ.origin[1]
+    area = np.array([x0, y0, x0 + occ.width * occ.resolution, y0 + occ.height * occ.resolution])
+    spacing = max(1.0, 2.0 * radius + 2.0 * clearance)
+    spawn = SpawnArea(origin=origin, spacing=spacing, yaw=0.0, area=area)
+
+    def in_region(points):
+        rc = occ.world_to_cell(points)
+        inside = occ.in_bounds(rc)
+        out = np.zeros(len(points), dtype=bool)
+        out[inside] = region[rc[inside, 0], rc[inside, 1]]
+        return out
+
+    return spawn_poses(spawn, n, radius, polygons, clearance, where, keep=in_region)
+
+
+def _inside_convex(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
+    """(M,) mask of points strictly inside a convex polygon (either winding)."""
+    edges = np.roll(poly, -1, axis=0) - poly
+    rel = points[:, None, :] - poly[None, :, :]
+    cross = edges[None, :, 0] * rel[..., 1] - edges[None, :, 1] * rel[..., 0]
+    return np.all(cross > 1e-12, axis=1) | np.all(cross < -1e-12, axis=1)
+
+
+def polygon_distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distances [m] between pairs of convex polygons given as (P, K, 2) vertex arrays.
+
+    The distance of two disjoint convex polygons is the least vertex-to-edge distance either
+    way; overlapping ones (a vertex of one inside the other) give 0.
+    """
+    def vert_edge(v, poly):
+        p0 = poly
+        e = np.roll(poly, -1, axis=1) - p0  # (P, K, 2)
+        rel = v[:, :, None, :] - p0[:, None, :, :]  # (P, Kv, K, 2)
+        len2 = np.maximum(np.einsum("pki,pki->pk", e, e), 1e-18)[:, None, :]
+        u = np.clip(np.einsum("pvki,pki->pvk", rel, e) / len2, 0.0, 1.0)
+        d = np.linalg.norm(rel - u[..., None] * e[:, None, :, :], axis=-1)
+        cross = e[:, None, :, 0] * rel[..., 1] - e[:, None, :, 1] * rel[..., 0]
+        inside = np.all(cross > 0, axis=2) | np.all(cross < 0, axis=2)  # (P, Kv)
+        return d.min(axis=(1, 2)), inside.any(axis=1)
+
+    dab, ia = vert_edge(a, b)
+    dba, ib = vert_edge(b, a)
+    return np.where(ia | ib, 0.0, np.minimum(dab, dba))
+
+
+class SimEngine:
+    """A PyBullet world with ``n`` identical differential-drive robots.
+
+    Args:
+        world: the static world.
+        robot: the robot model (:class:`swarm_common.robot_model.RobotModel`).
+        poses: (N, 3) spawn poses in ``map``.
+        seed: seed of the generator of lidar noise.
+        config: engine settings.
+        gui: open PyBullet's window instead of running headless (``DIRECT``).
+    """
+
+    def __init__(self, world: World, robot, poses: np.ndarray, seed: int = 0,
+                 config: EngineConfig | None = None, gui: bool = False):
+        self.config = config or EngineConfig()
+        self.robot = robot
+        self.limits = DriveLimits.from_robot_limits(robot.limits)
+        self.poses = np.array(poses, dtype=float).reshape(-1, 3)
+        self.n = self.poses.shape[0]
+        self.v = np.zeros(self.n)
+        self.w = np.zeros(self.n)
+        self.t = 0.0  # [s]
+        self.ticks = 0
+        self.distance = np.zeros(self.n)  # [m] travelled per robot
+        self.collisions = np.zeros(self.n, dtype=int)  # episodes per robot
+        self.collision_counts = {"robot_robot": 0, "robot_wall": 0}
+        self.min_separation = math.inf  # [m] least footprint-to-footprint gap seen
+        self.rng = np.random.default_rng(seed)
+        self._footprint = counter_clockwise(robot.footprint)
+        self._active_contacts: dict[tuple, bool] = {}
+
+        lidar = robot.lidar
+        self.lidar_period_ticks = max(
+            1, round(1.0 / (lidar.rate_hz * self.config.control_period)))
+        self.lidar = PlanarLidar(
+            polygons_to_segments(world_polygons(world, lidar.z - 1e-3, lidar.z + 1e-3)),
+            ScanPattern.from_spec(lidar),
+        )
+
+        self.client = pybullet.connect(pybullet.GUI if gui else pybullet.DIRECT)
+        self._wall_names: dict[int, str] = {}
+        self._build_world(world)
+        self._bodies = self._build_robots()
+        self._body_index = {b: i for i, b in enumerate(self._bodies)}
+        self._update_min_separation()
+
+    # -- construction --------------------------------------------------------------------------
+
+    def _build_world(self, world: World) -> None:
+        p, cid = pybullet, self.client
+        for shape in world.shapes:
+            kind, size = shape.kind, shape.size
+            if kind == "box":
+                col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[s / 2 for s in size],
+                                             physicsClientId=cid)
+            elif kind == "cylinder":
+                col = p.createCollisionShape(p.GEOM_CYLINDER, radius=size[0], height=size[1],
+                                             physicsClientId=cid)
+            elif kind == "sphere":
+                col = p.createCollisionShape(p.GEOM_SPHERE, radius=size[0], physicsClientId=cid)
+            elif kind == "mesh" and shape.mesh_path is not None:
+                col = p.createCollisionShape(p.GEOM_MESH, fileName=str(shape.mesh_path),
+                                             meshScale=list(size), physicsClientId=cid)
+            else:
+                continue
+            if col < 0:
+                continue
+            x, y, z, roll, pitch, yaw = shape.pose
+            body = p.createMultiBody(
+                baseMass=0.0, baseCollisionShapeIndex=col, basePosition=[x, y, z],
+                baseOrientation=p.getQuaternionFromEuler([roll, pitch, yaw]),
+                physicsClientId=cid)
+            self._wall_names[body] = shape.name
+
+    def _build_robots(self) -> list[int]:
+        p, cid = pybullet, self.client
+        lo, hi = self._footprint.min(axis=0), self._footprint.max(axis=0)
+        centre = (lo + hi) / 2.0
+        # Robots are seen by every lidar: their bodies reach at least the scan plane.
+        height = max(float(self.robot.height), float(self.robot.lidar.z) + 0.02)
+        col = p.createCollisionShape(
+            p.GEOM_BOX, halfExtents=[*((hi - lo) / 2.0), height / 2.0],
+            collisionFramePosition=[centre[0], centre[1], height / 2.0], physicsClientId=cid)
+        bodies = []
+        for pose in self.poses:
+            bodies.append(p.createMultiBody(
+                baseMass=1.0, baseCollisionShapeIndex=col, basePosition=[pose[0], pose[1], 0.0],
+                baseOrientation=p.getQuaternionFromEuler([0.0, 0.0, pose[2]]),
+                physicsClientId=cid))
+        p.setGravity(0, 0, 0, physicsClientId=cid)
+        return bodies
+
+    # -- queries -------------------------------------------------------------------------------
+
+    def footprints(self, poses: np.ndarray | None = None) -> np.ndarray:
+        """(N, K, 2) footprint polygons of all robots in ``map`` [m]."""
+        poses = self.poses if poses is None else poses
+        return np.stack([transform_points(pose, self._footprint) for pose in poses])
+
+    def lidar_poses(self) -> np.ndarray:
+        """(N, 3) poses of every robot's lidar in ``map``."""
+        mount = self.robot.lidar.pose
+        c, s = np.cos(self.poses[:, 2]), np.sin(self.poses[:, 2])
+        return np.column_stack((
+            self.poses[:, 0] + c * mount[0] - s * mount[1],
+            self.poses[:, 1] + s * mount[0] + c * mount[1],
+            self.poses[:, 2] + mount[2],
+        ))
+
+    def lidar_due(self) -> bool:
+        """True when the current tick is a lidar tick (every ``1 / rate_hz`` simulated seconds)."""
+        return self.ticks % self.lidar_period_ticks == 0
+
+    def scans(self) -> np.ndarray:
+        """(N, B) float32 ranges [m] of every robot's lidar at the current poses (REP 117)."""
+        return self.lidar.scan(self.lidar_poses(), self.footprints(), self.rng)
+
+    # -- stepping ------------------------------------------------------------------------------
+
+    def step(self, v_cmd: np.ndarray, w_cmd: np.ndarray) -> list[CollisionEvent]:
+        """Advance one control tick with the commanded twists.
+
+        Args:
+            v_cmd: (N,) commanded linear velocities [m/s] in ``base_footprint``.
+            w_cmd: (N,) commanded angular velocities [rad/s].
+
+        Returns:
+            The collision episodes that started during this tick.
+        """
+        cfg = self.config
+        dt = cfg.control_period / cfg.physics_substeps
+        v_target = np.asarray(v_cmd, dtype=float)
+        w_target = np.asarray(w_cmd, dtype=float)
+        events: list[CollisionEvent] = []
+        for _ in range(cfg.physics_substeps):
+            self.v, self.w = limit_twist(v_target, w_target, self.v, self.w, self.limits, dt)
+            new = integrate_unicycle(self.poses, self.v, self.w, dt)
+            moved = np.flatnonzero(np.any(new != self.poses, axis=1))
+            self._set_body_poses(new, moved)
+            blocked, started = self._contacts(new)
+            events += started
+            if blocked:
+                idx = np.fromiter(blocked, dtype=int)
+                new[idx] = self.poses[idx]
+                self.v[idx] = 0.0
+                self.w[idx] = 0.0
+                self._set_body_poses(new, idx)
+            self.distance += np.hypot(new[:, 0] - self.poses[:, 0], new[:, 1] - self.poses[:, 1])
+            self.poses = new
+            self.t += dt
+        self.t = (self.ticks + 1) * cfg.control_period  # no drift from summing substeps
+        self.ticks += 1
+        self._update_min_separation()
+        return events
+
+    def _set_body_poses(self, poses: np.ndarray, which) -> None:
+        p, cid = pybullet, self.client
+        for i in which:
+            x, y, yaw = poses[i]
+            p.resetBasePositionAndOrientation(
+                self._bodies[i], [x, y, 0.0], [0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)],
+                physicsClientId=cid)
+
+    def _contacts(self, poses: np.ndarray) -> tuple[set[int], list[CollisionEvent]]:
+        """Find penetrations, start new episodes, end released ones; return robots to block."""
+        p, cid = pybullet, self.client
+        p.performCollisionDetection(physicsClientId=cid)
+        seen: dict[tuple, float] = {}
+        where: dict[tuple, tuple[float, float]] = {}
+        for c in p.getContactPoints(physicsClientId=cid):
+            a, b, dist = c[1], c[2], c[8]
+            ia, ib = self._body_index.get(a), self._body_index.get(b)
+            if ia is None and ib is None:
+                continue
+            if ia is not None and ib is not None:
+                key = ("r", min(ia, ib), max(ia, ib))
+            else:
+                key = ("w", ia if ia is not None else ib, b if ia is not None else a)
+            if dist < seen.get(key, math.inf):
+                seen[key] = dist
+                where[key] = (c[5][0], c[5][1])
+        blocked: set[int] = set()
+        started: list[CollisionEvent] = []
+        for key, dist in seen.items():
+            if dist >= 0.0:
+                continue
+            blocked.update(key[1:] if key[0] == "r" else key[1:2])
+            if key not in self._active_contacts:
+                self._active_contacts[key] = True
+                x, y = where[key]
+                if key[0] == "r":
+                    kind, other = "robot_robot", key[2]
+                    self.collisions[key[2]] += 1
+                else:
+                    kind, other = "robot_wall", self._wall_names.get(key[2], str(key[2]))
+                self.collisions[key[1]] += 1
+                self.collision_counts[kind] += 1
+                started.append(CollisionEvent(self.t, kind, key[1], other, x, y))
+        for key in list(self._active_contacts):
+            if seen.get(key, math.inf) >= self.config.contact_release:
+                del self._active_contacts[key]
+        return blocked, started
+
+    def _update_min_separation(self) -> None:
+        if self.n < 2:
+            return
+        reach = 2.0 * float(self.robot.radius) + 1.0
+        d = np.linalg.norm(self.poses[:, None, :2] - self.poses[None, :, :2], axis=2)
+        ii, jj = np.nonzero(np.triu(d < reach, k=1))
+        if ii.size == 0:
+            return
+        feet = self.footprints()
+        gaps = polygon_distances(feet[ii], feet[jj])
+        self.min_separation = min(self.min_separation, float(gaps.min()))
+
+    def close(self) -> None:
+        """Disconnect from PyBullet."""
+        if self.client is not None and pybullet.isConnected(self.client):
+            pybullet.disconnect(self.client)
+        self.client = None

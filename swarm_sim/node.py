@@ -1,0 +1,571 @@
+"""``swarm-sim``: the simulator node ``/swarm_sim`` (SPEC §2, §3, §5).
+
+Loads a Gazebo world and a URDF robot, spawns exactly N robots, and runs the synchronous control
+loop of docs/ARCHITECTURE.md: each control tick it publishes ``/clock``, every robot's ``odom``
+and ``ground_truth`` and, on lidar ticks, ``scan``; then waits for the ``cmd_vel`` each active
+navigator computed from that tick's data (stamped with the tick), applies the commands and steps
+the world.  ``--rtf 1`` paces simulated time to the wall clock, ``--rtf 0`` runs unpaced.
+
+Everything runs on one thread: ``EventsExecutor.spin_once`` services the subscriptions between
+ticks (publishing from another thread while an ``EventsExecutor`` spins deadlocks this rclpy).
+"""
+
+from __future__ import annotations
+
+import argparse
+import array
+import contextlib
+import json
+import logging
+import math
+import signal
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import rclpy
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import TwistStamped
+from nav_msgs.msg import OccupancyGrid, Odometry
+from rclpy.executors import ExternalShutdownException
+from rclpy.experimental import EventsExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import LaserScan
+
+from swarm_common.errors import InputError, run_cli
+
+NS_PER_S = 1_000_000_000
+
+
+@dataclass(frozen=True)
+class SimSettings:
+    """What ``swarm-sim`` was asked to run (command-line flags, validated).
+
+    Attributes:
+        world: world name under ``worlds/`` or a path to a ``.world``/``.sdf``.
+        robot: robot name under ``robots/`` or a path to a ``.urdf``/``.xacro``.
+        swarm_size: number of robots N [-].
+        name_prefix: namespace prefix; robot i (1..N) is ``/<prefix><i>``.
+        seed: seed of the simulator's random generator (lidar noise).
+        rtf: real-time factor to pace to; 0 runs as fast as possible [-].
+        duration: simulated seconds to run, or None for until Ctrl-C [s].
+        map_path: map_server YAML to publish on ``/map``, or None for the world's map.
+        summary: path of the JSON summary written at exit, or None.
+        control_rate: control ticks per simulated second [Hz].
+        command_timeout: wall time to wait for a tick's commands before counting late [s].
+        inactive_after: consecutive late ticks after which a robot is no longer waited for [-].
+        gui: open PyBullet's window.
+    """
+
+    world: str = "slim_blockage"
+    robot: str = "turtlebot3_waffle"
+    swarm_size: int = 5
+    name_prefix: str = "Srobot"
+    seed: int = 0
+    rtf: float = 1.0
+    duration: float | None = None
+    map_path: str | None = None
+    summary: str | None = None
+    control_rate: float = 10.0  # [Hz]
+    command_timeout: float = 1.0  # [s] wall
+    inactive_after: int = 3  # [ticks]
+    gui: bool = False
+
+
+def _time_msg(t_ns: int) -> Time:
+    return Time(sec=t_ns // NS_PER_S, nanosec=t_ns % NS_PER_S)
+
+
+def _stamp_ns(stamp) -> int:
+    return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
+
+
+def _kv(key: str, value) -> KeyValue:
+    return KeyValue(key=key, value=str(value))
+
+
+def occupancy_grid_msg(occ, stamp: Time) -> OccupancyGrid:
+    """Convert a :class:`swarm_common.occupancy.OccupancyMap` into ``nav_msgs/OccupancyGrid``."""
+    msg = OccupancyGrid()
+    msg.header.frame_id = "map"
+    msg.header.stamp = stamp
+    msg.info.map_load_time = stamp
+    msg.info.resolution = float(occ.resolution)
+    msg.info.width = occ.width
+    msg.info.height = occ.height
+    msg.info.origin.position.x = float(occ.origin[0])
+    msg.info.origin.position.y = float(occ.origin[1])
+    msg.info.origin.orientation.z = math.sin(float(occ.origin[2]) / 2.0)
+    msg.info.origin.orientation.w = math.cos(float(occ.origin[2]) / 2.0)
+    msg.data = array.array("b", np.ascontiguousarray(occ.data, dtype=np.int8).tobytes())
+    return msg
+
+
+class SimulatorNode(Node):
+    """The ROS 2 shell around :class:`swarm_sim.engine.SimEngine`.
+
+    Args:
+        settings: validated flags.
+        engine: the world, already built with the spawned robots.
+        occ: the map published once on ``/map`` (transient local).
+        namespaces: robot namespaces without the leading slash, index-aligned with the engine.
+    """
+
+    def __init__(self, settings: SimSettings, engine, occ, namespaces: list[str]):
+        super().__init__("swarm_sim")
+        # Parameters: read-only mirrors of the flags, so `ros2 param get /swarm_sim rtf` works.
+        for name, value in (
+            ("world", settings.world), ("robot", settings.robot),
+            ("swarm_size", settings.swarm_size), ("name_prefix", settings.name_prefix),
+            ("seed", settings.seed), ("rtf", settings.rtf),
+            ("duration", settings.duration if settings.duration is not None else -1.0),
+            ("control_rate", settings.control_rate),
+            ("command_timeout", settings.command_timeout),
+            ("inactive_after", settings.inactive_after),
+        ):
+            self.declare_parameter(name, value)
+        # State.
+        self.settings = settings
+        self.engine = engine
+        self.namespaces = namespaces
+        self.n = len(namespaces)
+        self.period_ns = round(NS_PER_S / settings.control_rate)
+        self.t_ns = 0
+        self.answers: dict[int, tuple[float, float]] = {}
+        self.manual: dict[int, tuple[float, float]] = {}
+        self.active = np.zeros(self.n, dtype=bool)
+        self.late_streak = np.zeros(self.n, dtype=int)
+        self.late_ticks = np.zeros(self.n, dtype=int)
+        self.dropped = 0
+        self._last_warn = 0.0
+        self._robot_index = {ns: i for i, ns in enumerate(namespaces)}
+        # Publishers and subscribers.
+        reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        events_qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
+                                durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.clock_pub = self.create_publisher(Clock, "/clock", reliable)
+        self.map_pub = self.create_publisher(OccupancyGrid, "/map", latched)
+        self.events_pub = self.create_publisher(DiagnosticArray, "/swarm/events", events_qos)
+        self.odom_pubs, self.truth_pubs, self.scan_pubs = [], [], []
+        for i, ns in enumerate(namespaces):
+            self.odom_pubs.append(self.create_publisher(Odometry, f"/{ns}/odom", reliable))
+            self.truth_pubs.append(
+                self.create_publisher(Odometry, f"/{ns}/ground_truth", reliable))
+            self.scan_pubs.append(
+                self.create_publisher(LaserScan, f"/{ns}/scan", qos_profile_sensor_data))
+            self.create_subscription(
+                TwistStamped, f"/{ns}/cmd_vel", lambda msg, i=i: self._on_cmd_vel(i, msg),
+                reliable)
+        self._odom_msgs = [self._make_odom(ns, f"{ns}/odom") for ns in namespaces]
+        self._truth_msgs = [self._make_odom(ns, "map") for ns in namespaces]
+        self._scan_msgs = [self._make_scan(ns) for ns in namespaces]
+        self.map_pub.publish(occupancy_grid_msg(occ, _time_msg(0)))
+
+    # -- message templates ---------------------------------------------------------------------
+
+    def _make_odom(self, ns: str, frame: str) -> Odometry:
+        msg = Odometry()
+        msg.header.frame_id = frame
+        msg.child_frame_id = f"{ns}/base_footprint"
+        return msg
+
+    def _make_scan(self, ns: str) -> LaserScan:
+        pattern = self.engine.lidar.pattern
+        lidar = self.engine.robot.lidar
+        msg = LaserScan()
+        msg.header.frame_id = f"{ns}/{lidar.frame}"
+        msg.angle_min = float(pattern.angles[0])
+        msg.angle_max = float(pattern.angles[-1])
+        msg.angle_increment = pattern.angle_increment
+        msg.scan_time = 1.0 / float(lidar.rate_hz)
+        msg.range_min = pattern.range_min
+        msg.range_max = pattern.range_max
+        return msg
+
+    # -- callbacks -----------------------------------------------------------------------------
+
+    def _on_cmd_vel(self, i: int, msg: TwistStamped) -> None:
+        v, w = msg.twist.linear.x, msg.twist.angular.z
+        frame = msg.header.frame_id
+        ns = self.namespaces[i]
+        if not (math.isfinite(v) and math.isfinite(w)):
+            self._drop(f"/{ns}/cmd_vel: non-finite velocity ({v}, {w})")
+            return
+        if frame not in ("", "base_footprint", "base_link", f"{ns}/base_footprint",
+                         f"{ns}/base_link"):
+            self._drop(f"/{ns}/cmd_vel: frame '{frame}' is not {ns}/base_footprint")
+            return
+        stamp = _stamp_ns(msg.header.stamp)
+        if stamp == 0:  # manual driving: apply now, hold until replaced
+            self.manual[i] = (v, w)
+        elif stamp == self.t_ns:
+            self.answers[i] = (v, w)
+            self.manual.pop(i, None)
+            if not self.active[i]:
+                self.active[i] = True
+                if self.engine.ticks > 1 and self.late_ticks[i]:
+                    self._event("fault", i, f"{ns} answers again", x=None)
+        # Any other stamp answers an earlier tick: too late, ignored.
+
+    def _drop(self, why: str) -> None:
+        self.dropped += 1
+        now = time.monotonic()
+        if now - self._last_warn > 5.0:
+            self._last_warn = now
+            self.get_logger().warning(f"dropped a malformed message: {why}")
+
+    # -- events --------------------------------------------------------------------------------
+
+    def _status(self, kind: str, i: int, message: str, x=None, **values) -> DiagnosticStatus:
+        level = DiagnosticStatus.ERROR if kind == "collision" else DiagnosticStatus.OK
+        if kind == "fault":
+            level = DiagnosticStatus.WARN
+        pose = self.engine.poses[i]
+        kv = [_kv("robot", self.namespaces[i]),
+              _kv("x", f"{pose[0] if x is None else x:.3f}"),
+              _kv("y", f"{pose[1] if x is None else values.pop('y'):.3f}"),
+              _kv("t", f"{self.t_ns / NS_PER_S:.3f}")]
+        kv += [_kv(k, v) for k, v in values.items()]
+        return DiagnosticStatus(level=level, name=kind, message=message,
+                                hardware_id=self.namespaces[i], values=kv)
+
+    def _publish_events(self, statuses: list[DiagnosticStatus]) -> None:
+        if statuses:
+            msg = DiagnosticArray(status=statuses)
+            msg.header.stamp = _time_msg(self.t_ns)
+            self.events_pub.publish(msg)
+
+    def _event(self, kind: str, i: int, message: str, x=None, **values) -> None:
+        self._publish_events([self._status(kind, i, message, x=x, **values)])
+
+    # -- the loop ------------------------------------------------------------------------------
+
+    def publish_spawns(self) -> None:
+        """Announce every robot's spawn pose on ``/swarm/events``."""
+        self._publish_events([
+            self._status("spawn", i, f"spawned {ns} at ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f})",
+                         yaw=f"{p[2]:.4f}")
+            for i, (ns, p) in enumerate(zip(self.namespaces, self.engine.poses, strict=True))
+        ])
+
+    def publish_tick(self) -> None:
+        """Publish ``/clock``, odometry, ground truth and (on lidar ticks) scans for this tick."""
+        stamp = _time_msg(self.t_ns)
+        self.clock_pub.publish(Clock(clock=stamp))
+        eng = self.engine
+        if eng.lidar_due():
+            scans = eng.scans()
+            for i, pub in enumerate(self.scan_pubs):
+                msg = self._scan_msgs[i]
+                msg.header.stamp = stamp
+                msg.ranges = array.array("f", scans[i].tobytes())
+                pub.publish(msg)
+        for i in range(self.n):
+            x, y, yaw = eng.poses[i]
+            qz, qw = math.sin(yaw / 2.0), math.cos(yaw / 2.0)
+            for msg, pub in ((self._odom_msgs[i], self.odom_pubs[i]),
+                             (self._truth_msgs[i], self.truth_pubs[i])):
+                msg.header.stamp = stamp
+                msg.pose.pose.position.x = float(x)
+                msg.pose.pose.position.y = float(y)
+                msg.pose.pose.orientation.z = qz
+                msg.pose.pose.orientation.w = qw
+                msg.twist.twist.linear.x = float(eng.v[i])
+                msg.twist.twist.angular.z = float(eng.w[i])
+                pub.publish(msg)
+
+    def collect_commands(self, executor) -> tuple[np.ndarray, np.ndarray]:
+        """Wait for this tick's answers of the active robots, then build the command vectors."""
+        deadline = time.monotonic() + self.settings.command_timeout
+        while True:
+            waiting = [i for i in np.flatnonzero(self.active) if i not in self.answers]
+            if not waiting:
+                break
+            remaining = deadline - time.monotonic()
+            if remaining <= 0.0:
+                break
+            executor.spin_once(timeout_sec=min(remaining, 0.05))
+        v = np.zeros(self.n)
+        w = np.zeros(self.n)
+        for i, (vi, wi) in self.manual.items():
+            v[i], w[i] = vi, wi
+        for i, (vi, wi) in self.answers.items():
+            v[i], w[i] = vi, wi
+            self.late_streak[i] = 0
+        for i in np.flatnonzero(self.active):
+            if i in self.answers:
+                continue
+            self.late_ticks[i] += 1
+            self.late_streak[i] += 1
+            if self.late_streak[i] >= self.settings.inactive_after:
+                self.active[i] = False
+                ns = self.namespaces[i]
+                self.get_logger().warning(
+                    f"{ns}: no command for {self.late_streak[i]} ticks; stopped and no longer "
+                    "waited for until it answers again")
+                self._event("fault", i, f"{ns} stopped answering; robot stopped")
+        self.answers.clear()
+        return v, w
+
+    def step(self, v: np.ndarray, w: np.ndarray) -> None:
+        """Step the world one tick and publish the collision episodes that started."""
+        events = self.engine.step(v, w)
+        self.t_ns += self.period_ns
+        statuses = []
+        for ev in events:
+            a = self.namespaces[ev.robot]
+            other = self.namespaces[ev.other] if isinstance(ev.other, int) else ev.other
+            statuses.append(self._status(
+                "collision", ev.robot, f"{ev.kind.replace('_', '-')} collision: {a} and {other}",
+                x=ev.x, y=ev.y, other=other, kind=ev.kind))
+            self.get_logger().warning(
+                f"collision {a} / {other} at ({ev.x:.2f}, {ev.y:.2f}), t = {ev.t:.1f} s")
+        self._publish_events(statuses)
+
+    def run(self, executor) -> None:
+        """Run until ``duration`` simulated seconds have passed (forever if None)."""
+        s = self.settings
+        # Tick 0 is stepped silently so that no tick carries the zero stamp of manual commands.
+        self.step(np.zeros(self.n), np.zeros(self.n))
+        wall0 = time.monotonic()
+        sim0_ns = self.t_ns
+        end_ns = None if s.duration is None else round(s.duration * NS_PER_S)
+        while rclpy.ok() and (end_ns is None or self.t_ns < end_ns):
+            self.publish_tick()
+            v, w = self.collect_commands(executor)
+            self.step(v, w)
+            if s.rtf > 0.0:  # pace: keep servicing callbacks until the wall clock catches up
+                due = wall0 + (self.t_ns - sim0_ns) / NS_PER_S / s.rtf
+                while (left := due - time.monotonic()) > 0.0:
+                    executor.spin_once(timeout_sec=left)
+            else:
+                executor.spin_once(timeout_sec=0.0)
+        self.wall_s = time.monotonic() - wall0
+
+    def summary(self, wall_s: float) -> dict:
+        """The run's figures for ``--summary`` (see docs/ARCHITECTURE.md)."""
+        eng = self.engine
+        sim_s = self.t_ns / NS_PER_S
+        per_robot = {
+            ns: {"distance_m": round(float(eng.distance[i]), 3),
+                 "collisions": int(eng.collisions[i]),
+                 "late_ticks": int(self.late_ticks[i])}
+            for i, ns in enumerate(self.namespaces)
+        }
+        return {
+            "robots": self.n,
+            "ticks": int(eng.ticks),
+            "sim_time_s": round(sim_s, 3),
+            "wall_time_s": round(wall_s, 3),
+            "rtf": round(sim_s / wall_s, 3) if wall_s > 0 else None,
+            "robot_ticks_per_s": round(self.n * eng.ticks / wall_s, 1) if wall_s > 0 else None,
+            "late_ticks": int(self.late_ticks.sum()),
+            "dropped_messages": self.dropped,
+            "collisions": dict(eng.collision_counts),
+            "min_separation_m": (round(eng.min_separation, 4)
+                                 if math.isfinite(eng.min_separation) else None),
+            "per_robot": per_robot,
+        }
+
+
+# -- command line ------------------------------------------------------------------------------
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``swarm-sim`` argument parser."""
+    p = argparse.ArgumentParser(
+        prog="swarm-sim",
+        description="The swarm simulator node (/swarm_sim): loads a Gazebo world and a URDF "
+        "robot, spawns N robots and publishes /clock, /map, /<ns>/scan, /<ns>/odom, "
+        "/<ns>/ground_truth and /swarm/events; drives robots from /<ns>/cmd_vel "
+        "(geometry_msgs/TwistStamped).",
+        epilog="ROS arguments may follow --ros-args. Exit codes: 0 success, 2 bad input, "
+        "1 runtime failure.")
+    p.add_argument("--world", default="slim_blockage",
+                   help="world name under worlds/ or path to a .world/.sdf [slim_blockage]")
+    p.add_argument("--robot", default="turtlebot3_waffle",
+                   help="robot name under robots/ or path to a .urdf/.xacro [turtlebot3_waffle]")
+    p.add_argument("--swarm-size", default="5", metavar="N", help="number of robots [5]")
+    p.add_argument("--name-prefix", default="Srobot", help="namespace prefix [Srobot]")
+    p.add_argument("--seed", default="0", help="random seed (lidar noise) [0]")
+    p.add_argument("--rtf", default="1.0", metavar="X",
+                   help="real-time factor to pace to; 0 = as fast as possible [1.0]")
+    p.add_argument("--duration", default=None, metavar="SEC",
+                   help="simulated seconds to run [until Ctrl-C]")
+    p.add_argument("--map", default=None, metavar="PATH",
+                   help="map_server YAML to publish on /map [maps/<world>.yaml, else rasterised]")
+    p.add_argument("--summary", default=None, metavar="PATH",
+                   help="write a JSON summary of the run here at exit")
+    p.add_argument("--control-rate", default="10", metavar="HZ",
+                   help="control ticks per simulated second [10]")
+    p.add_argument("--command-timeout", default="1.0", metavar="SEC",
+                   help="wall seconds to wait for a tick's commands before a robot is late [1.0]")
+    p.add_argument("--gui", action="store_true",
+                   help="open the PyBullet window (default headless)")
+    p.add_argument("--headless", action="store_true", help="run without a window (the default)")
+    return p
+
+
+def _number(flag: str, text: str, kind=float, minimum=None, strict=False):
+    try:
+        value = kind(text)
+    except (TypeError, ValueError):
+        raise InputError(f"{flag}: expected a {'n integer' if kind is int else ' number'}"
+                         f", got '{text}'") from None
+    if kind is float and not math.isfinite(value):
+        raise InputError(f"{flag}: must be finite, got '{text}'")
+    if minimum is not None and (value <= minimum if strict else value < minimum):
+        raise InputError(f"{flag}: must be {'>' if strict else '>='} {minimum:g}, got {text}")
+    return value
+
+
+def parse_settings(argv: list[str]) -> SimSettings:
+    """Parse and validate ``swarm-sim`` flags (ROS arguments already removed).
+
+    Raises:
+        InputError: a flag's value is malformed or out of range.
+    """
+    parser = build_parser()
+    parser.error = lambda message: (_ for _ in ()).throw(InputError(message))  # one line, exit 2
+    a = parser.parse_args(argv)
+    return SimSettings(
+        world=a.world, robot=a.robot,
+        swarm_size=_number("--swarm-size", a.swarm_size, int, 0, strict=True),
+        name_prefix=a.name_prefix,
+        seed=_number("--seed", a.seed, int, 0),
+        rtf=_number("--rtf", a.rtf, float, 0.0),
+        duration=None if a.duration is None else _number("--duration", a.duration, float, 0.0,
+                                                        strict=True),
+        map_path=a.map, summary=a.summary,
+        control_rate=_number("--control-rate", a.control_rate, float, 0.0, strict=True),
+        command_timeout=_number("--command-timeout", a.command_timeout, float, 0.0, strict=True),
+        gui=a.gui,
+    )
+
+
+def prepare(settings: SimSettings):
+    """Load everything and spawn, before ROS starts, so bad input fails fast and quietly.
+
+    Returns:
+        ``(engine, occ, namespaces)``.
+
+    Raises:
+        InputError: an unknown or malformed world, robot, map or POI file, a bad name prefix, or
+            more robots than fit.
+    """
+    from swarm_common.map_io import load_map
+    from swarm_common.paths import MAPS_DIR, WORLDS_DIR
+    from swarm_common.poi import poi_for_world
+    from swarm_common.rasterize import rasterize_world
+    from swarm_common.robot_model import load_robot
+    from swarm_common.world import load_world, resolve_world, world_polygons
+    from swarm_sim.engine import EngineConfig, SimEngine, spawn_poses, spawn_poses_free
+
+    if not settings.name_prefix.replace("_", "a").isalnum() or settings.name_prefix[0].isdigit():
+        raise InputError(f"--name-prefix: '{settings.name_prefix}' is not a valid ROS name "
+                         "(letters, digits and '_', not starting with a digit)")
+    world_path = resolve_world(settings.world)
+    world = load_world(world_path)
+    robot = load_robot(settings.robot)
+    poi = poi_for_world(world_path)
+    if settings.map_path is not None:
+        occ = load_map(settings.map_path)
+    elif world_path.parent == WORLDS_DIR and (MAPS_DIR / f"{world.name}.yaml").is_file():
+        occ = load_map(MAPS_DIR / f"{world.name}.yaml")
+    else:
+        occ = rasterize_world(world)
+    polygons = world_polygons(world)
+    if poi is not None and poi.spawn is not None:
+        poses = spawn_poses(poi.spawn, settings.swarm_size, robot.radius, polygons,
+                            where=f"spawn area of {world.name}")
+    else:
+        poses = spawn_poses_free(occ, settings.swarm_size, robot.radius, polygons,
+                                 where=f"largest free area of {world.name}")
+    config = EngineConfig(control_period=1.0 / settings.control_rate)
+    engine = SimEngine(world, robot, poses, seed=settings.seed, config=config, gui=settings.gui)
+    namespaces = [f"{settings.name_prefix}{i + 1}" for i in range(settings.swarm_size)]
+    return engine, occ, namespaces
+
+
+@contextlib.contextmanager
+def held_warnings():
+    """Hold back log records of the loaders; emit them only if the block succeeds."""
+    records: list[logging.LogRecord] = []
+
+    class _Hold(logging.Handler):
+        def emit(self, record):
+            records.append(record)
+
+    root = logging.getLogger()
+    hold = _Hold(logging.WARNING)
+    root.addHandler(hold)
+    try:
+        yield
+    finally:
+        root.removeHandler(hold)
+    for record in records:
+        print(f"swarm-sim: warning: {record.getMessage()}", file=sys.stderr)
+
+
+def _raise_interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
+def main(args=None) -> int:
+    """Entry point of ``swarm-sim``."""
+    argv = list(sys.argv if args is None else args)
+    from rclpy.utilities import remove_ros_args
+
+    user_args = remove_ros_args(argv)[1:]
+    holder: dict = {}
+
+    def body():
+        settings = parse_settings(user_args)
+        with held_warnings():  # bad input: only the one error line, not the loaders' warnings
+            holder["engine"], occ, namespaces = prepare(settings)
+        engine = holder["engine"]
+        print(f"spawned {len(namespaces)} robots in {settings.world} "
+              f"({namespaces[0]}..{namespaces[-1]})", flush=True)
+        signal.signal(signal.SIGTERM, _raise_interrupt)
+        rclpy.init(args=argv)
+        node = SimulatorNode(settings, engine, occ, namespaces)
+        node.set_parameters([Parameter("use_sim_time", value=False)])
+        executor = EventsExecutor()
+        executor.add_node(node)
+        wall0 = time.monotonic()
+        try:
+            node.publish_spawns()
+            node.run(executor)
+        except (KeyboardInterrupt, ExternalShutdownException):
+            pass
+        finally:
+            wall_s = time.monotonic() - wall0
+            summary = node.summary(wall_s)
+            if settings.summary:
+                Path(settings.summary).write_text(json.dumps(summary, indent=2) + "\n")
+            c = summary["collisions"]
+            print(f"simulated {summary['sim_time_s']:.1f} s in {wall_s:.1f} s wall "
+                  f"(RTF {summary['rtf']}), collisions robot-robot {c['robot_robot']} "
+                  f"robot-wall {c['robot_wall']}, late ticks {summary['late_ticks']}",
+                  flush=True)
+            executor.shutdown()
+            node.destroy_node()
+            rclpy.try_shutdown()
+        return 0
+
+    try:
+        return run_cli("swarm-sim", body)
+    finally:
+        if "engine" in holder:
+            holder["engine"].close()
+
+
+if __name__ == "__main__":
+    sys.exit(main())
