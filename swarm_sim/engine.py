@@ -415,8 +415,14 @@ class SimEngine:
                 self.collisions[key[1]] += 1
                 self.collision_counts[kind] += 1
                 started.append(CollisionEvent(self.t, kind, key[1], other, x, y))
+        release = self.config.contact_release
         for key in list(self._active_contacts):
-            if seen.get(key, math.inf) >= self.config.contact_release:
+            if seen.get(key, math.inf) < release:
+                continue
+            # Not in the contact list: measure the gap itself before ending the episode.
+            a = self._bodies[key[1]]
+            b = self._bodies[key[2]] if key[0] == "r" else key[2]
+            if not p.getClosestPoints(a, b, distance=release, physicsClientId=cid):
                 del self._active_contacts[key]
         return blocked, started
 

@@ -60,6 +60,8 @@ class SimSettings:
         control_rate: control ticks per simulated second [Hz].
         command_timeout: wall time to wait for a tick's commands before counting late [s].
         inactive_after: consecutive late ticks after which a robot is no longer waited for [-].
+        wait_for: robots that must have answered before simulated time starts (the start gate;
+            ``swarm-up`` passes N) [-].
         gui: open PyBullet's window.
     """
 
@@ -75,6 +77,7 @@ class SimSettings:
     control_rate: float = 10.0  # [Hz]
     command_timeout: float = 1.0  # [s] wall
     inactive_after: int = 3  # [ticks]
+    wait_for: int = 0  # [robots]
     gui: bool = False
 
 
@@ -144,7 +147,7 @@ class SimulatorNode(Node):
         self.late_ticks = np.zeros(self.n, dtype=int)
         self.dropped = 0
         self._last_warn = 0.0
-        self._robot_index = {ns: i for i, ns in enumerate(namespaces)}
+        self._scans = None  # the current tick's scans, cast once (re-publishing reuses them)
         # Publishers and subscribers.
         reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
@@ -212,7 +215,7 @@ class SimulatorNode(Node):
             if not self.active[i]:
                 self.active[i] = True
                 if self.engine.ticks > 1 and self.late_ticks[i]:
-                    self._event("fault", i, f"{ns} answers again", x=None)
+                    self._event("fault", i, f"{ns} answers again")
         # Any other stamp answers an earlier tick: too late, ignored.
 
     def _drop(self, why: str) -> None:
@@ -224,17 +227,16 @@ class SimulatorNode(Node):
 
     # -- events --------------------------------------------------------------------------------
 
-    def _status(self, kind: str, i: int, message: str, x=None, **values) -> DiagnosticStatus:
-        level = DiagnosticStatus.ERROR if kind == "collision" else DiagnosticStatus.OK
-        if kind == "fault":
-            level = DiagnosticStatus.WARN
-        pose = self.engine.poses[i]
-        kv = [_kv("robot", self.namespaces[i]),
-              _kv("x", f"{pose[0] if x is None else x:.3f}"),
-              _kv("y", f"{pose[1] if x is None else values.pop('y'):.3f}"),
+    def _status(self, name: str, i: int, message: str, xy=None,
+                values: dict | None = None) -> DiagnosticStatus:
+        """One event: ``name`` is its kind; robot ``i``; ``xy`` defaults to the robot's pose."""
+        level = {"collision": DiagnosticStatus.ERROR, "fault": DiagnosticStatus.WARN}.get(
+            name, DiagnosticStatus.OK)
+        x, y = self.engine.poses[i, :2] if xy is None else xy
+        kv = [_kv("robot", self.namespaces[i]), _kv("x", f"{x:.3f}"), _kv("y", f"{y:.3f}"),
               _kv("t", f"{self.t_ns / NS_PER_S:.3f}")]
-        kv += [_kv(k, v) for k, v in values.items()]
-        return DiagnosticStatus(level=level, name=kind, message=message,
+        kv += [_kv(k, v) for k, v in (values or {}).items()]
+        return DiagnosticStatus(level=level, name=name, message=message,
                                 hardware_id=self.namespaces[i], values=kv)
 
     def _publish_events(self, statuses: list[DiagnosticStatus]) -> None:
@@ -243,8 +245,8 @@ class SimulatorNode(Node):
             msg.header.stamp = _time_msg(self.t_ns)
             self.events_pub.publish(msg)
 
-    def _event(self, kind: str, i: int, message: str, x=None, **values) -> None:
-        self._publish_events([self._status(kind, i, message, x=x, **values)])
+    def _event(self, name: str, i: int, message: str) -> None:
+        self._publish_events([self._status(name, i, message)])
 
     # -- the loop ------------------------------------------------------------------------------
 
@@ -252,7 +254,7 @@ class SimulatorNode(Node):
         """Announce every robot's spawn pose on ``/swarm/events``."""
         self._publish_events([
             self._status("spawn", i, f"spawned {ns} at ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f})",
-                         yaw=f"{p[2]:.4f}")
+                         values={"yaw": f"{p[2]:.4f}"})
             for i, (ns, p) in enumerate(zip(self.namespaces, self.engine.poses, strict=True))
         ])
 
@@ -262,7 +264,9 @@ class SimulatorNode(Node):
         self.clock_pub.publish(Clock(clock=stamp))
         eng = self.engine
         if eng.lidar_due():
-            scans = eng.scans()
+            if self._scans is None:
+                self._scans = eng.scans()
+            scans = self._scans
             for i, pub in enumerate(self.scan_pubs):
                 msg = self._scan_msgs[i]
                 msg.header.stamp = stamp
@@ -319,22 +323,38 @@ class SimulatorNode(Node):
         """Step the world one tick and publish the collision episodes that started."""
         events = self.engine.step(v, w)
         self.t_ns += self.period_ns
+        self._scans = None
         statuses = []
         for ev in events:
             a = self.namespaces[ev.robot]
             other = self.namespaces[ev.other] if isinstance(ev.other, int) else ev.other
             statuses.append(self._status(
                 "collision", ev.robot, f"{ev.kind.replace('_', '-')} collision: {a} and {other}",
-                x=ev.x, y=ev.y, other=other, kind=ev.kind))
+                xy=(ev.x, ev.y), values={"other": other, "kind": ev.kind}))
             self.get_logger().warning(
                 f"collision {a} / {other} at ({ev.x:.2f}, {ev.y:.2f}), t = {ev.t:.1f} s")
         self._publish_events(statuses)
+
+    def wait_for_robots(self, executor) -> None:
+        """The start gate: hold the first tick, re-publishing it every 0.5 s wall, until
+        ``wait_for`` robots have answered it (navigators that start late still see it)."""
+        want = min(self.settings.wait_for, self.n)
+        announced = -1
+        while rclpy.ok() and int(self.active.sum()) < want:
+            if int(self.active.sum()) != announced:
+                announced = int(self.active.sum())
+                self.get_logger().info(f"start gate: {announced}/{want} robots answering")
+            self.publish_tick()
+            until = time.monotonic() + 0.5
+            while time.monotonic() < until and int(self.active.sum()) < want:
+                executor.spin_once(timeout_sec=0.05)
 
     def run(self, executor) -> None:
         """Run until ``duration`` simulated seconds have passed (forever if None)."""
         s = self.settings
         # Tick 0 is stepped silently so that no tick carries the zero stamp of manual commands.
         self.step(np.zeros(self.n), np.zeros(self.n))
+        self.wait_for_robots(executor)
         wall0 = time.monotonic()
         sim0_ns = self.t_ns
         end_ns = None if s.duration is None else round(s.duration * NS_PER_S)
@@ -407,6 +427,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="control ticks per simulated second [10]")
     p.add_argument("--command-timeout", default="1.0", metavar="SEC",
                    help="wall seconds to wait for a tick's commands before a robot is late [1.0]")
+    p.add_argument("--wait-for", default="0", metavar="K",
+                   help="hold simulated time at the first tick until K robots answer it [0]")
     p.add_argument("--gui", action="store_true",
                    help="open the PyBullet window (default headless)")
     p.add_argument("--headless", action="store_true", help="run without a window (the default)")
@@ -446,6 +468,7 @@ def parse_settings(argv: list[str]) -> SimSettings:
         map_path=a.map, summary=a.summary,
         control_rate=_number("--control-rate", a.control_rate, float, 0.0, strict=True),
         command_timeout=_number("--command-timeout", a.command_timeout, float, 0.0, strict=True),
+        wait_for=_number("--wait-for", a.wait_for, int, 0),
         gui=a.gui,
     )
 
