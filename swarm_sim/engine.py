@@ -356,17 +356,23 @@ class SimEngine:
             new = integrate_unicycle(self.poses, self.v, self.w, dt)
             moved = np.flatnonzero(np.any(new != self.poses, axis=1))
             self._set_body_poses(new, moved)
+            self.t += dt  # the time of the new poses, when a contact starts
             blocked, started = self._contacts(new)
             events += started
-            if blocked:
-                idx = np.fromiter(blocked, dtype=int)
+            stopped: set[int] = set()
+            while blocked - stopped:
+                # Put blocked robots back; one put back may now overlap a robot that moved on
+                # (a follower close behind): check again until nobody else is blocked.
+                idx = np.fromiter(blocked - stopped, dtype=int)
+                stopped |= blocked
                 new[idx] = self.poses[idx]
                 self.v[idx] = 0.0
                 self.w[idx] = 0.0
                 self._set_body_poses(new, idx)
+                blocked, started = self._contacts(new)
+                events += started
             self.distance += np.hypot(new[:, 0] - self.poses[:, 0], new[:, 1] - self.poses[:, 1])
             self.poses = new
-            self.t += dt
         self.t = (self.ticks + 1) * cfg.control_period  # no drift from summing substeps
         self.ticks += 1
         self._update_min_separation()

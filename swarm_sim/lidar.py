@@ -210,7 +210,9 @@ class PlanarLidar:
         lo = np.mod(np.minimum(a0, a0 + sweep) - amin, 2.0 * np.pi) - 1e-9  # offset from amin
         hi = lo + np.abs(sweep) + 2e-9
         starts, stops, owners = [], [], []
-        for shift in (0.0, 2.0 * np.pi):  # the arc may wrap past amin + 2 pi
+        # The arc may wrap past amin + 2 pi (shift 2 pi), and the beams may reach past it too
+        # (Gazebo's 0..6.28319 puts the last beam 4.7e-6 rad beyond 2 pi: shift -2 pi).
+        for shift in (-2.0 * np.pi, 0.0, 2.0 * np.pi):
             k0 = np.maximum(np.ceil((lo - shift) / inc), 0).astype(int)
             k1 = np.minimum(np.floor((hi - shift) / inc), n_beams - 1).astype(int)
             ok = k1 >= k0

@@ -35,6 +35,7 @@ from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 
@@ -556,8 +557,11 @@ def main(args=None) -> int:
         engine = holder["engine"]
         print(f"spawned {len(namespaces)} robots in {settings.world} "
               f"({namespaces[0]}..{namespaces[-1]})", flush=True)
+        # Ctrl-C and SIGTERM raise KeyboardInterrupt in the loop (not rclpy's handler, which would
+        # invalidate the context mid-tick), so the summary is always written.
         signal.signal(signal.SIGTERM, _raise_interrupt)
-        rclpy.init(args=argv)
+        signal.signal(signal.SIGINT, signal.default_int_handler)  # even if started ignoring it
+        rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
         node = SimulatorNode(settings, engine, occ, namespaces)
         node.set_parameters([Parameter("use_sim_time", value=False)])
         executor = EventsExecutor()

@@ -2,8 +2,9 @@
 
 Every test session claims its own ``ROS_DOMAIN_ID`` (an flock on ``/tmp/swarm_wb_domain_<id>.lock``
 held for the whole session) and sets ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, so two test runs
-on one machine never hear each other.  Processes started by tests inherit both.  The session removes orphaned Fast DDS shared-memory
-files before it starts and the ones its own processes left behind when it ends.
+on one machine never hear each other.  Processes started by tests inherit both.  The session
+removes orphaned Fast DDS shared-memory files before it starts, and the ones its own processes
+left behind when it ends.
 """
 
 from __future__ import annotations
