@@ -461,7 +461,7 @@ def navigator_params(template: dict, ns: str, index: int, cfg: RunConfig) -> dic
 
     Returns:
         ``{"/<ns>/navigator": {"ros__parameters": {...template, use_sim_time, robot_name,
-        robot_index, poi_file, map_yaml_path, robot}}}`` (paths absolute, "" if none).
+        robot_index, poi_file, map_yaml_path (""), robot}}}`` (paths absolute, "" if none).
     """
     params = dict(template)
     params.update(
@@ -469,7 +469,9 @@ def navigator_params(template: dict, ns: str, index: int, cfg: RunConfig) -> dic
         robot_name=ns,
         robot_index=index,
         poi_file=str(cfg.poi_path) if cfg.poi_path else "",
-        map_yaml_path=str(cfg.map_path) if cfg.map_path else "",
+        # The map is distributed centrally on /map, as in the thesis; a navigator that should
+        # read a file of its own gets map_yaml_path set by hand.
+        map_yaml_path="",
         robot=cfg.robot,
     )
     return {f"/{ns}/navigator": {"ros__parameters": params}}
@@ -537,6 +539,8 @@ def child_specs(cfg: RunConfig):
         "--world", world, "--robot", cfg.robot, "--swarm-size", str(len(cfg.robots)),
         "--name-prefix", cfg.name_prefix,
         "--seed", str(cfg.seed), "--rtf", repr(cfg.rtf),
+        # Simulated time starts when every navigator answers (SPEC §5's synchronous loop).
+        "--wait-for", str(len(cfg.robots)),
     ]
     if cfg.duration is not None:
         sim += ["--duration", repr(cfg.duration)]

@@ -76,7 +76,7 @@ def test_one_file_per_namespace_rooted_at_ns_navigator(cfg, template):
         assert params["use_sim_time"] is True
         assert params["robot_name"] == ns and params["robot_index"] == i
         assert params["poi_file"] == str(cfg.poi_path)
-        assert params["map_yaml_path"] == str(cfg.map_path)
+        assert params["map_yaml_path"] == ""  # navigators take the map from /map
         assert params["robot"] == "turtlebot3_waffle"
 
 

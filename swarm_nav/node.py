@@ -1,0 +1,400 @@
+"""``swarm-nav``: one robot's navigator node ``/<ns>/navigator`` (SPEC §3, §5).
+
+A thin ROS 2 shell around :class:`swarm_nav.core.NavigatorCore`: it converts messages to arrays,
+declares the parameters of :func:`swarm_nav.config.flat_defaults` and answers the simulator's
+synchronous control loop (docs/ARCHITECTURE.md): every ``odom`` tick gets exactly one
+``cmd_vel`` stamped with that tick; on a lidar tick (one ``scan_time`` after the last scan) the
+answer waits until that tick's scan has arrived, so a run does not depend on message order.
+
+Nothing is shared with any other robot's navigator: it knows the others only through its scan.
+Several navigators may share a process and an executor (:mod:`swarm_nav.group`).
+
+Usage: ``swarm-nav --ros-args -r __ns:=/Srobot3 --params-file RUN/params/Srobot3.yaml``.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PoseStamped, TwistStamped
+from nav_msgs.msg import OccupancyGrid, Odometry, Path
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.executors import ExternalShutdownException
+from rclpy.experimental import EventsExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from sensor_msgs.msg import LaserScan
+from std_srvs.srv import Trigger
+
+from swarm_common.errors import InputError
+from swarm_common.geometry import quaternion_to_yaw, yaw_to_quaternion
+from swarm_common.occupancy import OccupancyMap
+from swarm_nav.config import NavigatorConfig, flat_defaults
+from swarm_nav.core import NavigatorCore, NavState
+
+NS_PER_S = 1_000_000_000
+STATUS_PERIOD_NS = NS_PER_S // 2  # nav_status at 2 Hz simulated, and on every change of state
+_LEVEL = {
+    NavState.ABORTED: DiagnosticStatus.ERROR,
+    NavState.HOLDING: DiagnosticStatus.WARN,
+    NavState.RECOVERING: DiagnosticStatus.WARN,
+    NavState.CANCELED: DiagnosticStatus.WARN,
+}
+# Parameters that describe the robot and its world rather than an algorithm.
+_CONTEXT_PARAMS = {
+    "robot": ("turtlebot3_waffle", "-", "robot name under robots/ or a .urdf/.xacro path: the "
+              "footprint and the lidar mounting come from it"),
+    "poi_file": ("", "-", "the world's points-of-interest YAML (workstations and their holding "
+                 "spots); empty: hold near the goal"),
+    "map_yaml_path": ("", "-", "a map_server YAML to use instead of /map; empty: /map"),
+    "robot_name": ("", "-", "the robot's namespace without '/', for logs (default: the node's)"),
+}
+
+
+def stamp_ns(stamp) -> int:
+    """``builtin_interfaces/Time`` -> integer nanoseconds."""
+    return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
+
+
+def goal_id_of(stamp) -> str:
+    """The goal id of docs/ARCHITECTURE.md: ``"<sec>.<nanosec:09d>"`` of the goal's stamp."""
+    return f"{int(stamp.sec)}.{int(stamp.nanosec):09d}"
+
+
+def occupancy_from_msg(msg: OccupancyGrid) -> OccupancyMap:
+    """Convert ``nav_msgs/OccupancyGrid`` to an :class:`OccupancyMap`.
+
+    Raises:
+        ValueError: the grid's size does not match its data, or its resolution is not positive.
+    """
+    info = msg.info
+    w, h = int(info.width), int(info.height)
+    if w <= 0 or h <= 0 or len(msg.data) != w * h:
+        raise ValueError(f"{w} x {h} cells but {len(msg.data)} values")
+    if not (info.resolution > 0.0 and math.isfinite(info.resolution)):
+        raise ValueError(f"resolution {info.resolution}")
+    q = info.origin.orientation
+    origin = np.array([info.origin.position.x, info.origin.position.y,
+                       quaternion_to_yaw(q.x, q.y, q.z, q.w)])
+    if not np.all(np.isfinite(origin)):
+        raise ValueError("non-finite origin")
+    data = np.frombuffer(bytes(np.asarray(msg.data, dtype=np.int8)), dtype=np.int8)
+    return OccupancyMap(data=data.reshape(h, w).copy(), resolution=float(info.resolution),
+                        origin=origin)
+
+
+class NavigatorNode(Node):
+    """The navigator of one robot.
+
+    Args:
+        namespace: the robot's namespace (``"/Srobot3"``); None takes it from ``--ros-args``.
+        **kwargs: passed to :class:`rclpy.node.Node` (``context``, ``cli_args``, ...).
+
+    Raises:
+        InputError: a parameter value is invalid, or the robot or POI file cannot be loaded.
+    """
+
+    def __init__(self, namespace: str | None = None, **kwargs):
+        if namespace is not None:
+            kwargs["namespace"] = namespace
+        super().__init__("navigator", **kwargs)
+        # Parameters.
+        self._flat_names = []
+        for name, info in flat_defaults().items():
+            self.declare_parameter(name, info.default, ParameterDescriptor(
+                description=f"[{info.unit}] {info.description}"))
+            self._flat_names.append(name)
+        for name, (default, unit, text) in _CONTEXT_PARAMS.items():
+            self.declare_parameter(name, default, ParameterDescriptor(
+                description=f"[{unit}] {text}", read_only=True))
+        self.cfg = NavigatorConfig.from_flat(self._flat_values())
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        # State.
+        self.ns = (self.get_parameter("robot_name").value
+                   or self.get_namespace().strip("/") or "robot")
+        robot, sites = self._load_context()
+        self.lidar = robot.lidar
+        self.core = NavigatorCore(self.cfg, robot.footprint, sites)
+        self.has_map = False
+        self.ready = False
+        self._scan: tuple[int, np.ndarray] | None = None  # (stamp, ranges) of the latest scan
+        self._scan_meta: tuple[float, float, float, float] | None = None
+        self._tick_ns = round(self.cfg.control_period * NS_PER_S)
+        self._lidar_every = max(1, round(1.0 / (self.lidar.rate_hz * self.cfg.control_period)))
+        self._pending: Odometry | None = None
+        self._last_status: tuple | None = None
+        self._last_status_ns = -STATUS_PERIOD_NS
+        self._path_version = -1
+        self._now_ns = 0
+        self._warned: dict[str, float] = {}
+        # Publishers, subscribers, service.
+        reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.cmd_pub = self.create_publisher(TwistStamped, "cmd_vel", reliable)
+        self.plan_pub = self.create_publisher(Path, "plan", latched)
+        self.status_pub = self.create_publisher(DiagnosticStatus, "nav_status", latched)
+        self.create_subscription(OccupancyGrid, "/map", self._on_map, latched)
+        self.create_subscription(LaserScan, "scan", self._on_scan, qos_profile_sensor_data)
+        self.create_subscription(Odometry, "odom", self._on_odom, reliable)
+        self.create_subscription(PoseStamped, "goal_pose", self._on_goal_pose, reliable)
+        self.create_service(Trigger, "navigator/cancel", self._on_cancel)
+        map_yaml = self.get_parameter("map_yaml_path").value
+        if map_yaml:
+            from swarm_common.map_io import load_map
+
+            self._set_map(load_map(map_yaml))
+
+    # -- parameters ----------------------------------------------------------------------------
+
+    def _flat_values(self) -> dict:
+        return {name: self.get_parameter(name).value for name in self._flat_names}
+
+    def _on_set_parameters(self, params) -> SetParametersResult:
+        flat = self._flat_values()
+        for p in params:
+            if p.name in flat:
+                flat[p.name] = p.value
+        try:
+            NavigatorConfig.from_flat(flat)
+        except InputError as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
+    def _load_context(self):
+        from swarm_common.poi import load_poi
+        from swarm_common.robot_model import load_robot
+
+        robot = load_robot(self.get_parameter("robot").value)
+        poi_file = self.get_parameter("poi_file").value
+        sites = []
+        if poi_file:
+            poi = load_poi(poi_file)
+            sites = [(ws.pose, ws.holding) for ws in poi.workstations]
+        return robot, sites
+
+    # -- helpers -------------------------------------------------------------------------------
+
+    def _warn(self, key: str, text: str) -> None:
+        """A warning at most every 5 s (wall) per kind of problem."""
+        now = time.monotonic()
+        if now - self._warned.get(key, -math.inf) >= 5.0:
+            self._warned[key] = now
+            self.get_logger().warning(text)
+
+    def _set_map(self, occ: OccupancyMap) -> None:
+        self.core.set_map(occ)
+        self.has_map = True
+
+    # -- callbacks -----------------------------------------------------------------------------
+
+    def _on_map(self, msg: OccupancyGrid) -> None:
+        if self.get_parameter("map_yaml_path").value:
+            return
+        if msg.header.frame_id not in ("map", "/map"):
+            self._warn("map", f"dropped /map in frame '{msg.header.frame_id}', expected 'map'")
+            return
+        try:
+            occ = occupancy_from_msg(msg)
+        except ValueError as exc:
+            self._warn("map", f"dropped a malformed /map: {exc}")
+            return
+        self._set_map(occ)
+
+    def _on_scan(self, msg: LaserScan) -> None:
+        n = len(msg.ranges)
+        meta = (msg.angle_min, msg.angle_increment, msg.range_min, msg.range_max)
+        if n == 0 or not all(math.isfinite(x) for x in meta) or msg.range_max <= 0.0:
+            self._warn("scan", "dropped a malformed scan (no beams or non-finite geometry)")
+            return
+        t = stamp_ns(msg.header.stamp)
+        self._scan = (t, np.asarray(msg.ranges, dtype=np.float32))
+        self._scan_meta = meta
+        if self._pending is not None and stamp_ns(self._pending.header.stamp) == t:
+            odom, self._pending = self._pending, None
+            self._tick(odom)
+
+    def _is_lidar_tick(self, t: int) -> bool:
+        """The simulator scans every ``1 / (rate_hz * control_period)`` ticks, from tick 0."""
+        return round(t / self._tick_ns) % self._lidar_every == 0
+
+    def _on_odom(self, msg: Odometry) -> None:
+        t = stamp_ns(msg.header.stamp)
+        # On a lidar tick, wait for that tick's scan before answering (a lost scan makes this
+        # one tick late; the next odometry replaces the pending one).
+        if self._is_lidar_tick(t) and (self._scan is None or self._scan[0] != t):
+            self._pending = msg
+            return
+        self._pending = None
+        self._tick(msg)
+
+    def _on_goal_pose(self, msg: PoseStamped) -> None:
+        p, q = msg.pose.position, msg.pose.orientation
+        values = (p.x, p.y, p.z, q.x, q.y, q.z, q.w)
+        goal_id = goal_id_of(msg.header.stamp)
+        now = self._now_ns / NS_PER_S
+        if msg.header.frame_id not in ("map", "/map"):
+            self._reject(goal_id, f"goal frame '{msg.header.frame_id}' is not 'map'")
+            return
+        if not all(math.isfinite(v) for v in values):
+            self._reject(goal_id, "goal pose has NaN or inf")
+            return
+        yaw = quaternion_to_yaw(q.x, q.y, q.z, q.w)
+        self.core.set_goal(np.array([p.x, p.y, yaw]), goal_id, now)
+        self.get_logger().info(f"goal {goal_id}: ({p.x:.2f}, {p.y:.2f}, {yaw:.2f})")
+        self._publish_status(force=True)
+
+    def _reject(self, goal_id: str, reason: str) -> None:
+        self._warn("goal", f"rejected goal {goal_id}: {reason}")
+        self.core.cancel(self._now_ns / NS_PER_S)  # a new goal replaces the current one
+        self._publish_raw(NavState.ABORTED, goal_id, None, reason)
+
+    def _on_cancel(self, request, response):
+        active = self.core.state not in (NavState.IDLE, NavState.SUCCEEDED, NavState.ABORTED,
+                                         NavState.CANCELED)
+        self.core.cancel(self._now_ns / NS_PER_S)
+        self._publish_status(force=True)
+        response.success = active
+        response.message = "canceled" if active else "no active goal"
+        return response
+
+    # -- the control tick ----------------------------------------------------------------------
+
+    def _tick(self, odom: Odometry) -> None:
+        t = stamp_ns(odom.header.stamp)
+        p, q = odom.pose.pose.position, odom.pose.pose.orientation
+        tw = odom.twist.twist
+        values = (p.x, p.y, q.x, q.y, q.z, q.w, tw.linear.x, tw.angular.z)
+        if not all(math.isfinite(v) for v in values):
+            self._warn("odom", "dropped odometry with NaN or inf")
+            return
+        self._now_ns = t
+        pose = np.array([p.x, p.y, quaternion_to_yaw(q.x, q.y, q.z, q.w)])
+        now = t / NS_PER_S
+        v = w = 0.0
+        if self.has_map:
+            if self._scan is not None and self._scan[0] == t:
+                self.core.on_scan(self._scan_points(pose), now)
+            v, w = self.core.step(pose, tw.linear.x, tw.angular.z, now)
+            if not (math.isfinite(v) and math.isfinite(w)):
+                v = w = 0.0
+        cmd = TwistStamped()
+        cmd.header.stamp = odom.header.stamp
+        cmd.header.frame_id = f"{self.ns}/base_footprint"
+        cmd.twist.linear.x = float(v)
+        cmd.twist.angular.z = float(w)
+        self.cmd_pub.publish(cmd)
+        if self.has_map and not self.ready:
+            self.ready = True
+            self.get_logger().info("ready: map and odometry received")
+        if self.ready:
+            self._publish_status()
+            self._publish_plan(odom.header.stamp)
+
+    def _scan_points(self, pose: np.ndarray) -> np.ndarray:
+        """(M, 2) end points in ``map`` of the valid beams of the tick's scan."""
+        _, ranges = self._scan
+        angle_min, inc, rmin, rmax = self._scan_meta
+        r = ranges.astype(float)
+        ok = np.isfinite(r) & (r >= rmin) & (r <= rmax)
+        a = angle_min + inc * np.flatnonzero(ok)
+        r = r[ok]
+        mount = self.lidar.pose
+        lx, ly = r * np.cos(a + mount[2]) + mount[0], r * np.sin(a + mount[2]) + mount[1]
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        return np.column_stack((pose[0] + c * lx - s * ly, pose[1] + s * lx + c * ly))
+
+    # -- outputs -------------------------------------------------------------------------------
+
+    def _publish_status(self, force: bool = False) -> None:
+        st = self.core.status
+        key = (st.state, st.goal_id, st.reason)
+        if not force and key == self._last_status and (
+                self._now_ns - self._last_status_ns < STATUS_PERIOD_NS):
+            return
+        self._last_status = key
+        self._last_status_ns = self._now_ns
+        self._publish_raw(st.state, st.goal_id, st.goal, st.reason, st)
+
+    def _publish_raw(self, state, goal_id, goal, reason, st=None) -> None:
+        kv = [("state", state.value), ("goal_id", goal_id)]
+        if goal is not None:
+            kv += [("goal_x", f"{goal[0]:.3f}"), ("goal_y", f"{goal[1]:.3f}"),
+                   ("goal_yaw", f"{goal[2]:.4f}")]
+        kv += [("distance_remaining_m", f"{st.distance_remaining:.3f}" if st else "0.0"),
+               ("navigation_time_s", f"{st.navigation_time:.3f}" if st else "0.0"),
+               ("recoveries", str(st.recoveries) if st else "0"),
+               ("holding_time_s", f"{st.holding_time:.3f}" if st else "0.0"),
+               ("reason", reason)]
+        self.status_pub.publish(DiagnosticStatus(
+            level=_LEVEL.get(state, DiagnosticStatus.OK), name=f"{self.ns}/navigator",
+            message=state.value, hardware_id=self.ns,
+            values=[KeyValue(key=k, value=v) for k, v in kv]))
+
+    def _publish_plan(self, stamp) -> None:
+        if self.core.path_version == self._path_version:
+            return
+        self._path_version = self.core.path_version
+        msg = Path()
+        msg.header.frame_id = "map"
+        msg.header.stamp = stamp
+        path = self.core.path
+        if path is not None:
+            qz, qw = yaw_to_quaternion(0.0)[2:]
+            for x, y in path:
+                ps = PoseStamped()
+                ps.header = msg.header
+                ps.pose.position.x = float(x)
+                ps.pose.position.y = float(y)
+                ps.pose.orientation.z, ps.pose.orientation.w = qz, qw
+                msg.poses.append(ps)
+        self.plan_pub.publish(msg)
+
+
+def spin_forever(executor, context) -> None:
+    """Spin until the context shuts down (Ctrl-C, SIGTERM).
+
+    ``EventsExecutor.spin()`` of this rclpy (7.1.6 wheels) delivered no message across processes
+    in our tests while ``spin_once`` did, so we loop on ``spin_once``.
+    """
+    while context.ok():
+        executor.spin_once(timeout_sec=0.5)
+
+
+def main(args=None) -> int:
+    """Entry point of ``swarm-nav`` (STYLE.md point 7)."""
+    argv = sys.argv if args is None else args
+    if any(a in ("-h", "--help") for a in argv[1:]) and "--ros-args" not in argv:
+        print(__doc__)
+        print("Parameters (ros2 param describe /<ns>/navigator NAME):")
+        for name, info in flat_defaults().items():
+            print(f"  {name} = {info.default!r}  [{info.unit}] {info.description}")
+        for name, (default, unit, text) in _CONTEXT_PARAMS.items():
+            print(f"  {name} = {default!r}  [{unit}] {text}")
+        return 0
+    rclpy.init(args=argv)
+    node = None
+    try:
+        node = NavigatorNode()
+        executor = EventsExecutor()
+        executor.add_node(node)
+        spin_forever(executor, node.context)
+    except InputError as exc:
+        print(f"swarm-nav: error: {exc}", file=sys.stderr)
+        return 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
