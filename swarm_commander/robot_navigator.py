@@ -20,8 +20,11 @@ The transport is not nav2's actions (``nav2_msgs`` is not available as a wheel) 
 navigator's topics (docs/ARCHITECTURE.md, "ROS conventions chosen by us"):
 
 - a goal is a ``geometry_msgs/PoseStamped`` on ``<ns>/goal_pose`` in ``map`` whose
-  ``header.stamp`` is unique per goal (the node's clock now, 1 ns later than the previous goal
-  if the clock has not moved); ``"<sec>.<nanosec:09d>"`` of that stamp is the goal's id;
+  ``header.stamp`` is unique per goal: the simulated time of the navigator's latest status
+  (its ``stamp`` value; the node's clock when there is none), 1 ns later than the previous goal
+  if that has not moved.  The navigator applies a goal at its first control tick after the
+  stamp, so the same seed gives the same run (docs/ARCHITECTURE.md, "goal handshake");
+  ``"<sec>.<nanosec:09d>"`` of the stamp is the goal's id;
 - progress and the outcome come from ``<ns>/nav_status`` (``diagnostic_msgs/DiagnosticStatus``,
   reliable + transient local); a status refers to our goal when its ``goal_id`` value is our id;
   ``SUCCEEDED`` / ``ABORTED`` / ``CANCELED`` map onto :class:`TaskResult` ``SUCCEEDED`` /
@@ -179,6 +182,7 @@ class BasicNavigator(Node):
         self._result = TaskResult.UNKNOWN
         self._nav_status_received = False
         self._last_stamp_ns = 0
+        self._status_stamp_ns: int | None = None  # simulated time of the latest nav_status
         self._sent_ids: deque[str] = deque(maxlen=64)
         self._own_executor: SingleThreadedExecutor | None = None
         # publishers, subscribers, clients
@@ -402,7 +406,10 @@ class BasicNavigator(Node):
         pose = task.poses[task.index]
         msg = PoseStamped()
         msg.header.frame_id = MAP_FRAME
-        stamp_ns = max(self.get_clock().now().nanoseconds, self._last_stamp_ns + 1)
+        base = self._status_stamp_ns
+        if base is None:
+            base = self.get_clock().now().nanoseconds
+        stamp_ns = max(base, self._last_stamp_ns + 1)
         self._last_stamp_ns = stamp_ns
         sec, nanosec = divmod(stamp_ns, _NS_PER_S)
         msg.header.stamp = Time(sec=sec, nanosec=nanosec)
@@ -420,7 +427,14 @@ class BasicNavigator(Node):
         state = values.get("state") or msg.message
         goal_id = values.get("goal_id", "")
         ended = None
+        stamp = values.get("stamp", "")
         with self._cond:
+            if stamp:
+                try:
+                    sec, _, nsec = stamp.partition(".")
+                    self._status_stamp_ns = int(sec) * _NS_PER_S + int(nsec)
+                except ValueError:
+                    pass
             self.last_nav_status = msg
             self._nav_status_received = True
             task = self._task

@@ -24,6 +24,7 @@ from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
@@ -53,7 +54,11 @@ _CONTEXT_PARAMS = {
                  "spots); empty: hold near the goal"),
     "map_yaml_path": ("", "-", "a map_server YAML to use instead of /map; empty: /map"),
     "robot_name": ("", "-", "the robot's namespace without '/', for logs (default: the node's)"),
+    "wait_for_commander": (False, "-", "hold the first answer to the simulator until a goal_pose "
+                           "publisher (a commander) is connected (swarm-up --commanders)"),
 }
+GOAL_WAIT_S = 0.5  # [s] wall: how long a tick's answer may wait for the commander's next goal
+_TERMINAL = (NavState.IDLE, NavState.SUCCEEDED, NavState.ABORTED, NavState.CANCELED)
 
 
 def stamp_ns(stamp) -> int:
@@ -127,6 +132,12 @@ class NavigatorNode(Node):
         self._tick_ns = round(self.cfg.control_period * NS_PER_S)
         self._lidar_every = max(1, round(1.0 / (self.lidar.rate_hz * self.cfg.control_period)))
         self._pending: Odometry | None = None
+        self._goals: list[tuple[int, np.ndarray, str]] = []  # (stamp, pose, id) awaiting a tick
+        self._terminal_ns: int | None = None  # tick at which the current terminal state began
+        self._goal_wait_over: int | None = None  # tick whose wait for a goal timed out
+        self._goal_timer = None
+        self._answered = False
+        self._goal_topic = f"{self.get_namespace().rstrip('/')}/goal_pose"
         self._last_status: tuple | None = None
         self._last_status_ns = -STATUS_PERIOD_NS
         self._path_version = -1
@@ -215,29 +226,63 @@ class NavigatorNode(Node):
         t = stamp_ns(msg.header.stamp)
         self._scan = (t, np.asarray(msg.ranges, dtype=np.float32))
         self._scan_meta = meta
-        if self._pending is not None and stamp_ns(self._pending.header.stamp) == t:
-            odom, self._pending = self._pending, None
-            self._tick(odom)
+        self._release()
 
     def _is_lidar_tick(self, t: int) -> bool:
         """The simulator scans every ``1 / (rate_hz * control_period)`` ticks, from tick 0."""
         return round(t / self._tick_ns) % self._lidar_every == 0
 
     def _on_odom(self, msg: Odometry) -> None:
+        self._pending = msg  # a newer tick replaces one still waiting (that one is late anyway)
+        self._release()
+
+    def _release(self) -> None:
+        """Answer the pending tick once it may be answered (docs/ARCHITECTURE.md):
+
+        - on a lidar tick, that tick's scan has arrived (a lost scan makes the tick late);
+        - on the first tick after the goal ended (or the first tick at all), with a commander
+          connected, its next goal has arrived or ``GOAL_WAIT_S`` wall seconds passed; with
+          ``wait_for_commander``, the very first answer waits for a commander to connect.
+        """
+        msg = self._pending
+        if msg is None:
+            return
         t = stamp_ns(msg.header.stamp)
-        # On a lidar tick, wait for that tick's scan before answering (a lost scan makes this
-        # one tick late; the next odometry replaces the pending one).
         if self._is_lidar_tick(t) and (self._scan is None or self._scan[0] != t):
-            self._pending = msg
+            return
+        if self._awaits_goal(t):
+            if self._goal_timer is None and self._answered:
+                self._goal_timer = self.create_timer(
+                    GOAL_WAIT_S, lambda: self._on_goal_wait_over(t),
+                    clock=Clock(clock_type=ClockType.STEADY_TIME))
             return
         self._pending = None
+        self._cancel_goal_timer()
         self._tick(msg)
+
+    def _awaits_goal(self, t: int) -> bool:
+        if any(stamp < t for stamp, _, _ in self._goals):
+            return False
+        if not self._answered:  # the start gate: wait for the commander, without a timeout
+            return bool(self.get_parameter("wait_for_commander").value) and (
+                self.count_publishers(self._goal_topic) == 0)
+        return (self._terminal_ns is not None and t == self._terminal_ns + self._tick_ns
+                and self._goal_wait_over != t and self.count_publishers(self._goal_topic) > 0)
+
+    def _on_goal_wait_over(self, t: int) -> None:
+        self._cancel_goal_timer()
+        self._goal_wait_over = t
+        self._release()
+
+    def _cancel_goal_timer(self) -> None:
+        if self._goal_timer is not None:
+            self.destroy_timer(self._goal_timer)
+            self._goal_timer = None
 
     def _on_goal_pose(self, msg: PoseStamped) -> None:
         p, q = msg.pose.position, msg.pose.orientation
         values = (p.x, p.y, p.z, q.x, q.y, q.z, q.w)
         goal_id = goal_id_of(msg.header.stamp)
-        now = self._now_ns / NS_PER_S
         if msg.header.frame_id not in ("map", "/map"):
             self._reject(goal_id, f"goal frame '{msg.header.frame_id}' is not 'map'")
             return
@@ -245,9 +290,9 @@ class NavigatorNode(Node):
             self._reject(goal_id, "goal pose has NaN or inf")
             return
         yaw = quaternion_to_yaw(q.x, q.y, q.z, q.w)
-        self.core.set_goal(np.array([p.x, p.y, yaw]), goal_id, now)
-        self.get_logger().info(f"goal {goal_id}: ({p.x:.2f}, {p.y:.2f}, {yaw:.2f})")
-        self._publish_status(force=True)
+        # Applied at the first tick after its stamp (a stamp in the past: the next tick).
+        self._goals.append((stamp_ns(msg.header.stamp), np.array([p.x, p.y, yaw]), goal_id))
+        self._release()
 
     def _reject(self, goal_id: str, reason: str) -> None:
         self._warn("goal", f"rejected goal {goal_id}: {reason}")
@@ -274,8 +319,16 @@ class NavigatorNode(Node):
             self._warn("odom", "dropped odometry with NaN or inf")
             return
         self._now_ns = t
+        self._answered = True
         pose = np.array([p.x, p.y, quaternion_to_yaw(q.x, q.y, q.z, q.w)])
         now = t / NS_PER_S
+        due = [g for g in self._goals if g[0] < t]
+        if due:
+            self._goals = [g for g in self._goals if g[0] >= t]
+            _, goal, goal_id = due[-1]  # a new goal replaces the current one
+            self.core.set_goal(goal, goal_id, now)
+            self.get_logger().info(
+                f"goal {goal_id}: ({goal[0]:.2f}, {goal[1]:.2f}, {goal[2]:.2f})")
         v = w = 0.0
         if self.has_map:
             if self._scan is not None and self._scan[0] == t:
@@ -289,6 +342,11 @@ class NavigatorNode(Node):
         cmd.twist.linear.x = float(v)
         cmd.twist.angular.z = float(w)
         self.cmd_pub.publish(cmd)
+        if self.core.state in _TERMINAL:
+            if self._terminal_ns is None:
+                self._terminal_ns = t
+        else:
+            self._terminal_ns = None
         if self.has_map and not self.ready:
             self.ready = True
             self.get_logger().info("ready: map and odometry received")
@@ -322,7 +380,8 @@ class NavigatorNode(Node):
         self._publish_raw(st.state, st.goal_id, st.goal, st.reason, st)
 
     def _publish_raw(self, state, goal_id, goal, reason, st=None) -> None:
-        kv = [("state", state.value), ("goal_id", goal_id)]
+        sec, nsec = divmod(self._now_ns, NS_PER_S)
+        kv = [("state", state.value), ("goal_id", goal_id), ("stamp", f"{sec}.{nsec:09d}")]
         if goal is not None:
             kv += [("goal_x", f"{goal[0]:.3f}"), ("goal_y", f"{goal[1]:.3f}"),
                    ("goal_yaw", f"{goal[2]:.4f}")]

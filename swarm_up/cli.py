@@ -473,6 +473,9 @@ def navigator_params(template: dict, ns: str, index: int, cfg: RunConfig) -> dic
         # read a file of its own gets map_yaml_path set by hand.
         map_yaml_path="",
         robot=cfg.robot,
+        # With commanders, simulated time starts once each robot's commander is connected, and
+        # each goal takes effect at a fixed tick: the same seed gives the same run.
+        wait_for_commander=bool(cfg.commanders),
     )
     return {f"/{ns}/navigator": {"ros__parameters": params}}
 
