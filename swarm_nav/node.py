@@ -58,6 +58,7 @@ _CONTEXT_PARAMS = {
                            "publisher (a commander) is connected (swarm-up --commanders)"),
 }
 GOAL_WAIT_S = 0.5  # [s] wall: how long a tick's answer may wait for the commander's next goal
+COMMANDER_WAIT_S = 60.0  # [s] wall: how long the first answer waits for a commander to connect
 _TERMINAL = (NavState.IDLE, NavState.SUCCEEDED, NavState.ABORTED, NavState.CANCELED)
 
 
@@ -137,6 +138,7 @@ class NavigatorNode(Node):
         self._goal_wait_over: int | None = None  # tick whose wait for a goal timed out
         self._goal_timer = None
         self._answered = False
+        self._started = time.monotonic()
         self._goal_topic = f"{self.get_namespace().rstrip('/')}/goal_pose"
         self._last_status: tuple | None = None
         self._last_status_ns = -STATUS_PERIOD_NS
@@ -263,9 +265,16 @@ class NavigatorNode(Node):
     def _awaits_goal(self, t: int) -> bool:
         if any(stamp < t for stamp, _, _ in self._goals):
             return False
-        if not self._answered:  # the start gate: wait for the commander, without a timeout
-            return bool(self.get_parameter("wait_for_commander").value) and (
-                self.count_publishers(self._goal_topic) == 0)
+        if not self._answered:  # the start gate: wait for the commander to connect
+            if not self.get_parameter("wait_for_commander").value:
+                return False
+            if self.count_publishers(self._goal_topic) > 0:
+                return False
+            if time.monotonic() - self._started > COMMANDER_WAIT_S:
+                self._warn("commander", f"no commander on {self._goal_topic} after "
+                           f"{COMMANDER_WAIT_S:g} s; starting without one")
+                return False
+            return True
         return (self._terminal_ns is not None and t == self._terminal_ns + self._tick_ns
                 and self._goal_wait_over != t and self.count_publishers(self._goal_topic) > 0)
 

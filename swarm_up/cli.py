@@ -37,7 +37,10 @@ from swarm_common.errors import run_cli as _run_cli
 
 PROG = "swarm-up"
 PER_ROBOT = "per-robot"
-PER_ROBOT_MAX = 30  # default layout: one process per robot up to this many robots
+# Default layout: one process per robot (and one per commander) up to this many robots, else
+# one group per core.  Each rclpy process is a DDS participant of ~75 MB whose start costs ~1 s
+# of CPU; 20 robots with commanders as 41 processes took minutes to come up on 2 cores.
+PER_ROBOT_MAX = 8
 DEFAULT_READY_TIMEOUT_S = 120.0
 POLL_PERIOD_S = 0.1  # supervision poll [s] (10 Hz; restarts within 2 s need >= 5 Hz)
 NAME_PREFIX_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
@@ -564,7 +567,8 @@ def child_specs(cfg: RunConfig):
         if cfg.commanders:
             cmd = command("swarm-commander", "swarm_commander.cli")
             for ns in cfg.robots:
-                argv = cmd + [ns, "--world", world, "--seed", str(cfg.seed)]
+                argv = cmd + [ns, "--world", world, "--seed", str(cfg.seed),
+                              "--wait-timeout", repr(cfg.ready_timeout)]
                 specs.append(ChildSpec(f"cmd_{ns}", tuple(argv), logs / f"cmd_{ns}.log",
                                        kind="cmd", robots=(ns,), env=env))
     else:
