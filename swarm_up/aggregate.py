@@ -158,6 +158,12 @@ class RunRecorder:
         """One ``/clock`` message [s]."""
         self.last_sim_time_s = sim_time_s
 
+    def goal_totals(self) -> tuple[int, int]:
+        """``(reached, aborted)`` goals so far, all robots."""
+        reached = sum(len(r.reached) + r.anonymous_reached for r in self.per_robot.values())
+        aborted = sum(len(r.aborted) + r.anonymous_aborted for r in self.per_robot.values())
+        return reached, aborted
+
     # ---------------------------------------------------------------- queries
     @property
     def ready_count(self) -> int:

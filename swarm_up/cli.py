@@ -763,6 +763,8 @@ class Orchestrator:
         self.sampler = ResourceSampler(self.sup, robots=self.n)
         self.view = ProgressView(self.n, tty=sys.stdout.isatty())
         self.all_ready = False
+        self._last_report = time.monotonic()
+        self._report_mark: tuple[float, float] | None = None  # (wall, sim) of the last line
         self._sim_tail = _LogTail(self.logs / "sim.log")
         self._spawned_from_log = 0
         self._navigators = {s.name for s in self.specs if s.kind in ("nav", "group")}
@@ -808,7 +810,29 @@ class Orchestrator:
         if not self.all_ready:
             return self._progress()
         self.sampler.maybe_sample()
+        self._report_progress()
         return None
+
+    def _report_progress(self, every_s: float = 10.0) -> None:
+        """One line every ``every_s`` wall seconds: simulated time, RTF, goals, collisions."""
+        now = time.monotonic()
+        if now - self._last_report < every_s:
+            return
+        with self.listener.lock:
+            rec = self.listener.recorder
+            sim_s = rec.last_sim_time_s
+            reached, aborted = rec.goal_totals()
+            hits = sum(rec.collision_events.values())
+        if sim_s is None:
+            return
+        if self._report_mark is not None:
+            wall0, sim0 = self._report_mark
+            rtf = (sim_s - sim0) / max(now - wall0, 1e-9)
+            of = "" if self.cfg.duration is None else f" / {self.cfg.duration:g}"
+            _say(f"t = {sim_s:.0f}{of} s simulated, RTF {rtf:.2f}, goals reached {reached}, "
+                 f"aborted {aborted}, collisions {hits}")
+        self._report_mark = (now, sim_s)
+        self._last_report = now
 
     def _sim_ended(self, code: int) -> Outcome:
         sim_log = self._log_of("sim")
