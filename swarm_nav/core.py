@@ -1,0 +1,728 @@
+"""The whole navigator of one robot as a pure state machine: the ROS node only wires it up.
+
+:class:`NavigatorCore` owns the costmap, the global path, the local planner, the holding pattern
+and the recoveries. The node calls :meth:`~NavigatorCore.set_map` once,
+:meth:`~NavigatorCore.on_scan` with each scan's end points in ``map``, :meth:`~NavigatorCore.step`
+once per control tick with the robot's pose and speeds, and publishes :attr:`~NavigatorCore.status`
+and :attr:`~NavigatorCore.path`. Nothing here talks to another robot.
+
+States (``NavState``): IDLE, PLANNING (a goal waits for its first plan), DRIVING, HOLDING (the goal
+is taken: holding spot or loop), RECOVERING, SUCCEEDED, ABORTED (with the reason), CANCELED.
+
+Per tick in DRIVING/HOLDING: goal reached? (within ``xy_goal_tolerance``, latched, then an in-place
+rotation to the goal yaw) -> holding pattern update (:mod:`swarm_nav.holding`) -> replan if the
+robot left its path by more than ``max_path_deviation``, or something blocks the path ahead (a
+robot standing on it for ``stationary_replan_time``, anything else for ``blocked_replan_time``;
+the replan then plans around the robots seen) -> DWA on the local stretch of the path, shifted to
+the right while a robot comes toward us on it (:func:`~swarm_nav.recovery.keep_right`) ->
+recovery when the DWA finds no motion for ``stuck_time`` or the progress checker fails: the
+face-to-face rule (:func:`~swarm_nav.recovery.must_yield`) makes one of two robots retreat off the
+other's way and wait until its path is clear; otherwise nav2's set (replan around the robots seen,
+back up, wait, spin), cycled, never giving up on a reachable goal.
+
+Paths are planned on the static costmap plus keep-out discs about the workstations and holding
+points (robots stop there, so paths to elsewhere keep to the lanes).  Plans are made only on a new
+goal or holding target, a blocked path, a path left behind, or a recovery.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from enum import StrEnum
+
+import numpy as np
+
+from swarm_common.geometry import Path2D, Points2D, Pose2D, wrap_angle
+from swarm_common.occupancy import OccupancyMap
+from swarm_nav.config import NavigatorConfig
+from swarm_nav.costmap import INSCRIBED, Costmap, add_keepout, build_costmap, overlay_obstacles
+from swarm_nav.dwa import Footprint, RobotState, dwa_command, rotation_is_safe
+from swarm_nav.holding import (
+    HoldingPattern,
+    HoldingPhase,
+    HoldingSite,
+    SeenRobot,
+    dynamic_points,
+    goal_occupied,
+    goal_visible,
+    holding_points_for,
+    perceive_robots,
+    someone_came_first,
+    staging_point,
+)
+from swarm_nav.planner import PlanResult, path_length, plan_path
+from swarm_nav.recovery import (
+    SEQUENCE,
+    ProgressChecker,
+    Recovery,
+    RecoveryKind,
+    keep_right,
+    must_yield,
+    retreat_candidates,
+    robots_ahead,
+)
+
+_LOCAL_WINDOW = 3.0  # [m] of path handed to the DWA
+_SEARCH_AHEAD = 40   # path points searched ahead of the progress index
+
+
+class NavState(StrEnum):
+    """The navigator's state, as published in ``nav_status``."""
+
+    IDLE = "IDLE"
+    PLANNING = "PLANNING"
+    DRIVING = "DRIVING"
+    HOLDING = "HOLDING"
+    RECOVERING = "RECOVERING"
+    SUCCEEDED = "SUCCEEDED"
+    ABORTED = "ABORTED"
+    CANCELED = "CANCELED"
+
+
+TERMINAL = (NavState.IDLE, NavState.SUCCEEDED, NavState.ABORTED, NavState.CANCELED)
+
+
+@dataclass
+class _Yield:
+    """A running yield: drive off the other robot's way, then wait until it has passed."""
+
+    target: np.ndarray
+    t0: float
+    phase: str = "drive"  # "drive" | "wait"
+    t_phase: float = 0.0
+    still_since: float | None = None
+    clear_since: float | None = None
+    other: np.ndarray = field(default_factory=lambda: np.zeros(2))
+
+
+@dataclass(frozen=True)
+class NavStatus:
+    """A snapshot of the navigator for ``nav_status``.
+
+    Attributes:
+        state: the state.
+        goal_id: the current (or last) goal's id; ``""`` before any goal.
+        goal: (3,) x [m], y [m], yaw [rad] of the goal in ``map``, or ``None``.
+        distance_remaining: distance [m] still to drive (along the path when it leads to the goal,
+            else straight to the goal); 0 without a goal.
+        navigation_time: time [s] since the goal was accepted (frozen when it ended).
+        recoveries: recovery behaviours run for this goal.
+        holding_time: time [s] spent holding for this goal.
+        reason: why the goal was aborted (or a note on success); ``""`` otherwise.
+    """
+
+    state: NavState
+    goal_id: str
+    goal: np.ndarray | None
+    distance_remaining: float
+    navigation_time: float
+    recoveries: int
+    holding_time: float
+    reason: str
+
+
+class NavigatorCore:
+    """One robot's navigator (see the module docstring).
+
+    Args:
+        cfg: the configuration.
+        footprint: (K, 2) footprint polygon x, y [m] in ``base_footprint`` (its bounding box is
+            used), or a :class:`~swarm_nav.dwa.Footprint`.
+        holding_sites: per workstation (pose (3,) [m, rad], holding points (K, 2) [m]) in ``map``.
+    """
+
+    def __init__(self, cfg: NavigatorConfig, footprint,
+                 holding_sites: Sequence[HoldingSite] = ()):
+        self.cfg = cfg
+        self.footprint = (footprint if isinstance(footprint, Footprint)
+                          else Footprint.from_polygon(footprint))
+        self.holding_sites = [
+            (np.asarray(p, dtype=float), np.asarray(h, dtype=float).reshape(-1, 2))
+            for p, h in holding_sites]
+        avoid = [p[None, :2] for p, _ in self.holding_sites] + [h for _, h in self.holding_sites]
+        self._avoid = np.vstack(avoid) if avoid else np.zeros((0, 2))
+        self.costmap: Costmap | None = None
+        self._plan_cm: Costmap | None = None
+        self._state = NavState.IDLE
+        self._goal: np.ndarray | None = None
+        self._goal_id = ""
+        self._reason = ""
+        self._t_goal = 0.0
+        self._t_end: float | None = None
+        self._recoveries = 0
+        self._holding_time = 0.0
+        self._now = 0.0
+        self._last_step: float | None = None
+        self._pose: np.ndarray | None = None
+        self._path: np.ndarray | None = None
+        self._path_s: np.ndarray | None = None
+        self._path_to_goal = False
+        self._path_version = 0
+        self._idx = 0
+        self._adjusted_goal: np.ndarray | None = None
+        self._rotating = False
+        self._holding: HoldingPattern | None = None
+        self._recovery: Recovery | None = None
+        self._yield: _Yield | None = None
+        self._recovery_next = 0
+        self._progress = ProgressChecker(cfg.recovery)
+        self._stuck_since: float | None = None
+        self._blocked_since: float | None = None
+        self._crowded_since: float | None = None
+        self._scan = np.zeros((0, 2))
+        self._dyn = np.zeros((0, 2))
+        self._robots: list[SeenRobot] = []
+        self._centres = np.zeros((0, 2))
+        self._history: list[tuple[float, np.ndarray]] = []
+        self._scan_time = -math.inf
+        self._last_cmd = (0.0, 0.0)
+
+    # ------------------------------------------------------------------ inputs
+    def set_map(self, occ: OccupancyMap) -> None:
+        """Use a (new) static map; an active goal is planned again on the next step."""
+        self.costmap = build_costmap(occ, self.cfg.costmap)
+        hc = self.cfg.holding
+        self._plan_cm = add_keepout(self.costmap, self._avoid, hc.workstation_keepout_radius,
+                                    hc.workstation_keepout_cost)
+        if self._state not in TERMINAL:
+            self._path = None
+
+    def set_goal(self, goal: Pose2D, goal_id: str, now: float) -> None:
+        """Accept a goal, replacing the current one (RViz/nav2 "goal pose" convention).
+
+        Args:
+            goal: (3,) x [m], y [m], yaw [rad] in ``map``.
+            goal_id: the goal's id, echoed in the status.
+            now: time [s].
+        """
+        g = np.asarray(goal, dtype=float).ravel()
+        self._goal = g[:3].copy() if g.size >= 3 else np.array([*g[:2], 0.0])
+        self._goal_id = str(goal_id)
+        self._reason = ""
+        self._t_goal = now
+        self._t_end = None
+        self._recoveries = 0
+        self._holding_time = 0.0
+        self._holding = None
+        self._recovery = None
+        self._yield = None
+        self._recovery_next = 0
+        self._rotating = False
+        self._adjusted_goal = None
+        self._path = None
+        self._stuck_since = None
+        self._blocked_since = None
+        self._crowded_since = None
+        self._state = NavState.PLANNING
+        if not np.all(np.isfinite(self._goal)):
+            self._end(NavState.ABORTED, now, "goal is not finite")
+            return
+        if self.costmap is None:
+            self._end(NavState.ABORTED, now, "no map")
+            return
+        if self._pose is not None:
+            self._start_goal(self._pose, now)
+
+    def cancel(self, now: float) -> None:
+        """Cancel the current goal (CANCELED); nothing happens without an active goal."""
+        if self._state not in TERMINAL:
+            self._end(NavState.CANCELED, now, "canceled")
+
+    def on_scan(self, points_map: Points2D, now: float) -> None:
+        """Take a scan's end points.
+
+        Args:
+            points_map: (M, 2) x, y [m] in ``map`` of the returns in range (no inf/NaN).
+            now: the scan's time [s].
+        """
+        pts = np.asarray(points_map, dtype=float).reshape(-1, 2)
+        pts = pts[np.all(np.isfinite(pts), axis=1)]
+        self._scan = pts
+        self._scan_time = now
+        if self.costmap is None:
+            self._dyn = pts
+        else:
+            self._dyn = dynamic_points(pts, self.costmap, self.cfg.holding.static_point_tolerance)
+        viewer = self._pose[:2] if self._pose is not None else np.zeros(2)
+        # velocities from the centres seen about a second ago
+        self._history = [(t, c) for t, c in self._history if now - t <= 1.5 and t < now]
+        old = [(t, c) for t, c in self._history if now - t >= 0.35]
+        earlier, dt = (None, 0.0)
+        if old:
+            t_old, earlier = min(old, key=lambda tc: abs(now - tc[0] - 1.0))
+            dt = now - t_old
+        self._robots = perceive_robots(self._dyn, viewer, earlier, dt)
+        self._centres = (np.array([r.centre for r in self._robots]) if self._robots
+                         else np.zeros((0, 2)))
+        self._history.append((now, self._centres))
+
+    # ------------------------------------------------------------------ outputs
+    @property
+    def state(self) -> NavState:
+        """The current state."""
+        return self._state
+
+    @property
+    def path(self) -> Path2D | None:
+        """(N, 2) the current global path x, y [m] in ``map``, or ``None``."""
+        return self._path
+
+    @property
+    def path_version(self) -> int:
+        """Incremented whenever :attr:`path` changes (the node republishes ``plan`` then)."""
+        return self._path_version
+
+    @property
+    def robots_seen(self) -> list[SeenRobot]:
+        """The other robots in the last scan (centres, points, velocities) in ``map``."""
+        return list(self._robots)
+
+    @property
+    def status(self) -> NavStatus:
+        """The current :class:`NavStatus`."""
+        end = self._t_end if self._t_end is not None else self._now
+        nav_time = max(0.0, end - self._t_goal) if self._goal is not None else 0.0
+        return NavStatus(self._state, self._goal_id,
+                         None if self._goal is None else self._goal.copy(),
+                         self._distance_remaining(), nav_time, self._recoveries,
+                         self._holding_time, self._reason)
+
+    # ------------------------------------------------------------------ the tick
+    def step(self, pose: Pose2D, v: float, w: float, now: float) -> tuple[float, float]:
+        """One control tick.
+
+        Args:
+            pose: (3,) the robot's x [m], y [m], yaw [rad] in ``map``.
+            v: its current forward speed [m/s].
+            w: its current rotational speed [rad/s].
+            now: time [s].
+
+        Returns:
+            ``(v, w)``, the command [m/s, rad/s] for this tick.
+        """
+        pose = np.asarray(pose, dtype=float).reshape(3)
+        dt = 0.0 if self._last_step is None else max(0.0, now - self._last_step)
+        self._last_step = now
+        self._now = now
+        self._pose = pose
+        if self._state == NavState.HOLDING:
+            self._holding_time += dt
+        if self._state in TERMINAL:
+            return self._out(0.0, 0.0)
+        if self._state == NavState.PLANNING:
+            self._start_goal(pose, now)
+            if self._state in TERMINAL:
+                return self._out(0.0, 0.0)
+        if self._path is None and not self._rotating:
+            self._replan(pose, overlay=False)
+            if self._state in TERMINAL:
+                return self._out(0.0, 0.0)
+        state = RobotState(pose, float(v), float(w))
+
+        # goal reached: latch, then turn in place to the goal's yaw
+        if self._heading_to_goal() and not self._rotating and self._at_goal(pose):
+            self._rotating = True
+            self._recovery = None
+            self._state = NavState.DRIVING
+        if self._rotating:
+            return self._out(*self._rotate_to_goal(pose, now))
+
+        if self._yield is not None:
+            return self._out(*self._step_yield(pose, state, now))
+        if self._recovery is not None:
+            v_cmd, w_cmd, done = self._recovery.step(pose, self._obstacles(pose), now)
+            if not done:
+                return self._out(v_cmd, w_cmd)
+            self._finish_recovery(pose, now)
+
+        self._update_holding(pose, now)
+        if self._holding is not None and self._holding.phase == HoldingPhase.WAIT:
+            self._progress.reset(pose, now)
+            self._stuck_since = None
+            return self._out(0.0, 0.0)
+        if self._path is None:
+            return self._out(0.0, 0.0)
+
+        self._advance_progress(pose)
+        if self._deviation(pose) > self.cfg.max_path_deviation:
+            self._replan(pose, overlay=False)
+        elif self._path_blocked(now):
+            self._replan(pose, overlay=True)
+        if self._state in TERMINAL or self._path is None:
+            return self._out(0.0, 0.0)
+
+        local = keep_right(self._local_path(), pose, self._oncoming(pose), self.costmap,
+                           self.cfg.recovery)
+        obstacles = self._obstacles(pose)
+        cmd = dwa_command(state, local, obstacles, self.cfg.dwa, footprint=self.footprint,
+                          dt=self.cfg.control_period)
+        if self._needs_recovery(pose, cmd.ok, cmd.v, cmd.w, now):
+            self._start_recovery(pose, now)
+            if self._recovery is None:  # yielding instead
+                return self._out(0.0, 0.0)
+            v_cmd, w_cmd, done = self._recovery.step(pose, obstacles, now)
+            if done:
+                self._finish_recovery(pose, now)
+            return self._out(v_cmd, w_cmd)
+        return self._out(cmd.v, cmd.w)
+
+    # ------------------------------------------------------------------ goal and plan
+    def _start_goal(self, pose: np.ndarray, now: float) -> None:
+        res = self._plan(pose[:2], self._goal[:2], overlay=False)
+        if res.path is None:
+            self._end(NavState.ABORTED, now, res.reason)
+            return
+        self._adjusted_goal = res.path[-1].copy() if res.goal_shift > 1e-6 else None
+        self._set_path(res.path, to_goal=True)
+        points, loop = holding_points_for(self._goal, self.holding_sites, res.path,
+                                          self.cfg.holding)
+        self._holding = HoldingPattern(points, loop, self.cfg.holding)
+        self._state = NavState.DRIVING
+        self._progress.reset(pose, now)
+
+    def _plan(self, start, target, overlay: bool) -> PlanResult:
+        cm = self._plan_cm
+        if overlay and len(self._dyn):
+            cm = overlay_obstacles(cm, self._dyn, self.cfg.costmap)
+        return plan_path(cm, start, target, self.cfg.planner)
+
+    def _target(self) -> np.ndarray:
+        if self._holding is not None and self._holding.target is not None:
+            return self._holding.target
+        return self._goal[:2]
+
+    def _replan(self, pose: np.ndarray, overlay: bool) -> bool:
+        """Plan from ``pose`` to the current target (around the robots seen if ``overlay``).
+
+        On failure the old path is kept; without one, a goal is aborted with the planner's reason
+        and a holding spot is replaced by the robot's own position.
+        """
+        target = self._target()
+        to_goal = self._holding is None or self._holding.target is None
+        res = self._plan(pose[:2], target, overlay)
+        if res.path is None and overlay:
+            res = self._plan(pose[:2], target, overlay=False)
+        self._blocked_since = None
+        if res.path is not None:
+            self._set_path(res.path, to_goal=to_goal)
+            return True
+        if not to_goal:
+            self._holding.replace_target(pose[:2])
+            self._set_path(np.vstack((pose[:2], pose[:2])), to_goal=False)
+        elif self._path is None:
+            self._end(NavState.ABORTED, self._now, res.reason)
+        return False
+
+    def _set_path(self, path: np.ndarray, to_goal: bool) -> None:
+        self._path = np.asarray(path, dtype=float)
+        seg = np.hypot(*np.diff(self._path, axis=0).T) if len(self._path) > 1 else np.zeros(0)
+        self._path_s = np.concatenate(([0.0], np.cumsum(seg)))
+        self._path_to_goal = to_goal
+        self._path_version += 1
+        self._idx = 0
+
+    def _heading_to_goal(self) -> bool:
+        return self._holding is None or self._holding.phase == HoldingPhase.APPROACH
+
+    def _at_goal(self, pose: np.ndarray) -> bool:
+        tol = self.cfg.goal.xy_goal_tolerance
+        if np.hypot(*(pose[:2] - self._goal[:2])) <= tol:
+            return True
+        if self._adjusted_goal is not None and np.hypot(*(pose[:2] - self._adjusted_goal)) <= tol:
+            return True
+        return False
+
+    def _rotate_to_goal(self, pose: np.ndarray, now: float) -> tuple[float, float]:
+        err = wrap_angle(self._goal[2] - pose[2])
+        if abs(err) <= self.cfg.goal.yaw_goal_tolerance:
+            note = ""
+            if np.hypot(*(pose[:2] - self._goal[:2])) > self.cfg.goal.xy_goal_tolerance:
+                shift = np.hypot(*(self._adjusted_goal - self._goal[:2]))
+                note = f"goal was in the inflation: reached the free spot {shift:.2f} m from it"
+            self._end(NavState.SUCCEEDED, now, note)
+            return 0.0, 0.0
+        decel = abs(self.cfg.dwa.decel_lim_theta)
+        speed = min(self.cfg.goal.rotate_to_heading_angular_vel, self.cfg.dwa.max_vel_theta,
+                    math.sqrt(2.0 * decel * abs(err)))
+        speed = max(speed, 0.15)
+        obstacles = self._obstacles(pose)
+        for sign in (math.copysign(1.0, err), -math.copysign(1.0, err)):
+            if rotation_is_safe(pose, sign * min(0.3, abs(err)), obstacles, self.footprint,
+                                self.cfg.dwa.footprint_padding):
+                return 0.0, sign * speed
+        return 0.0, 0.0
+
+    def _end(self, state: NavState, now: float, reason: str) -> None:
+        self._state = state
+        self._reason = reason
+        self._t_end = now
+        self._recovery = None
+        self._yield = None
+        self._rotating = False
+
+    # ------------------------------------------------------------------ holding
+    def _update_holding(self, pose: np.ndarray, now: float) -> None:
+        hp = self._holding
+        if hp is None or self.costmap is None:
+            return
+        before_phase, before_target = hp.phase, hp.target
+        occupied = None
+        first = False
+        goal = self._goal[:2]
+        fresh = now - self._scan_time <= 1.0
+        if fresh and goal_visible(self.costmap, pose[:2], goal, self.cfg.holding):
+            occupied = goal_occupied(self._robots, goal, self.cfg.holding)
+            first = someone_came_first(self._robots, pose[:2], goal, self.cfg.holding)
+        hp.update(now, pose[:2], occupied, first)
+        # never park on top of another robot: a taken loop point is skipped, a taken spot is
+        # replaced by a staging point well away from the busy workstation
+        tgt = hp.target
+        if (hp.phase == HoldingPhase.TO_HOLD and fresh
+                and np.hypot(*(tgt - pose[:2])) < 2.5):
+            if goal_occupied(self._robots, tgt, self.cfg.holding):
+                if hp.loop:
+                    hp.advance()
+                else:
+                    hp.replace_target(self._staging(pose))
+        self._make_room(hp, pose, now)
+        if hp.phase == HoldingPhase.APPROACH:
+            if before_phase != HoldingPhase.APPROACH:
+                self._state = NavState.DRIVING
+                self._replan(pose, overlay=False)
+                self._progress.reset(pose, now)
+            return
+        self._state = NavState.HOLDING if self._recovery is None else NavState.RECOVERING
+        moved = before_target is None or not np.allclose(before_target, hp.target)
+        if moved:
+            self._replan(pose, overlay=False)
+            self._progress.reset(pose, now)
+
+    def _staging(self, pose: np.ndarray) -> np.ndarray:
+        """A staging point away from the goal and the robots seen (or where the robot is)."""
+        xy = staging_point(self.costmap, self._goal[:2], pose[:2], self._centres,
+                           self._avoid, self.cfg.holding)
+        return pose[:2].copy() if xy is None else xy
+
+    def _make_room(self, hp: HoldingPattern, pose: np.ndarray, now: float) -> None:
+        """A waiting robot that another robot stays close to moves away to a staging point."""
+        hc = self.cfg.holding
+        close = len(self._centres) and bool(
+            np.hypot(*(self._centres - pose[:2]).T).min() < hc.make_room_distance)
+        if hp.phase != HoldingPhase.WAIT or not close:
+            self._crowded_since = None
+            return
+        if self._crowded_since is None:
+            self._crowded_since = now
+        elif now - self._crowded_since >= hc.make_room_time:
+            self._crowded_since = None
+            hp.relocate(self._staging(pose), now)
+
+    # ------------------------------------------------------------------ path following
+    def _advance_progress(self, pose: np.ndarray) -> None:
+        hi = min(len(self._path), self._idx + _SEARCH_AHEAD)
+        d = np.hypot(*(self._path[self._idx:hi] - pose[:2]).T)
+        self._idx += int(np.argmin(d))
+
+    def _deviation(self, pose: np.ndarray) -> float:
+        return float(np.hypot(*(self._path[self._idx] - pose[:2])))
+
+    def _local_path(self) -> np.ndarray:
+        s0 = self._path_s[self._idx]
+        hi = int(np.searchsorted(self._path_s, s0 + _LOCAL_WINDOW, side="right"))
+        return self._path[self._idx:max(hi, self._idx + 1)]
+
+    def _path_blocked(self, now: float) -> bool:
+        """Whether to replan around what blocks the path ahead: a cell of the static costmap
+        at once; a robot seen standing on it after ``stationary_replan_time``; anything else
+        seen on it after ``blocked_replan_time``."""
+        s0 = self._path_s[self._idx]
+        hi = int(np.searchsorted(self._path_s, s0 + self.cfg.blocked_check_distance))
+        ahead = self._path[self._idx:max(hi, self._idx + 1)]
+        if len(ahead) > 1 and np.any(self.costmap.cost_at(ahead[1:]) >= INSCRIBED):
+            return True
+        blockers = self._robots_on_path(self.cfg.blocked_check_distance,
+                                        self.cfg.costmap.robot_radius, now)
+        if not blockers:
+            self._blocked_since = None
+            return False
+        if self._blocked_since is None:
+            self._blocked_since = now
+        standing = any(np.all(np.isfinite(r.velocity))
+                       and float(np.hypot(*r.velocity)) < self.cfg.holding.moving_speed
+                       for r in blockers)
+        wait = self.cfg.stationary_replan_time if standing else self.cfg.blocked_replan_time
+        return now - self._blocked_since >= wait
+
+    def _oncoming(self, pose: np.ndarray) -> np.ndarray:
+        """(K, 2) centres of the robots seen driving toward us (the keep-right rule's robots)."""
+        out = []
+        for r in self._robots:
+            d = pose[:2] - r.centre
+            n = float(np.hypot(*d))
+            if n > 1e-6 and np.all(np.isfinite(r.velocity)):
+                if r.velocity @ d / n > self.cfg.holding.moving_speed:
+                    out.append(r.centre)
+        return np.array(out) if out else np.zeros((0, 2))
+
+    def _robots_on_path(self, distance: float, radius: float, now: float) -> list[SeenRobot]:
+        """The robots seen with a point within ``radius`` of the next ``distance`` of path."""
+        if self._path is None or not self._robots or now - self._scan_time > 1.0:
+            return []
+        s0 = self._path_s[self._idx]
+        hi = int(np.searchsorted(self._path_s, s0 + distance))
+        ahead = self._path[self._idx:max(hi, self._idx + 1)]
+        out = []
+        for r in self._robots:
+            if np.hypot(*(r.centre - self._pose[:2])) > distance + 0.5:
+                continue
+            d = np.hypot(r.points[:, None, 0] - ahead[None, :, 0],
+                         r.points[:, None, 1] - ahead[None, :, 1])
+            if d.min() < radius:
+                out.append(r)
+        return out
+
+    def _dynamic_on_path(self, distance: float, radius: float, now: float) -> bool:
+        """Whether a robot seen has a point within ``radius`` of the next ``distance`` of path."""
+        return bool(self._robots_on_path(distance, radius, now))
+
+    def _obstacles(self, pose: np.ndarray) -> np.ndarray:
+        """Scan points plus the static map's obstacle boundary near the robot."""
+        r = 1.2
+        stat = self.costmap.boundary_points() if self.costmap is not None else np.zeros((0, 2))
+        if len(stat):
+            m = (np.abs(stat[:, 0] - pose[0]) < r) & (np.abs(stat[:, 1] - pose[1]) < r)
+            stat = stat[m]
+        parts = [self._scan, stat]
+        # robots seen moving: also where they will be shortly (the scan is up to a period old)
+        for r in self._robots:
+            speed = float(np.hypot(*r.velocity)) if np.all(np.isfinite(r.velocity)) else 0.0
+            if speed > self.cfg.holding.moving_speed:
+                lag = max(0.0, self._now - self._scan_time)
+                for tau in (lag + 0.3, lag + 0.6):
+                    parts.append(r.points + r.velocity * min(tau, 1.0))
+        parts = [p for p in parts if len(p)]
+        return np.vstack(parts) if parts else np.zeros((0, 2))
+
+    # ------------------------------------------------------------------ recovery
+    def _needs_recovery(self, pose, ok: bool, v: float, w: float, now: float) -> bool:
+        still = not ok or (abs(v) < 0.02 and abs(w) < 0.1)
+        if still:
+            if self._stuck_since is None:
+                self._stuck_since = now
+        else:
+            self._stuck_since = None
+        stuck = self._stuck_since is not None and now - self._stuck_since >= (
+            self.cfg.recovery.stuck_time)
+        progressing = self._progress.check(pose, now)
+        return stuck or not progressing
+
+    def _start_recovery(self, pose: np.ndarray, now: float) -> None:
+        rc = self.cfg.recovery
+        kind = SEQUENCE[self._recovery_next % len(SEQUENCE)]
+        self._recovery_next += 1
+        # a face-to-face deadlock: the robot the rule picks gets out of the way and waits
+        ahead = robots_ahead(pose, self._centres, rc.deadlock_distance)
+        if len(ahead):
+            other = self._centres[ahead[0]]
+            if must_yield(pose[:2], other, rc.yield_axis_angle) and self._begin_yield(
+                    pose, other, now):
+                return
+        spin_sign = 1.0
+        if self._path is not None:
+            tgt = self._path[min(self._idx + 5, len(self._path) - 1)] - pose[:2]
+            spin_sign = 1.0 if wrap_angle(math.atan2(tgt[1], tgt[0]) - pose[2]) >= 0 else -1.0
+        self._recovery = Recovery(kind, pose, now, rc, self.footprint,
+                                  self.cfg.dwa.footprint_padding, self.cfg.robot_index, spin_sign)
+        self._recoveries += 1
+        self._state = NavState.RECOVERING
+        self._stuck_since = None
+        if kind == RecoveryKind.REPLAN:
+            self._replan(pose, overlay=True)
+
+    def _begin_yield(self, pose: np.ndarray, other: np.ndarray, now: float) -> bool:
+        """Plan a retreat off the other robot's way; False if there is none."""
+        cm = self.costmap
+        if len(self._dyn):
+            cm = overlay_obstacles(cm, self._dyn, self.cfg.costmap)
+        tried: list[np.ndarray] = []
+        for xy in retreat_candidates(cm, pose[:2], other, self.cfg.recovery):
+            if any(np.hypot(*(xy - t)) < 0.75 for t in tried):
+                continue
+            tried.append(xy)
+            res = plan_path(cm, pose[:2], xy, self.cfg.planner)
+            if res.path is not None and path_length(res.path) <= 3.0 * np.hypot(
+                    *(xy - pose[:2])) + 1.0:
+                self._yield = _Yield(res.path[-1].copy(), now, t_phase=now, other=other.copy())
+                self._set_path(res.path, to_goal=False)
+                self._recoveries += 1
+                self._state = NavState.RECOVERING
+                self._stuck_since = None
+                return True
+            if len(tried) >= 4:
+                break
+        return False
+
+    def _step_yield(self, pose: np.ndarray, state: RobotState, now: float
+                    ) -> tuple[float, float]:
+        y = self._yield
+        rc = self.cfg.recovery
+        if y.phase == "drive":
+            arrived = np.hypot(*(pose[:2] - y.target)) <= 0.3
+            if not arrived and now - y.t_phase < rc.yield_timeout / 2:
+                self._advance_progress(pose)
+                cmd = dwa_command(state, self._local_path(), self._obstacles(pose),
+                                  self.cfg.dwa, footprint=self.footprint,
+                                  dt=self.cfg.control_period)
+                if cmd.ok and (abs(cmd.v) >= 0.02 or abs(cmd.w) >= 0.1):
+                    y.still_since = None
+                elif y.still_since is None:
+                    y.still_since = now
+                if y.still_since is None or now - y.still_since < rc.stuck_time:
+                    return cmd.v, cmd.w
+            y.phase, y.t_phase = "wait", now
+            self._yield = None  # plan the way back to the target, then keep waiting
+            self._replan(pose, overlay=False)
+            self._yield = y
+            return 0.0, 0.0
+        blocked = self._dynamic_on_path(2.5, self.cfg.costmap.robot_radius + 0.1, now)
+        if blocked:
+            y.clear_since = None
+        elif y.clear_since is None:
+            y.clear_since = now
+        clear = y.clear_since is not None and now - y.clear_since >= 1.5
+        if (clear and now - y.t_phase >= 1.0) or now - y.t0 >= rc.yield_timeout:
+            self._yield = None
+            holding = self._holding is not None and self._holding.phase != HoldingPhase.APPROACH
+            self._state = NavState.HOLDING if holding else NavState.DRIVING
+            self._progress.reset(pose, now)
+            self._stuck_since = None
+        return 0.0, 0.0
+
+    def _finish_recovery(self, pose: np.ndarray, now: float) -> None:
+        kind = self._recovery.kind
+        self._recovery = None
+        self._progress.reset(pose, now)
+        self._stuck_since = None
+        if self._state == NavState.RECOVERING:
+            holding = self._holding is not None and self._holding.phase != HoldingPhase.APPROACH
+            self._state = NavState.HOLDING if holding else NavState.DRIVING
+        if kind == RecoveryKind.BACKUP:
+            self._replan(pose, overlay=False)
+
+    # ------------------------------------------------------------------ helpers
+    def _distance_remaining(self) -> float:
+        if self._goal is None or self._state in (NavState.SUCCEEDED,):
+            return 0.0
+        if self._pose is None:
+            return 0.0
+        if self._path is not None and self._path_to_goal and self._path_s is not None:
+            i = min(self._idx, len(self._path) - 1)
+            return float(np.hypot(*(self._path[i] - self._pose[:2]))
+                         + self._path_s[-1] - self._path_s[i])
+        return float(np.hypot(*(self._goal[:2] - self._pose[:2])))
+
+    def _out(self, v: float, w: float) -> tuple[float, float]:
+        self._last_cmd = (float(v), float(w))
+        return self._last_cmd

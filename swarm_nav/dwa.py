@@ -1,0 +1,418 @@
+"""The local planner: the dynamic window approach of Fox, Burgard and Thrun (1997).
+
+Each control tick :func:`dwa_command` samples ``vx_samples x vtheta_samples`` velocity pairs from
+the dynamic window (the velocities reachable within one control period under the acceleration
+limits, intersected with the velocity limits), rolls each out over ``sim_time`` as an exact
+circular arc (constant velocities, as Fox et al.), and keeps only the *admissible* ones: no
+obstacle point ever enters the footprint box grown by ``footprint_padding`` along the rollout.
+Between two checked poses no point of the box moves farther than ``step = (|v| + |w| r) dt`` (``r``
+the footprint's circumscribed radius), so the gap may dip at most ``step / 2`` below the checked
+values; that much is added to the padding, which makes the check hold along the whole continuous
+arc. A rollout lasts at least one control period plus the time to brake (``sim_time`` = 1.7 s, 0.44
+m at full speed, is far more than the 0.1 s + 0.1 s and 1.4 cm the waffle needs), so an admissible
+command always leaves room to stop: Fox et al.'s admissibility condition. The admissible pair of
+least weighted cost wins; the critics (DWB's names) are
+
+- ``PathDist``: distance [m] from the rollout's end to the nearest point of the local path;
+- ``GoalDist``: distance [m] from the rollout's end to the lookahead point (``lookahead_dist``
+  along the path, or the path's end when nearer), which rewards progress;
+- ``PathAlign``: heading error [rad] at the rollout's end toward the lookahead point;
+- ``BaseObstacle``: ``((influence - gap) / influence)^2`` for the smallest gap [m] between the
+  footprint and the obstacle points along the rollout (0 beyond ``influence_distance``);
+- ``Speed``: ``(max_vel_x - v) / max_vel_x``, Fox et al.'s velocity term.
+
+Collision checks are vectorised over all rollout poses at once: a distance transform of the
+obstacle points on a local 2.5 cm grid gives, for every pose, a lower bound of its distance to the
+nearest point; only poses that bound cannot clear are checked exactly against the points (the
+footprint box's signed Chebyshev gap, a lower bound of the Euclidean gap, so the check is
+conservative).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from swarm_common.geometry import Path2D, Points2D, wrap_angle
+from swarm_nav.config import DwaConfig
+
+_GRID = 0.025  # [m/cell] resolution of the local distance grid
+_BATCH = 40    # rollouts checked exactly at a time, cheapest first
+
+
+@dataclass(frozen=True)
+class Footprint:
+    """The robot's footprint as a box in ``base_footprint`` (the bounding box of its polygon).
+
+    Attributes:
+        x_min: rear edge [m].
+        x_max: front edge [m].
+        y_min: right edge [m].
+        y_max: left edge [m].
+    """
+
+    x_min: float
+    x_max: float
+    y_min: float
+    y_max: float
+
+    @classmethod
+    def from_polygon(cls, polygon) -> Footprint:
+        """The bounding box of a (K, 2) footprint polygon x, y [m] in ``base_footprint``."""
+        poly = np.asarray(polygon, dtype=float).reshape(-1, 2)
+        if len(poly) < 3:
+            raise ValueError("footprint: need a polygon of at least 3 points")
+        return cls(*(float(v) for v in (poly[:, 0].min(), poly[:, 0].max(),
+                                         poly[:, 1].min(), poly[:, 1].max())))
+
+    @property
+    def centre(self) -> tuple[float, float]:
+        """(x, y) [m] of the box centre in ``base_footprint``."""
+        return 0.5 * (self.x_min + self.x_max), 0.5 * (self.y_min + self.y_max)
+
+    @property
+    def half_size(self) -> tuple[float, float]:
+        """(hx, hy) [m] half length and half width of the box."""
+        return 0.5 * (self.x_max - self.x_min), 0.5 * (self.y_max - self.y_min)
+
+    @property
+    def radius(self) -> float:
+        """Circumscribed radius [m] of the box about ``base_footprint`` (what rotating sweeps)."""
+        xs = (self.x_min, self.x_max)
+        ys = (self.y_min, self.y_max)
+        return max(math.hypot(x, y) for x in xs for y in ys)
+
+    def polygon(self) -> np.ndarray:
+        """(4, 2) corners x, y [m] in ``base_footprint``, counter-clockwise."""
+        return np.array([[self.x_min, self.y_min], [self.x_max, self.y_min],
+                         [self.x_max, self.y_max], [self.x_min, self.y_max]])
+
+
+@dataclass(frozen=True)
+class RobotState:
+    """The robot as the local planner sees it.
+
+    Attributes:
+        pose: (3,) x [m], y [m], yaw [rad] in ``map``.
+        v: current forward speed [m/s].
+        w: current rotational speed [rad/s].
+    """
+
+    pose: np.ndarray
+    v: float
+    w: float
+
+
+@dataclass(frozen=True)
+class Command:
+    """The local planner's answer.
+
+    Attributes:
+        v: forward speed [m/s] to command.
+        w: rotational speed [rad/s] to command.
+        ok: False when no admissible motion was found (``v`` is 0 and ``w`` is 0 or a rotation in
+            place that was checked to be safe).
+        cost: the chosen rollout's weighted cost (``inf`` when not ``ok``).
+        min_gap: smallest gap [m] between the footprint and an obstacle along the chosen rollout
+            (``inf`` without obstacles nearby).
+        trajectory: (T, 3) poses x, y, yaw in ``map`` of the chosen rollout, or ``None``.
+    """
+
+    v: float
+    w: float
+    ok: bool
+    cost: float = math.inf
+    min_gap: float = math.inf
+    trajectory: np.ndarray | None = None
+
+
+def dynamic_window(state: RobotState, cfg: DwaConfig, dt: float) -> tuple[float, float, float,
+                                                                          float]:
+    """The velocities reachable within one control period (Fox et al. 1997, V_d intersect V_s).
+
+    Args:
+        state: the current speeds ``v`` [m/s] and ``w`` [rad/s].
+        cfg: velocity limits, ``acc_lim_*`` and ``decel_lim_*`` [m/s^2, rad/s^2].
+        dt: the control period [s].
+
+    Returns:
+        ``(v_min, v_max, w_min, w_max)`` in [m/s] and [rad/s]; never empty (a speed outside the
+        limits is brought back toward them as fast as the limits allow).
+    """
+    v, w = float(state.v), float(state.w)
+    v_lo = max(cfg.min_vel_x, v - abs(cfg.decel_lim_x) * dt)
+    v_hi = min(cfg.max_vel_x, v + cfg.acc_lim_x * dt)
+    if v_lo > v_hi:  # outside the limits: move toward them
+        v_lo = v_hi = min(max(v, cfg.min_vel_x), cfg.max_vel_x)
+    dw = max(cfg.acc_lim_theta, abs(cfg.decel_lim_theta)) * dt
+    w_lo = max(-cfg.max_vel_theta, w - dw)
+    w_hi = min(cfg.max_vel_theta, w + dw)
+    if w_lo > w_hi:
+        w_lo = w_hi = min(max(w, -cfg.max_vel_theta), cfg.max_vel_theta)
+    return v_lo, v_hi, w_lo, w_hi
+
+
+def rollout(pose, v, w, times) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Poses along constant-velocity arcs (exact unicycle kinematics).
+
+    Args:
+        pose: (3,) start x [m], y [m], yaw [rad] in ``map``.
+        v: (S,) forward speeds [m/s].
+        w: (S,) rotational speeds [rad/s].
+        times: (T,) times [s] after the start.
+
+    Returns:
+        ``(x, y, yaw)``, each (S, T), in ``map`` (yaw not wrapped).
+    """
+    x0, y0, th0 = (float(c) for c in pose)
+    v = np.asarray(v, dtype=float)[:, None]
+    w = np.asarray(w, dtype=float)[:, None]
+    t = np.asarray(times, dtype=float)[None, :]
+    th = th0 + w * t
+    straight = np.abs(w) < 1e-6
+    w_safe = np.where(straight, 1.0, w)
+    s0, c0 = math.sin(th0), math.cos(th0)
+    sin_th, cos_th = np.sin(th), np.cos(th)
+    x = np.where(straight, x0 + v * t * c0, x0 + v / w_safe * (sin_th - s0))
+    y = np.where(straight, y0 + v * t * s0, y0 - v / w_safe * (cos_th - c0))
+    return x, y, th
+
+
+def footprint_gaps(x, y, yaw, points: Points2D, footprint: Footprint) -> np.ndarray:
+    """Signed gap [m] between the footprint box at each pose and the nearest obstacle point.
+
+    The gap to a point is ``max(|qx| - hx, |qy| - hy)`` with ``q`` the point in the box's frame:
+    exact inside the box (minus the penetration depth), a lower bound of the Euclidean distance
+    outside (exact except toward the corners).
+
+    Args:
+        x: (...) pose x [m] in ``map``.
+        y: (...) pose y [m].
+        yaw: (...) pose yaw [rad].
+        points: (M, 2) obstacle points x, y [m] in ``map``.
+        footprint: the footprint box.
+
+    Returns:
+        (...) the smallest gap [m] over the points; ``inf`` without points.
+    """
+    x = np.asarray(x, dtype=float)
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    if len(pts) == 0:
+        return np.full(x.shape, np.inf)
+    cx, cy = footprint.centre
+    hx, hy = footprint.half_size
+    c, s = np.cos(yaw)[..., None], np.sin(yaw)[..., None]
+    bx = x[..., None] + c * cx - s * cy
+    by = np.asarray(y, dtype=float)[..., None] + s * cx + c * cy
+    dx = pts[:, 0] - bx
+    dy = pts[:, 1] - by
+    qx = np.abs(c * dx + s * dy) - hx
+    qy = np.abs(c * dy - s * dx) - hy
+    return np.maximum(qx, qy).min(axis=-1)
+
+
+def dwa_command(state: RobotState, path: Path2D, obstacles: Points2D, cfg: DwaConfig, *,
+                footprint: Footprint, dt: float) -> Command:
+    """Choose the velocity command for the next control period.
+
+    Args:
+        state: the robot's pose in ``map`` and current speeds.
+        path: (N, 2) x, y [m] in ``map``, the local stretch of the global path the robot follows,
+            starting near the robot; its last point is where the robot stops when it is nearer
+            than ``lookahead_dist``.
+        obstacles: (M, 2) obstacle points x, y [m] in ``map`` (the scan's end points, plus static
+            map points if wanted); points farther than the rollouts can reach are ignored.
+        cfg: the DWA settings.
+        footprint: the robot's footprint box.
+        dt: the control period [s] over which the window is reachable.
+
+    Returns:
+        The :class:`Command` of least cost among admissible rollouts.  When the robot already is
+        nearer than ``footprint_padding`` to a point, a rollout is admissible if it never gets
+        nearer than it is; when none is admissible, ``ok`` is False and the command is a safe
+        rotation in place toward the path, or a stop.
+    """
+    pose = np.asarray(state.pose, dtype=float).reshape(3)
+    path = np.asarray(path, dtype=float).reshape(-1, 2)
+    if len(path) == 0:
+        raise ValueError("dwa_command: empty path")
+    v_lo, v_hi, w_lo, w_hi = dynamic_window(state, cfg, dt)
+    vs = np.linspace(v_lo, v_hi, cfg.vx_samples) if v_hi > v_lo else np.array([v_lo])
+    ws = np.linspace(w_lo, w_hi, cfg.vtheta_samples) if w_hi > w_lo else np.array([w_lo])
+    if w_lo < 0.0 < w_hi and not np.any(ws == 0.0):
+        ws = np.append(ws, 0.0)  # always offer driving straight
+    V, W = (a.ravel() for a in np.meshgrid(vs, ws, indexing="ij"))
+    reach_v = max(abs(v_lo), abs(v_hi))
+    reach_w = max(abs(w_lo), abs(w_hi))
+    # the rollout must cover one period plus the braking distance (Fox et al.'s admissibility)
+    horizon = max(cfg.sim_time, dt + reach_v / abs(cfg.decel_lim_x))
+    n = max(1, math.ceil(reach_v * horizon / cfg.sim_granularity),
+            math.ceil(reach_w * horizon / cfg.angular_sim_granularity))
+    times = horizon * np.arange(1, n + 1) / n
+    x, y, th = rollout(pose, V, W, times)
+
+    local = _local_points(obstacles, pose, reach_v * horizon + footprint.radius
+                          + cfg.footprint_padding + 2 * _GRID)
+    gap0 = _gap_now(pose, local, footprint)
+    need = min(cfg.footprint_padding, gap0)
+    # between two checked poses no point of the box moves more than `step`, so the gap can dip
+    # at most half of it below the checked values: demand that much more (a continuous guarantee)
+    step = (np.abs(V) + np.abs(W) * footprint.radius) * (horizon / n)
+    need_s = (need + 0.5 * step)[:, None]
+    lower, upper, est = _gap_bounds(x, y, th, local, footprint)
+    sure_bad = (upper < need_s).any(axis=1)   # some pose surely too near: inadmissible
+    unsure = lower < need_s                   # poses only an exact check can clear
+    moving = (np.abs(V) > 1e-9) | (np.abs(W) > 1e-9)
+
+    carrot, tangent = _lookahead(path, pose[:2], cfg.lookahead_dist)
+    ex, ey, eth = x[:, -1], y[:, -1], th[:, -1]
+    to_carrot = carrot - np.column_stack((ex, ey))
+    goal_dist = np.hypot(to_carrot[:, 0], to_carrot[:, 1])
+    i0 = int(np.argmin(np.hypot(*(path - pose[:2]).T)))
+    rest = path[i0:]
+    path_dist = np.sqrt(((ex[:, None] - rest[None, :, 0]) ** 2
+                         + (ey[:, None] - rest[None, :, 1]) ** 2).min(axis=1))
+    aim = np.where(goal_dist > 0.15, np.arctan2(to_carrot[:, 1], to_carrot[:, 0]), tangent)
+    align = np.abs(wrap_angle(eth - aim))
+    infl = cfg.obstacle_influence
+    obst = np.clip((infl - est.min(axis=1)) / infl, 0.0, 1.0) ** 2
+    speed = (cfg.max_vel_x - V) / cfg.max_vel_x
+    cost = (cfg.path_dist_scale * path_dist + cfg.goal_dist_scale * goal_dist
+            + cfg.path_align_scale * align + cfg.obstacle_scale * obst + cfg.speed_scale * speed)
+
+    # check the candidates exactly in order of cost, a batch at a time; the first admissible wins
+    order = np.flatnonzero(moving & ~sure_bad)
+    order = order[np.argsort(cost[order], kind="stable")]
+    for k in range(0, len(order), _BATCH):
+        idx = order[k:k + _BATCH]
+        gaps = np.where(unsure[idx], np.inf, lower[idx])
+        mask = unsure[idx]
+        if mask.any():
+            gaps[mask] = footprint_gaps(x[idx][mask], y[idx][mask], th[idx][mask], local,
+                                        footprint)
+        ok = (gaps >= need_s[idx]).all(axis=1)
+        if ok.any():
+            j = int(np.argmax(ok))
+            best = int(idx[j])
+            traj = np.column_stack((x[best], y[best], wrap_angle(th[best])))
+            return Command(float(V[best]), float(W[best]), True, float(cost[best]),
+                           float(gaps[j].min()), traj)
+    return _fallback(pose, carrot, tangent, local, footprint, cfg, (w_lo, w_hi))
+
+
+def rotation_is_safe(pose, angle: float, obstacles: Points2D, footprint: Footprint,
+                     padding: float, step: float = 0.1) -> bool:
+    """Whether rotating in place by ``angle`` [rad] keeps every obstacle point out of the box.
+
+    Args:
+        pose: (3,) x [m], y [m], yaw [rad] in ``map``.
+        angle: signed rotation [rad].
+        obstacles: (M, 2) points x, y [m] in ``map``.
+        footprint: the footprint box.
+        padding: the safety margin [m]; a robot already nearer may rotate if it gets no nearer.
+        step: angular step [rad] between checks.
+
+    Returns:
+        True if the rotation is collision-free.
+    """
+    pose = np.asarray(pose, dtype=float)
+    local = _local_points(obstacles, pose, footprint.radius + padding + 0.05)
+    if len(local) == 0:
+        return True
+    n = max(1, math.ceil(abs(angle) / step))
+    yaws = pose[2] + angle * np.arange(0, n + 1) / n
+    gaps = footprint_gaps(np.full(n + 1, pose[0]), np.full(n + 1, pose[1]), yaws, local,
+                          footprint)
+    dip = 0.5 * abs(angle) / n * footprint.radius  # what the steps may skip over
+    return bool(gaps[1:].min() - dip >= min(padding, gaps[0]))
+
+
+def _local_points(obstacles: Points2D, pose: np.ndarray, radius: float) -> np.ndarray:
+    pts = np.asarray(obstacles, dtype=float).reshape(-1, 2)
+    if len(pts) == 0:
+        return pts
+    d2 = (pts[:, 0] - pose[0]) ** 2 + (pts[:, 1] - pose[1]) ** 2
+    return pts[d2 <= radius * radius]
+
+
+def _gap_now(pose: np.ndarray, pts: np.ndarray, footprint: Footprint) -> float:
+    """The exact gap [m] of the footprint at ``pose`` to the points (``inf`` without points)."""
+    if len(pts) == 0:
+        return math.inf
+    return float(footprint_gaps(pose[:1], pose[1:2], pose[2:3], pts, footprint)[0])
+
+
+def _gap_bounds(x, y, th, pts, footprint: Footprint
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Cheap bounds of the gaps [m] between the footprint at the rollout poses and the points.
+
+    A distance transform of the points on a local grid gives every box centre's distance ``d`` to
+    the nearest point within ``e = sqrt(2)`` grid cells.  The gap is at least ``d - e - R`` (``R``
+    the box's half diagonal) and at most ``d + e - r`` (``r`` its half width, the nearest point
+    being at most that far inside the box's inscribed circle).
+
+    Returns:
+        (S, T) lower bounds, (S, T) upper bounds, and (S, T) estimates for the BaseObstacle critic
+        (``d`` minus the mean of ``r`` and ``R``); all ``inf`` without points.
+    """
+    if len(pts) == 0:
+        inf = np.full(x.shape, np.inf)
+        return inf, inf, inf
+    cx, cy = footprint.centre
+    hx, hy = footprint.half_size
+    r_out, r_in = math.hypot(hx, hy), min(hx, hy)
+    c, s = np.cos(th), np.sin(th)
+    bx = x + c * cx - s * cy
+    by = y + s * cx + c * cy
+    lo = np.array([min(bx.min(), pts[:, 0].min()), min(by.min(), pts[:, 1].min())]) - 2 * _GRID
+    hi = np.array([max(bx.max(), pts[:, 0].max()), max(by.max(), pts[:, 1].max())]) + 2 * _GRID
+    shape = np.ceil((hi - lo) / _GRID).astype(int) + 1
+    free = np.ones((shape[1], shape[0]), dtype=bool)
+    pc = ((pts - lo) / _GRID).astype(int)
+    free[pc[:, 1], pc[:, 0]] = False
+    dist = ndimage.distance_transform_edt(free) * _GRID
+    d = dist[((by - lo[1]) / _GRID).astype(int), ((bx - lo[0]) / _GRID).astype(int)]
+    err = _GRID * math.sqrt(2.0)
+    return d - err - r_out, d + err - r_in, d - 0.5 * (r_in + r_out)
+
+
+def _lookahead(path: np.ndarray, xy: np.ndarray, dist: float) -> tuple[np.ndarray, float]:
+    """The point ``dist`` [m] along the path from the point nearest ``xy``, and the path's heading
+    [rad] there."""
+    i0 = int(np.argmin(np.hypot(*(path - xy).T)))
+    rest = path[i0:]
+    if len(rest) == 1:
+        d = rest[0] - xy
+        heading = math.atan2(d[1], d[0]) if np.hypot(*d) > 1e-6 else 0.0
+        if len(path) > 1:
+            seg = path[-1] - path[-2]
+            heading = math.atan2(seg[1], seg[0])
+        return rest[0], heading
+    seg = np.diff(rest, axis=0)
+    s = np.concatenate(([0.0], np.cumsum(np.hypot(seg[:, 0], seg[:, 1]))))
+    k = int(np.searchsorted(s, dist))
+    if k >= len(rest):
+        return rest[-1], math.atan2(seg[-1, 1], seg[-1, 0])
+    k = max(k, 1)
+    f = (dist - s[k - 1]) / max(s[k] - s[k - 1], 1e-9)
+    point = rest[k - 1] + f * (rest[k] - rest[k - 1])
+    return point, math.atan2(seg[k - 1, 1], seg[k - 1, 0])
+
+
+def _fallback(pose, carrot, tangent, local, footprint: Footprint, cfg: DwaConfig,
+              w_window: tuple[float, float]) -> Command:
+    """No admissible motion: rotate in place toward the path if that is safe (within the
+    rotational window), else stop."""
+    d = carrot - pose[:2]
+    aim = math.atan2(d[1], d[0]) if np.hypot(*d) > 0.15 else tangent
+    err = wrap_angle(aim - pose[2])
+    sign = 1.0 if err >= 0 else -1.0
+    for direction in (sign, -sign):
+        w = float(np.clip(direction * min(cfg.max_vel_theta, 0.5), *w_window))
+        if w * direction > 0 and rotation_is_safe(pose, direction * 0.5, local, footprint,
+                                                  cfg.footprint_padding):
+            return Command(0.0, w, False)
+    return Command(0.0, 0.0, False)  # brake as hard as the robot can

@@ -1,0 +1,478 @@
+"""Goal-occupied detection from the robot's own scan, and the holding pattern.
+
+No communication: a robot judges its goal from its own scan points. Points that the static map does
+not explain (farther than ``static_point_tolerance`` from every lethal cell) are *dynamic*;
+clusters of them are other robots (:func:`perceive_robots`), whose velocities come from matching
+the clusters of successive scans. The goal is occupied when a robot has enough points in the disc
+of ``goal_occupied_radius`` about it and is not seen leaving. First come, first served among robots
+that see each other: a robot yields when it sees another robot within ``yield_radius`` of its goal,
+nearer to it by ``yield_margin`` and driving toward it (that one came first). A robot that merely
+stands or passes near the goal is no reason to yield, so two robots that swap places do not wait
+for each other.
+
+The holding pattern (:class:`HoldingPattern`) is a small state machine::
+
+    APPROACH --goal occupied or someone came first--> TO_HOLD
+    TO_HOLD  --holding spot reached--> WAIT          (a loop: on to the next point, stays TO_HOLD)
+    TO_HOLD, WAIT --goal seen free for free_confirm_time--> APPROACH
+    WAIT     --retry period over and the goal out of sight--> APPROACH (go and look)
+    loop     --a loop point reached, retry period over, goal out of sight--> APPROACH
+
+It never gives up: a reachable goal is retried until it is free. A robot whose holding spot is
+taken too waits at a staging point (:func:`staging_point`) well away from the busy workstation, the
+other robots and every dock, so queues do not block the lanes or the robot that must leave; and a
+waiting robot that another robot stays close to moves to a staging point to make room. A
+workstation's holding spot (one point) or loop (points driven in order) comes from the world's
+points of interest; a goal that is no workstation holds ``holding_distance`` back along its path.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from enum import StrEnum
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from swarm_common.geometry import Path2D, Points2D
+from swarm_nav.config import HoldingConfig
+from swarm_nav.costmap import LETHAL, Costmap, segment_max_cost
+
+HoldingSite = tuple[np.ndarray, np.ndarray]
+"""(workstation pose (3,) x, y [m], yaw [rad] in ``map``, holding points (K, 2) x, y [m])."""
+
+
+def holding_sites_from_poi(poi) -> list[HoldingSite]:
+    """The holding sites of a world's points of interest, as :class:`NavigatorCore` takes them.
+
+    Args:
+        poi: a ``swarm_common.poi.PointsOfInterest`` (anything with ``workstations`` whose items
+            have ``pose`` (3,) and ``holding`` (K, 2)), or ``None``.
+
+    Returns:
+        One (pose (3,), holding points (K, 2)) per workstation, in ``map`` [m, rad].
+    """
+    if poi is None:
+        return []
+    return [(np.asarray(w.pose, dtype=float).copy(),
+             np.asarray(w.holding, dtype=float).reshape(-1, 2).copy())
+            for w in poi.workstations]
+
+
+def dynamic_points(points: Points2D, costmap: Costmap, tolerance: float) -> Points2D:
+    """The scan points the static map does not explain (other robots, people, new objects).
+
+    Args:
+        points: (M, 2) scan end points x, y [m] in ``map``.
+        costmap: the static costmap (its obstacle distance field).
+        tolerance: a point nearer than this [m] to a lethal cell belongs to the map.
+
+    Returns:
+        (K, 2) the points farther than ``tolerance`` from every lethal cell (points outside the map
+        count as static).
+    """
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    if len(pts) == 0:
+        return pts
+    return pts[costmap.distance_at(pts) > tolerance]
+
+
+@dataclass(frozen=True)
+class SeenRobot:
+    """Another robot as one scan shows it.
+
+    Attributes:
+        centre: (2,) estimated centre x, y [m] in ``map``.
+        points: (n, 2) its scan points x, y [m] in ``map``.
+        velocity: (2,) estimated velocity [m/s] in ``map`` from earlier scans; NaN when unknown.
+    """
+
+    centre: np.ndarray
+    points: np.ndarray
+    velocity: np.ndarray
+
+
+def cluster_points(points: Points2D, link: float = 0.2) -> tuple[np.ndarray, int]:
+    """Group points closer than ``link`` [m] (single linkage).
+
+    Args:
+        points: (M, 2) x, y [m].
+        link: the linking distance [m].
+
+    Returns:
+        ``(labels, n)``: (M,) cluster index of each point, and the number of clusters.
+    """
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    m = len(pts)
+    if m <= 1:
+        return np.zeros(m, dtype=int), m
+    if m > 400:  # sparse for big clouds
+        pairs = cKDTree(pts).query_pairs(link, output_type="ndarray")
+        graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
+        n, labels = connected_components(graph, directed=False)
+        return labels, int(n)
+    d2 = (pts[:, None, 0] - pts[None, :, 0]) ** 2 + (pts[:, None, 1] - pts[None, :, 1]) ** 2
+    adj = d2 <= link * link
+    labels = np.arange(m)
+    while True:  # min-label propagation with pointer jumping
+        new = np.where(adj, labels[None, :], m).min(axis=1)
+        new = new[new]
+        if np.array_equal(new, labels):
+            break
+        labels = new
+    _, labels = np.unique(labels, return_inverse=True)
+    return labels.reshape(-1), int(labels.max()) + 1
+
+
+def cluster_centres(points: Points2D, viewer_xy, link: float = 0.2,
+                    depth: float = 0.1) -> np.ndarray:
+    """Estimated centres of the objects (robots) behind clusters of dynamic points.
+
+    A lidar sees an object's near side, so each cluster's centroid is pushed ``depth`` [m] away
+    from the viewer.
+
+    Args:
+        points: (M, 2) dynamic points x, y [m] in ``map``.
+        viewer_xy: (2,) x, y [m] of the lidar (or robot) in ``map``.
+        link: the clustering distance [m] (:func:`cluster_points`).
+        depth: how far behind its visible side an object's centre lies [m].
+
+    Returns:
+        (K, 2) x, y [m] of the estimated centres, one per cluster.
+    """
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    labels, n = cluster_points(pts, link)
+    if n == 0:
+        return np.zeros((0, 2))
+    sums = np.zeros((n, 2))
+    np.add.at(sums, labels, pts)
+    centroids = sums / np.bincount(labels, minlength=n)[:, None]
+    away = centroids - np.asarray(viewer_xy, dtype=float)
+    norm = np.hypot(away[:, 0], away[:, 1])[:, None]
+    return centroids + depth * away / np.maximum(norm, 1e-9)
+
+
+def estimate_velocities(centres: np.ndarray, earlier: np.ndarray, dt: float,
+                        gate: float = 0.3, max_speed: float = 0.5) -> np.ndarray:
+    """Velocities of clusters by matching each centre to the nearest centre of an earlier scan.
+
+    Args:
+        centres: (K, 2) centres x, y [m] now.
+        earlier: (J, 2) centres [m] ``dt`` seconds earlier.
+        dt: time [s] between the two (> 0).
+        gate: a match may be at most ``gate + max_speed * dt`` [m] away.
+        max_speed: the fastest a robot moves [m/s].
+
+    Returns:
+        (K, 2) velocities [m/s]; NaN where no earlier centre matched.
+    """
+    c = np.asarray(centres, dtype=float).reshape(-1, 2)
+    e = np.asarray(earlier, dtype=float).reshape(-1, 2)
+    out = np.full(c.shape, np.nan)
+    if len(c) == 0 or len(e) == 0 or dt <= 0:
+        return out
+    d = np.hypot(c[:, None, 0] - e[None, :, 0], c[:, None, 1] - e[None, :, 1])
+    j = np.argmin(d, axis=1)
+    ok = d[np.arange(len(c)), j] <= gate + max_speed * dt
+    out[ok] = (c[ok] - e[j[ok]]) / dt
+    return out
+
+
+def perceive_robots(dyn_points: Points2D, viewer_xy, earlier: np.ndarray | None = None,
+                    dt: float = 0.0) -> list[SeenRobot]:
+    """The other robots in a scan: clusters of dynamic points, their centres and velocities.
+
+    Args:
+        dyn_points: (M, 2) dynamic scan points x, y [m] in ``map`` (:func:`dynamic_points`).
+        viewer_xy: (2,) the lidar's (or robot's) x, y [m].
+        earlier: (J, 2) the centres [m] seen ``dt`` seconds earlier, or ``None``.
+        dt: the time [s] since ``earlier``.
+
+    Returns:
+        One :class:`SeenRobot` per cluster.
+    """
+    pts = np.asarray(dyn_points, dtype=float).reshape(-1, 2)
+    labels, n = cluster_points(pts)
+    if n == 0:
+        return []
+    centres = cluster_centres(pts, viewer_xy)
+    if earlier is None:
+        vel = np.full((n, 2), np.nan)
+    else:
+        vel = estimate_velocities(centres, earlier, dt)
+    return [SeenRobot(centres[k], pts[labels == k], vel[k]) for k in range(n)]
+
+
+def _toward(robot: SeenRobot, goal_xy: np.ndarray) -> float:
+    """Speed [m/s] of a robot toward the goal (negative: away); NaN if unknown."""
+    d = goal_xy - robot.centre
+    n = float(np.hypot(*d))
+    if n < 1e-6:
+        return 0.0
+    return float(robot.velocity @ d / n)
+
+
+def goal_occupied(robots: Sequence[SeenRobot], goal_xy, cfg: HoldingConfig) -> bool:
+    """Whether another robot stands on the goal (or is driving onto it, and not off it).
+
+    Args:
+        robots: the robots seen (:func:`perceive_robots`).
+        goal_xy: (2,) the goal x, y [m].
+        cfg: ``goal_occupied_radius`` [m], ``goal_occupied_min_points``, ``moving_speed`` [m/s].
+
+    Returns:
+        True if some robot has at least ``goal_occupied_min_points`` points within the radius and
+        is not seen leaving it faster than ``moving_speed``.
+    """
+    g = np.asarray(goal_xy, dtype=float)[:2]
+    for r in robots:
+        d = np.hypot(r.points[:, 0] - g[0], r.points[:, 1] - g[1])
+        if int((d <= cfg.goal_occupied_radius).sum()) < cfg.goal_occupied_min_points:
+            continue
+        toward = _toward(r, g)
+        if not (toward < -cfg.moving_speed):  # NaN (unknown) counts as staying
+            return True
+    return False
+
+
+def someone_came_first(robots: Sequence[SeenRobot], robot_xy, goal_xy,
+                       cfg: HoldingConfig) -> bool:
+    """First come, first served: another robot heading for our goal and nearer to it than we are.
+
+    Args:
+        robots: the robots seen (:func:`perceive_robots`).
+        robot_xy: (2,) our position x, y [m].
+        goal_xy: (2,) the goal x, y [m].
+        cfg: ``yield_radius`` [m], ``yield_margin`` [m] and ``moving_speed`` [m/s].
+
+    Returns:
+        True if some robot within ``yield_radius`` of the goal, nearer to it than we are by more
+        than ``yield_margin``, is seen driving toward it faster than ``moving_speed``.
+    """
+    g = np.asarray(goal_xy, dtype=float)[:2]
+    mine = float(np.hypot(*(np.asarray(robot_xy, dtype=float)[:2] - g)))
+    for r in robots:
+        theirs = float(np.hypot(*(r.centre - g)))
+        if theirs <= cfg.yield_radius and theirs + cfg.yield_margin < mine:
+            if _toward(r, g) > cfg.moving_speed:
+                return True
+    return False
+
+
+def goal_visible(costmap: Costmap, robot_xy, goal_xy, cfg: HoldingConfig) -> bool:
+    """Whether the robot can judge its goal: within ``goal_detection_range``, no wall between."""
+    robot_xy = np.asarray(robot_xy, dtype=float)[:2]
+    goal_xy = np.asarray(goal_xy, dtype=float)[:2]
+    if np.hypot(*(goal_xy - robot_xy)) > cfg.goal_detection_range:
+        return False
+    return segment_max_cost(costmap, robot_xy, goal_xy) < LETHAL
+
+
+def holding_points_for(goal, sites: Sequence[HoldingSite], path: Path2D | None,
+                       cfg: HoldingConfig) -> tuple[np.ndarray, bool]:
+    """Where a robot holds while its goal is taken.
+
+    Args:
+        goal: (2,) or (3,) the goal in ``map`` [m, rad].
+        sites: the workstations' holding data, each (pose (3,), points (K, 2)) in ``map``.
+        path: (N, 2) the path to the goal, or ``None``.
+        cfg: ``workstation_match_radius`` [m] and ``holding_distance`` [m].
+
+    Returns:
+        ``(points, loop)``: (K, 2) x, y [m] and whether they are a loop driven in order (K >= 2) or
+        a single spot.  A goal that is no workstation (or one without holding points) holds at the
+        point ``holding_distance`` back along its path (the path's start when shorter, the goal
+        itself without a path).
+    """
+    g = np.asarray(goal, dtype=float).ravel()[:2]
+    best, best_d = None, math.inf
+    for pose, pts in sites:
+        d = float(np.hypot(*(np.asarray(pose, dtype=float)[:2] - g)))
+        pts = np.asarray(pts, dtype=float).reshape(-1, 2)
+        if d <= cfg.workstation_match_radius and d < best_d and len(pts) > 0:
+            best, best_d = pts, d
+    if best is not None:
+        return best.copy(), len(best) >= 2
+    if path is None or len(path) < 2:
+        return g[None, :].copy(), False
+    rev = np.asarray(path, dtype=float)[::-1]
+    s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(rev, axis=0).T))))
+    x = np.interp(cfg.holding_distance, s, rev[:, 0])
+    y = np.interp(cfg.holding_distance, s, rev[:, 1])
+    return np.array([[x, y]]), False
+
+
+class HoldingPhase(StrEnum):
+    """Where the holding pattern is."""
+
+    APPROACH = "approach"  # driving to the goal
+    TO_HOLD = "to_hold"    # driving to a holding spot or along the loop
+    WAIT = "wait"          # standing at the holding spot
+
+
+class HoldingPattern:
+    """The holding-pattern state machine of one goal (pure: time and observations come in).
+
+    Args:
+        points: (K, 2) holding spot (K = 1) or loop points x, y [m] in ``map``.
+        loop: whether the points are a loop driven in order.
+        cfg: the holding settings.
+    """
+
+    def __init__(self, points: np.ndarray, loop: bool, cfg: HoldingConfig):
+        self.points = np.asarray(points, dtype=float).reshape(-1, 2)
+        self.loop = bool(loop) and len(self.points) >= 2
+        self.cfg = cfg
+        self.phase = HoldingPhase.APPROACH
+        self.index = 0
+        self._free_since: float | None = None
+        self._blocked_at = -math.inf
+        self._phase_since = 0.0
+        self._override: np.ndarray | None = None
+
+    @property
+    def target(self) -> np.ndarray | None:
+        """(2,) x, y [m] the robot should drive to while holding; ``None`` in APPROACH."""
+        if self.phase == HoldingPhase.APPROACH:
+            return None
+        if self._override is not None:
+            return self._override
+        return self.points[self.index]
+
+    def update(self, now: float, robot_xy, occupied: bool | None, came_first: bool = False
+               ) -> HoldingPhase:
+        """Advance the state machine by one observation.
+
+        Args:
+            now: time [s].
+            robot_xy: (2,) the robot's x, y [m] in ``map``.
+            occupied: whether the goal is seen occupied; ``None`` when it cannot be seen (too far
+                or behind a wall).
+            came_first: whether another robot near the goal came first (we yield).
+
+        Returns:
+            The phase after the update.
+        """
+        robot_xy = np.asarray(robot_xy, dtype=float)
+        seen_blocked = occupied is True or (occupied is not None and came_first)
+        seen_free = occupied is False and not came_first
+        if seen_blocked:
+            self._blocked_at = now
+            self._free_since = None
+        elif seen_free:
+            self._free_since = now if self._free_since is None else self._free_since
+        else:
+            self._free_since = None
+        free_long = (self._free_since is not None
+                     and now - self._free_since >= self.cfg.free_confirm_time)
+        retry_due = now - self._blocked_at >= self.cfg.holding_retry_period
+
+        if self.phase == HoldingPhase.APPROACH:
+            if seen_blocked:
+                self._enter(HoldingPhase.TO_HOLD, now)
+                self.index = self._nearest(robot_xy)
+            return self.phase
+        if free_long:
+            self._enter(HoldingPhase.APPROACH, now)
+            return self.phase
+        target = self.target
+        arrived = np.hypot(*(robot_xy - target)) <= self.cfg.holding_arrive_tolerance
+        if self.phase == HoldingPhase.TO_HOLD and arrived:
+            if self.loop:
+                if retry_due and occupied is None:
+                    self._enter(HoldingPhase.APPROACH, now)
+                else:
+                    self.advance()
+            else:
+                self.phase, self._phase_since = HoldingPhase.WAIT, now  # where it is
+        elif self.phase == HoldingPhase.WAIT:
+            waited = now - self._phase_since >= self.cfg.holding_retry_period
+            if waited and retry_due and occupied is None:
+                self._enter(HoldingPhase.APPROACH, now)
+        return self.phase
+
+    def advance(self) -> None:
+        """Go on to the next loop point (a loop), or stay (a spot)."""
+        self._override = None
+        if self.loop:
+            self.index = (self.index + 1) % len(self.points)
+
+    def replace_target(self, xy) -> None:
+        """Hold at ``xy`` (2,) [m] instead of the spot (the spot is taken by another robot)."""
+        self._override = np.asarray(xy, dtype=float).reshape(2)
+
+    def relocate(self, xy, now: float) -> None:
+        """Move on to hold at ``xy`` (2,) [m] (from WAIT: make room for another robot)."""
+        if self.phase == HoldingPhase.WAIT:
+            self.phase, self._phase_since = HoldingPhase.TO_HOLD, now
+        self._override = np.asarray(xy, dtype=float).reshape(2)
+
+    @property
+    def phase_since(self) -> float:
+        """Time [s] the current phase began."""
+        return self._phase_since
+
+    def _enter(self, phase: HoldingPhase, now: float) -> None:
+        self.phase = phase
+        self._phase_since = now
+        self._override = None
+        if phase == HoldingPhase.APPROACH:
+            self._free_since = None
+
+    def _nearest(self, xy: np.ndarray) -> int:
+        return int(np.argmin(np.hypot(*(self.points - xy).T)))
+
+
+def staging_point(costmap: Costmap, goal_xy, robot_xy, centres: np.ndarray,
+                  avoid: np.ndarray, cfg: HoldingConfig, step: float = 0.25) -> np.ndarray | None:
+    """A place to wait out of the way when the goal's holding spot is taken too.
+
+    Robots queueing for a busy workstation must not crowd it (the robot that leaves it needs a
+    way out) nor fill the lane to the others.  A staging point is the centre of a cell on a
+    ``step`` lattice within ``staging_search_radius`` of the robot that is free of inflation cost
+    (at least the inflation radius from walls), at least ``staging_distance`` from the goal,
+    ``staging_clearance`` from every robot seen and ``workstation_clearance`` from every
+    workstation and holding point, and reachable; the one nearest the robot wins.
+
+    Args:
+        costmap: the static costmap.
+        goal_xy: (2,) the goal x, y [m] in ``map``.
+        robot_xy: (2,) the robot's x, y [m].
+        centres: (K, 2) centres [m] of the robots seen.
+        avoid: (J, 2) workstation poses and holding points x, y [m] to keep clear of.
+        cfg: the holding settings.
+        step: lattice spacing [m] of the candidates.
+
+    Returns:
+        (2,) x, y [m], or ``None`` when no place qualifies.
+    """
+    robot_xy = np.asarray(robot_xy, dtype=float)[:2]
+    goal_xy = np.asarray(goal_xy, dtype=float)[:2]
+    r = cfg.staging_search_radius
+    g = np.arange(-r, r + 1e-9, step)
+    cand = robot_xy + np.stack(np.meshgrid(g, g), axis=-1).reshape(-1, 2)
+    cand = cand[np.hypot(*(cand - robot_xy).T) <= r]
+    ok = (costmap.cost_at(cand) == 0) & (np.hypot(*(cand - goal_xy).T) >= cfg.staging_distance)
+    for pts, clearance in ((centres, cfg.staging_clearance), (avoid, cfg.workstation_clearance)):
+        pts = np.asarray(pts, dtype=float).reshape(-1, 2)
+        if len(pts) and ok.any():
+            d = np.hypot(cand[:, None, 0] - pts[None, :, 0], cand[:, None, 1] - pts[None, :, 1])
+            ok &= d.min(axis=1) >= clearance
+    rc = costmap.world_to_cell(robot_xy)
+    if costmap.in_bounds(rc):
+        labels = costmap.components(False)
+        mine = labels[rc[0], rc[1]]
+        if mine:
+            crc = costmap.world_to_cell(cand)
+            inside = costmap.in_bounds(crc)
+            same = np.zeros(len(cand), dtype=bool)
+            same[inside] = labels[crc[inside, 0], crc[inside, 1]] == mine
+            ok &= same
+    if not ok.any():
+        return None
+    cand = cand[ok]
+    return cand[int(np.argmin(np.hypot(*(cand - robot_xy).T)))]

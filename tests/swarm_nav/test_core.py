@@ -1,0 +1,224 @@
+"""The whole navigator in closed loop, in pure Python: states, aborts, passing, holding."""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from swarm_common.occupancy import OccupancyMap
+from swarm_nav.config import NavigatorConfig
+from swarm_nav.core import NavigatorCore, NavState, NavStatus
+from tests.swarm_nav.helpers import (
+    SLIM_BLOCKAGE_WALLS,
+    WAFFLE_FOOTPRINT,
+    SimRobot,
+    simulate,
+    slim_blockage_map,
+)
+
+LOADER1 = np.array([-7.74575, -3.57766, math.pi])
+
+
+@pytest.fixture(scope="module")
+def occ() -> OccupancyMap:
+    return slim_blockage_map()
+
+
+def make_robot(occ, pose, index=1, sites=(), log=True) -> SimRobot:
+    cfg = dataclasses.replace(NavigatorConfig(), robot_index=index)
+    core = NavigatorCore(cfg, WAFFLE_FOOTPRINT, sites)
+    core.set_map(occ)
+    pose = np.asarray(pose, dtype=float)
+    core.step(pose, 0.0, 0.0, 0.0)
+    return SimRobot(core, pose, log=[] if log else None)
+
+
+def assert_arrived(robot: SimRobot, goal):
+    st = robot.core.status
+    assert st.state == NavState.SUCCEEDED, (st, robot.pose)
+    assert np.hypot(*(robot.pose[:2] - goal[:2])) <= 0.25
+    assert abs(math.remainder(robot.pose[2] - goal[2], 2 * math.pi)) <= 0.25
+
+
+# ------------------------------------------------------------------ states and aborts
+def test_idle_until_a_goal(occ):
+    r = make_robot(occ, [0.0, 0.0, math.pi])
+    st = r.core.status
+    assert isinstance(st, NavStatus)
+    assert (st.state, st.goal_id, st.goal, st.reason) == (NavState.IDLE, "", None, "")
+    assert r.core.step(r.pose, 0.0, 0.0, 0.1) == (0.0, 0.0)
+
+
+@pytest.mark.parametrize("goal, reason", [
+    ((20.0, 0.0, 0.0), "goal outside map"),
+    ((0.0, -4.9, 0.0), "goal in obstacle"),     # inside the bottom wall
+    ((6.5, -3.0, 0.0), "no path"),              # the closed pocket of slim_blockage
+    ((-4.5, 2.0, 0.0), "no path"),              # inside the closed blockage
+])
+def test_bad_goals_abort_at_once_with_the_reason(occ, goal, reason):
+    r = make_robot(occ, [0.0, 0.0, math.pi])
+    r.core.set_goal(np.array(goal), "7.000000000", 1.0)
+    st = r.core.status
+    assert (st.state, st.reason, st.goal_id) == (NavState.ABORTED, reason, "7.000000000")
+    assert r.core.step(r.pose, 0.0, 0.0, 1.1) == (0.0, 0.0)
+
+
+def test_a_goal_before_the_first_pose_plans_on_the_first_step(occ):
+    core = NavigatorCore(NavigatorConfig(), WAFFLE_FOOTPRINT)
+    core.set_map(occ)
+    core.set_goal(np.array([6.5, -3.0, 0.0]), "g", 0.0)
+    assert core.status.state == NavState.PLANNING
+    core.step(np.array([0.0, 0.0, 0.0]), 0.0, 0.0, 0.1)
+    assert (core.status.state, core.status.reason) == (NavState.ABORTED, "no path")
+
+
+def test_no_map_aborts():
+    core = NavigatorCore(NavigatorConfig(), WAFFLE_FOOTPRINT)
+    core.set_goal(np.array([1.0, 0.0, 0.0]), "g", 0.0)
+    assert (core.status.state, core.status.reason) == (NavState.ABORTED, "no map")
+
+
+def test_cancel_and_replace(occ):
+    r = make_robot(occ, [0.0, 0.0, math.pi])
+    r.core.set_goal(np.array([-2.0, 0.0, 0.0]), "a", 0.0)
+    assert r.core.status.state == NavState.DRIVING
+    assert r.core.path is not None and r.core.status.distance_remaining == pytest.approx(2.0,
+                                                                                           abs=0.05)
+    r.core.set_goal(np.array([2.0, 1.0, 0.0]), "b", 1.0)
+    assert (r.core.status.state, r.core.status.goal_id) == (NavState.DRIVING, "b")
+    assert np.allclose(r.core.path[-1], [2.0, 1.0])
+    r.core.cancel(2.0)
+    assert r.core.status.state == NavState.CANCELED
+    assert r.core.step(r.pose, 0.0, 0.0, 2.1) == (0.0, 0.0)
+    assert r.core.status.navigation_time == pytest.approx(1.0)
+
+
+# ------------------------------------------------------------------ closed loop
+def test_drives_around_the_slim_blockage_to_the_goal(occ):
+    r = make_robot(occ, [-2.5, 0.0, math.pi])
+    goal = np.array([-6.6, 0.0, math.pi / 2])
+    r.core.set_goal(goal, "g", 0.0)
+    versions = r.core.path_version
+    res = simulate([r], SLIM_BLOCKAGE_WALLS, 90.0)
+    assert_arrived(r, goal)
+    assert res["min_wall_gap"] > 0.0
+    assert r.core.path_version == versions          # planned once, on the goal
+    st = r.core.status
+    assert st.recoveries == 0 and st.holding_time == 0.0
+    assert 9.0 / 0.26 < st.navigation_time < 60.0   # ~9.4 m around the blockage
+    assert st.distance_remaining == 0.0
+
+
+def test_the_closed_loop_is_deterministic(occ):
+    logs = []
+    for _ in range(2):
+        r = make_robot(occ, [0.0, 0.0, math.pi])
+        r.core.set_goal(np.array([-2.0, -3.0, 0.0]), "g", 0.0)
+        simulate([r], SLIM_BLOCKAGE_WALLS, 30.0, seed=3)
+        logs.append(r.log)
+    assert logs[0] == logs[1]
+
+
+@pytest.mark.parametrize("a0, b0", [
+    ((-6.5, -3.9, 0.0), (-2.5, -3.9, math.pi)),      # head-on on the passage's centre line
+    ((-7.0, -4.2, 0.0), (-2.0, -3.6, math.pi)),      # offset starts
+    ((-4.5, -3.92, 0.0), (-2.0, -3.92, math.pi)),    # one already in the passage
+])
+def test_two_robots_swap_ends_of_the_passage_below_the_blockage(occ, a0, b0):
+    a = make_robot(occ, a0, index=1)
+    b = make_robot(occ, b0, index=2)
+    ga = np.array([b0[0], b0[1], 0.0])
+    gb = np.array([a0[0], a0[1], math.pi])
+    a.core.set_goal(ga, "a", 0.0)
+    b.core.set_goal(gb, "b", 0.0)
+    res = simulate([a, b], SLIM_BLOCKAGE_WALLS, 90.0, seed=1)
+    assert_arrived(a, ga)
+    assert_arrived(b, gb)
+    assert res["contact_ticks"] == 0
+    assert res["min_separation"] > 0.05       # footprints never touch (5 cm to spare)
+    assert res["min_wall_gap"] > 0.0
+
+
+def test_robots_see_each_other(occ):
+    """The thesis' navigators listened to the wrong scan topic and never saw each other."""
+    a = make_robot(occ, [-6.5, -3.9, 0.0], index=1)
+    b = SimRobot(None, np.array([-5.0, -3.9, math.pi]))
+    simulate([a, b], SLIM_BLOCKAGE_WALLS, 0.1, until_done=False)
+    seen = a.core.robots_seen
+    assert len(seen) == 1
+    assert np.hypot(*(seen[0].centre - (b.pose[:2] + [0.064, 0.0]))) < 0.12
+
+
+# ------------------------------------------------------------------ holding
+def test_holds_while_the_workstation_is_taken_then_takes_it(occ):
+    spot = np.array([-6.6, -2.6])
+    parked = SimRobot(None, LOADER1.copy())                  # another robot on loader 1
+    r = make_robot(occ, [-2.5, -3.9, math.pi], sites=[(LOADER1, spot[None, :])])
+    r.core.set_goal(LOADER1, "g", 0.0)
+    states = []
+
+    def on_tick(t, robots):
+        states.append(r.core.status.state)
+        if t >= 40.0:
+            parked.pose = np.array([8.0, 8.0, 0.0])          # it leaves
+    res = simulate([r, parked], SLIM_BLOCKAGE_WALLS, 120.0, on_tick=on_tick, until_done=False)
+    assert NavState.HOLDING in states
+    first_hold = states.index(NavState.HOLDING)
+    assert all(s == NavState.HOLDING for s in states[first_hold + 150:400])  # waited at the spot
+    assert r.log[390][1:3] == pytest.approx(spot, abs=0.4)
+    assert_arrived(r, LOADER1)
+    assert res["contact_ticks"] == 0 and res["min_separation"] > 0.1
+    assert r.core.status.holding_time > 15.0
+
+
+def test_first_come_first_served_at_a_workstation(occ):
+    spot = np.array([-6.6, -2.6])
+    sites = [(LOADER1, spot[None, :])]
+    near = make_robot(occ, [-6.0, -4.3, math.pi], index=1, sites=sites)
+    far = make_robot(occ, [-4.0, -3.9, math.pi], index=2, sites=sites)
+    near.core.set_goal(LOADER1, "n", 0.0)
+    far.core.set_goal(LOADER1, "f", 0.0)
+    far_states = []
+    res = simulate([near, far], SLIM_BLOCKAGE_WALLS, 40.0, until_done=False,
+                   on_tick=lambda t, rs: far_states.append(far.core.status.state))
+    assert_arrived(near, LOADER1)
+    assert far.core.status.state == NavState.HOLDING
+    assert np.hypot(*(far.pose[:2] - LOADER1[:2])) > 0.6        # never parks on top of it
+    assert res["contact_ticks"] == 0 and res["min_separation"] > 0.05
+    assert NavState.SUCCEEDED not in far_states
+
+
+def test_replans_around_a_robot_standing_on_the_path(occ):
+    r = make_robot(occ, [0.0, 2.0, 0.0])
+    standing = SimRobot(None, np.array([1.6, 2.0, math.pi / 2]))
+    goal = np.array([3.5, 2.0, 0.0])
+    r.core.set_goal(goal, "g", 0.0)
+    first = r.core.path_version
+    res = simulate([r, standing], SLIM_BLOCKAGE_WALLS, 40.0, until_done=False,
+                   on_tick=lambda t, rs: None)
+    assert_arrived(r, goal)
+    assert r.core.path_version > first                      # it planned around it
+    assert res["contact_ticks"] == 0 and res["min_separation"] > 0.1
+    assert r.core.status.recoveries == 0
+
+
+def test_a_waiting_robot_makes_room(occ):
+    spot = np.array([-6.0, 2.0])
+    ws = np.array([-7.74575, 0.97297, math.pi])
+    parked = SimRobot(None, ws.copy())                      # loader 3 is taken
+    r = make_robot(occ, [-6.0, 4.5, -math.pi / 2], sites=[(ws, spot[None, :])])
+    r.core.set_goal(ws, "g", 0.0)
+    visitor = SimRobot(None, np.array([8.0, 8.0, 0.0]))
+    waited = []
+
+    def on_tick(t, robots):
+        hp = r.core._holding
+        if hp is not None and hp.phase.value == "wait" and not waited:
+            waited.append(t)
+            visitor.pose = np.array([r.pose[0] + 0.6, r.pose[1], math.pi])  # comes close
+    simulate([r, parked, visitor], SLIM_BLOCKAGE_WALLS, 60.0, on_tick=on_tick, until_done=False)
+    assert waited, "never waited at the holding spot"
+    assert r.core.status.state == NavState.HOLDING
+    assert np.hypot(*(r.pose[:2] - visitor.pose[:2])) > 1.0     # moved away from the visitor
+    assert np.hypot(*(r.pose[:2] - ws[:2])) >= 2.0              # and stays off the busy dock

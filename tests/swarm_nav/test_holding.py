@@ -1,0 +1,262 @@
+"""Goal-occupied detection from the scan, first come first served, and the holding pattern."""
+
+import math
+
+import numpy as np
+import pytest
+
+from swarm_nav.config import CostmapConfig, HoldingConfig
+from swarm_nav.costmap import build_costmap
+from swarm_nav.holding import (
+    HoldingPattern,
+    HoldingPhase,
+    SeenRobot,
+    cluster_points,
+    dynamic_points,
+    estimate_velocities,
+    goal_occupied,
+    goal_visible,
+    holding_points_for,
+    holding_sites_from_poi,
+    perceive_robots,
+    someone_came_first,
+    staging_point,
+)
+from tests.swarm_nav.helpers import (
+    SLIM_BLOCKAGE_LOOP,
+    SLIM_BLOCKAGE_WALLS,
+    Lidar,
+    box_segments,
+    footprint_polygon,
+    grid_map,
+    polygon_segments,
+    slim_blockage_map,
+)
+
+CFG = HoldingConfig()
+
+
+@pytest.fixture(scope="module")
+def costmap():
+    return build_costmap(slim_blockage_map(), CostmapConfig())
+
+
+def robot_at(x, y, vx=0.0, vy=0.0, n=12):
+    """A robot seen as points on its near side (a 0.27 m segment facing -x)."""
+    pts = np.column_stack((np.full(n, x - 0.13), np.linspace(y - 0.13, y + 0.13, n)))
+    return SeenRobot(np.array([x, y]), pts, np.array([vx, vy]))
+
+
+def test_dynamic_points_keep_only_what_the_map_does_not_explain(costmap):
+    rng = np.random.default_rng(0)
+    viewer = np.array([-6.5, -3.9, 0.0])
+    other = np.array([-5.5, -3.9, math.pi])
+    segs = np.vstack([box_segments(SLIM_BLOCKAGE_WALLS),
+                      polygon_segments(footprint_polygon(other))])
+    pts = Lidar().scan_points(viewer, segs, rng)
+    dyn = dynamic_points(pts, costmap, CFG.static_point_tolerance)
+    assert 5 <= len(dyn) < len(pts)
+    assert np.all(np.hypot(*(dyn - other[:2]).T) < 0.3)   # all of them are on the other robot
+    robots = perceive_robots(dyn, viewer[:2])
+    assert len(robots) == 1
+    assert np.hypot(*(robots[0].centre - (other[:2] + [-0.064, 0]))) < 0.12
+    assert np.all(np.isnan(robots[0].velocity))
+
+
+def test_cluster_points_separates_robots():
+    a = np.column_stack((np.linspace(0, 0.25, 10), np.zeros(10)))
+    b = a + [1.0, 0.5]
+    labels, n = cluster_points(np.vstack((a, b)))
+    assert n == 2 and len(set(labels[:10])) == 1 and len(set(labels[10:])) == 1
+    assert labels[0] != labels[10]
+    assert cluster_points(np.zeros((0, 2)))[1] == 0
+
+
+def test_estimate_velocities():
+    now = np.array([[1.0, 0.0], [5.0, 5.0]])
+    before = np.array([[0.8, 0.0], [9.0, 9.0]])
+    v = estimate_velocities(now, before, 1.0)
+    assert v[0] == pytest.approx([0.2, 0.0])
+    assert np.all(np.isnan(v[1]))
+
+
+@pytest.mark.parametrize("robot, occupied", [
+    (robot_at(0.1, 0.0), True),                       # standing on the goal
+    (robot_at(0.1, 0.0, vx=np.nan, vy=np.nan), True),  # unknown motion counts as staying
+    (robot_at(0.1, 0.0, vx=0.2), False),              # leaving it
+    (robot_at(0.1, 0.0, vx=-0.2), True),              # driving onto it
+    (robot_at(0.8, 0.0), False),                      # beside it
+])
+def test_goal_occupied(robot, occupied):
+    assert goal_occupied([robot], [0.0, 0.0], CFG) is occupied
+
+
+def test_goal_occupied_needs_enough_points():
+    r = robot_at(0.1, 0.0, n=2)
+    assert not goal_occupied([r], [0.0, 0.0], CFG)
+    assert not goal_occupied([], [0.0, 0.0], CFG)
+
+
+@pytest.mark.parametrize("robot, mine, first", [
+    (robot_at(0.5, 0.0, vx=-0.2), [2.0, 0.0], True),    # nearer and heading for it
+    (robot_at(0.5, 0.0), [2.0, 0.0], False),            # nearer but standing (not its goal)
+    (robot_at(0.5, 0.0, vx=0.2), [2.0, 0.0], False),    # nearer but leaving
+    (robot_at(0.5, 0.0, vx=-0.2), [0.6, 0.0], False),   # not nearer by the margin
+    (robot_at(1.5, 0.0, vx=-0.2), [2.5, 0.0], False),   # outside the yield radius
+])
+def test_first_come_first_served(robot, mine, first):
+    assert someone_came_first([robot], mine, [0.0, 0.0], CFG) is first
+
+
+def test_goal_visibility(costmap):
+    loader1 = [-7.74575, -3.57766]
+    assert goal_visible(costmap, [-6.0, -3.5], loader1, CFG)
+    assert not goal_visible(costmap, [-3.0, -3.5], loader1, CFG)    # too far
+    assert not goal_visible(costmap, [-4.5, -2.0], [-6.0, -2.0], CFG)  # behind the blockage wall
+
+
+def test_holding_points_for_a_workstation_and_for_any_goal():
+    ws = np.array([-7.74575, -3.57766, math.pi])
+    sites = [(ws, SLIM_BLOCKAGE_LOOP), (np.array([5.0, 5.0, 0.0]), np.array([[4.0, 4.0]]))]
+    pts, loop = holding_points_for(ws + [0.1, 0.1, 0.0], sites, None, CFG)
+    assert loop and np.array_equal(pts, SLIM_BLOCKAGE_LOOP)
+    pts, loop = holding_points_for([5.2, 5.0], sites, None, CFG)
+    assert not loop and np.array_equal(pts, [[4.0, 4.0]])
+    path = np.column_stack((np.linspace(0.0, 3.0, 31), np.zeros(31)))
+    pts, loop = holding_points_for([3.0, 0.0], sites, path, CFG)
+    assert not loop and pts[0] == pytest.approx([3.0 - CFG.holding_distance, 0.0])
+    pts, _ = holding_points_for([1.0, 0.0], sites, path[:11], CFG)   # path shorter: its start
+    assert pts[0] == pytest.approx([0.0, 0.0])
+
+
+# ---------------------------------------------------------------- the state machine
+def spot():
+    return HoldingPattern(np.array([[2.0, 0.0]]), False, CFG)
+
+
+def test_approach_stays_while_the_goal_is_free_or_unseen():
+    hp = spot()
+    assert hp.update(0.0, [0, 0], None) == HoldingPhase.APPROACH
+    assert hp.update(0.1, [0, 0], False) == HoldingPhase.APPROACH
+    assert hp.target is None
+
+
+@pytest.mark.parametrize("occupied, first", [(True, False), (False, True)])
+def test_approach_to_hold_when_taken_or_someone_came_first(occupied, first):
+    hp = spot()
+    assert hp.update(0.0, [0, 0], occupied, first) == HoldingPhase.TO_HOLD
+    assert hp.target == pytest.approx([2.0, 0.0])
+
+
+def test_came_first_needs_the_goal_in_sight():
+    hp = spot()
+    assert hp.update(0.0, [0, 0], None, True) == HoldingPhase.APPROACH
+
+
+def test_to_hold_to_wait_on_arrival_then_retry_when_free():
+    hp = spot()
+    hp.update(0.0, [0, 0], True)
+    assert hp.update(1.0, [1.0, 0.0], True) == HoldingPhase.TO_HOLD
+    assert hp.update(2.0, [1.9, 0.0], True) == HoldingPhase.WAIT
+    assert hp.update(3.0, [1.9, 0.0], False) == HoldingPhase.WAIT      # free, not yet confirmed
+    assert hp.update(3.5, [1.9, 0.0], False) == HoldingPhase.WAIT
+    assert hp.update(4.0, [1.9, 0.0], False) == HoldingPhase.APPROACH  # free for 1 s
+    assert hp.target is None
+
+
+def test_free_must_be_continuous():
+    hp = spot()
+    hp.update(0.0, [0, 0], True)
+    hp.update(1.0, [2.0, 0.0], False)
+    hp.update(1.5, [2.0, 0.0], True)            # taken again
+    assert hp.update(2.2, [2.0, 0.0], False) == HoldingPhase.WAIT
+    assert hp.update(3.1, [2.0, 0.0], False) == HoldingPhase.WAIT
+    assert hp.update(3.2, [2.0, 0.0], False) == HoldingPhase.APPROACH
+
+
+def test_to_hold_back_to_approach_when_free_on_the_way():
+    hp = spot()
+    hp.update(0.0, [0, 0], True)
+    hp.update(0.5, [0.5, 0], False)
+    assert hp.update(1.5, [0.8, 0], False) == HoldingPhase.APPROACH
+
+
+def test_wait_keeps_waiting_while_taken_and_retries_unseen_goal_after_the_period():
+    hp = spot()
+    hp.update(0.0, [0, 0], True)
+    hp.update(1.0, [2.0, 0.0], True)                                    # WAIT from t = 1
+    assert hp.update(7.0, [2.0, 0.0], True) == HoldingPhase.WAIT       # still taken: wait on
+    assert hp.update(8.0, [2.0, 0.0], None) == HoldingPhase.WAIT       # unseen, 1 s since taken
+    assert hp.update(12.0, [2.0, 0.0], None) == HoldingPhase.APPROACH  # unseen 5 s: go and look
+
+
+def test_loop_drives_the_points_in_order_and_retries_when_free():
+    hp = HoldingPattern(np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]]), True, CFG)
+    hp.update(0.0, [1.9, 0.3], True)
+    assert hp.phase == HoldingPhase.TO_HOLD and hp.target == pytest.approx([2.0, 0.0])
+    hp.update(1.0, [2.0, 0.1], True)                                   # arrived: next point
+    assert hp.target == pytest.approx([2.0, 2.0])
+    hp.update(2.0, [2.0, 1.9], True)
+    assert hp.target == pytest.approx([0.0, 2.0])
+    hp.update(3.0, [0.1, 2.0], True)
+    assert hp.target == pytest.approx([0.0, 0.0])                      # wraps around
+    hp.update(4.0, [0.0, 0.1], None)                                   # 1 s since taken: on
+    assert hp.phase == HoldingPhase.TO_HOLD and hp.target == pytest.approx([2.0, 0.0])
+    hp.update(9.5, [2.0, 0.1], None)                                   # retry due, goal unseen
+    assert hp.phase == HoldingPhase.APPROACH
+
+
+def test_replace_target_for_a_taken_spot():
+    hp = spot()
+    hp.update(0.0, [0, 0], True)
+    hp.replace_target([1.0, 1.0])
+    assert hp.target == pytest.approx([1.0, 1.0])
+    assert hp.update(1.0, [1.0, 1.1], True) == HoldingPhase.WAIT
+
+
+def test_relocate_from_wait():
+    hp = spot()
+    hp.update(0.0, [0, 0], True)
+    hp.update(1.0, [2.0, 0.0], True)
+    assert hp.phase == HoldingPhase.WAIT
+    hp.relocate([5.0, 5.0], 2.0)
+    assert hp.phase == HoldingPhase.TO_HOLD and hp.target == pytest.approx([5.0, 5.0])
+    assert hp.update(3.0, [5.0, 5.1], True) == HoldingPhase.WAIT
+
+
+def test_staging_point_keeps_away_from_the_goal_robots_and_workstations(costmap):
+    goal = np.array([-7.74575, 0.97297])
+    robot = np.array([-6.5, 0.5])
+    centres = np.array([[-7.7, 1.0], [-6.8, -0.2], [-6.0, 1.5]])
+    avoid = np.array([[-7.74575, y] for y in (-3.577660, -1.385260, 0.972970, 3.203130)])
+    xy = staging_point(costmap, goal, robot, centres, avoid, CFG)
+    assert xy is not None
+    assert costmap.cost_at(xy) == 0
+    assert np.hypot(*(xy - goal)) >= CFG.staging_distance
+    assert np.hypot(*(centres - xy).T).min() >= CFG.staging_clearance
+    assert np.hypot(*(avoid - xy).T).min() >= CFG.workstation_clearance
+    assert np.hypot(*(xy - robot)) <= CFG.staging_search_radius
+    # never inside the closed blockage, although it is near and free
+    assert not (-5.112 < xy[0] < -3.912 and -2.866 < xy[1] < 7.334)
+
+
+def test_no_staging_point_in_a_tiny_room():
+    data = np.full((20, 20), 100, dtype=np.int8)
+    data[5:15, 5:15] = 0
+    cm = build_costmap(grid_map(data, 0.1), CostmapConfig())
+    assert staging_point(cm, [1.0, 1.0], [1.0, 1.0], np.zeros((0, 2)), np.zeros((0, 2)),
+                         CFG) is None
+
+
+def test_holding_sites_from_the_world_file(repo_root):
+    from swarm_common.poi import load_poi
+
+    path = repo_root / "worlds" / "slim_blockage.yaml"
+    if not path.exists():
+        pytest.skip("worlds/slim_blockage.yaml not there yet")
+    sites = holding_sites_from_poi(load_poi(path))
+    assert len(sites) == 6
+    for pose, points in sites:
+        assert pose.shape == (3,) and points.ndim == 2 and points.shape[1] == 2
+    assert sites[0][0][:2] == pytest.approx([-7.74575, -3.57766])
+    assert holding_sites_from_poi(None) == []

@@ -1,0 +1,205 @@
+"""The global planner: optimal cost, valid paths, NavFn-like goal tolerance, distinct failures."""
+
+import heapq
+import math
+
+import numpy as np
+import pytest
+
+from swarm_nav.config import CostmapConfig, PlannerConfig
+from swarm_nav.costmap import INSCRIBED, add_keepout, build_costmap
+from swarm_nav.planner import path_length, plan_path, resample_path
+from tests.swarm_nav.helpers import grid_map, random_grid, slim_blockage_map
+
+PCFG = PlannerConfig()
+SMALL = CostmapConfig(robot_radius=0.1, inflation_radius=0.35, cost_scaling_factor=3.0)
+
+
+def brute_force_cost(costs: np.ndarray, start, goal, penalty: float, res: float) -> float:
+    """Plain Dijkstra over the 8-connected grid, written from the cost definition alone.
+
+    A move into cell c costs length * (1 + penalty * cost(c) / 252); cells >= 253 are blocked;
+    a diagonal move needs both cells beside it free.
+    """
+    h, w = costs.shape
+
+    def free(r, c):
+        return 0 <= r < h and 0 <= c < w and costs[r, c] < 253
+
+    best = {tuple(start): 0.0}
+    heap = [(0.0, tuple(start))]
+    while heap:
+        d, (r, c) = heapq.heappop(heap)
+        if (r, c) == tuple(goal):
+            return d
+        if d > best[(r, c)]:
+            continue
+        for dr in (-1, 0, 1):
+            for dc in (-1, 0, 1):
+                if (dr, dc) == (0, 0) or not free(r + dr, c + dc):
+                    continue
+                if dr and dc and not (free(r + dr, c) and free(r, c + dc)):
+                    continue
+                nd = d + math.hypot(dr, dc) * res * (1 + penalty * costs[r + dr, c + dc] / 252)
+                if nd < best.get((r + dr, c + dc), math.inf):
+                    best[(r + dr, c + dc)] = nd
+                    heapq.heappush(heap, (nd, (r + dr, c + dc)))
+    return math.inf
+
+
+def assert_valid_path(cm, path, start, goal, resolution=0.1, skip_first=False):
+    assert np.allclose(path[0], start) and np.allclose(path[-1], goal)
+    assert path_length(path) >= np.hypot(*(np.asarray(goal) - start)) - 1e-9
+    gaps = np.hypot(*np.diff(path, axis=0).T)
+    assert gaps.max() <= resolution + 1e-9
+    pts = path
+    if skip_first:  # the escape from the inscribed zone: check from the first free point on
+        pts = path[int(np.argmax(cm.cost_at(path) < INSCRIBED)):]
+    # sample every segment finely: no point in a lethal or inscribed cell
+    for a, b in zip(pts[:-1], pts[1:], strict=True):
+        t = np.linspace(0, 1, 25)[:, None]
+        assert np.all(cm.cost_at(a + t * (b - a)) < INSCRIBED), (a, b)
+
+
+@pytest.mark.parametrize("seed", range(12))
+@pytest.mark.parametrize("penalty", [0.0, 2.0, 10.0])
+def test_cost_equals_brute_force_dijkstra(seed, penalty):
+    rng = np.random.default_rng(seed)
+    occ = random_grid(rng, 22, 27, 0.12)
+    cm = build_costmap(occ, SMALL)
+    cfg = PlannerConfig(cost_penalty=penalty)
+    free = np.argwhere(cm.costs < INSCRIBED)
+    for _ in range(4):
+        s, g = free[rng.choice(len(free), 2, replace=False)]
+        want = brute_force_cost(cm.costs, s, g, penalty, cm.resolution)
+        res = plan_path(cm, cm.cell_to_world(s), cm.cell_to_world(g), cfg)
+        if math.isinf(want):
+            assert res.path is None and res.reason == "no path"
+        else:
+            assert res.reason == ""
+            assert res.cost == pytest.approx(want, rel=1e-9, abs=1e-9)
+            assert_valid_path(cm, res.path, cm.cell_to_world(s), cm.cell_to_world(g))
+
+
+def test_cross_map_plan_on_slim_blockage():
+    cm = build_costmap(slim_blockage_map(), CostmapConfig())
+    start, goal = np.array([8.5, 8.5]), np.array([-7.74575, -3.57766])
+    res = plan_path(cm, start, goal, PCFG)
+    assert res.reason == "" and res.goal_shift == 0.0
+    assert_valid_path(cm, res.path, start, goal)
+    # around the blockage, never through it
+    inside = ((res.path[:, 0] > -5.262) & (res.path[:, 0] < -3.762)
+              & (res.path[:, 1] > -3.016) & (res.path[:, 1] < 7.484))
+    assert not inside.any()
+    assert path_length(res.path) < 1.25 * res.cost + 1e-9
+
+
+def test_path_keeps_to_the_middle_of_the_passage():
+    cm = build_costmap(slim_blockage_map(), CostmapConfig())
+    res = plan_path(cm, [-6.5, -3.9], [-2.5, -3.9], PCFG)
+    under = res.path[(res.path[:, 0] > -5.2) & (res.path[:, 0] < -3.8)]
+    assert len(under) > 5
+    centre = (-4.824 + -3.016) / 2
+    assert np.all(np.abs(under[:, 1] - centre) < 0.15)
+
+
+@pytest.mark.parametrize("goal, reason", [
+    ((20.0, 0.0), "goal outside map"),
+    ((6.5, -3.0), "no path"),             # the closed pocket
+    ((-4.5, 2.0), "no path"),             # inside the closed blockage
+    ((-5.187, 2.0), "goal in obstacle"),  # in the blockage's 0.15 m wall
+    ((0.0, -4.9), "goal in obstacle"),    # in the bottom wall
+])
+def test_bad_goals_on_slim_blockage(goal, reason):
+    cm = build_costmap(slim_blockage_map(), CostmapConfig())
+    res = plan_path(cm, [0.0, 0.0], goal, PCFG)
+    assert res.path is None and res.reason == reason and math.isinf(res.cost)
+
+
+def _block_map():
+    data = np.zeros((40, 40), dtype=np.int8)
+    data[10:30, 10:30] = 100   # a 2 m x 2 m block
+    return build_costmap(grid_map(data, 0.1), CostmapConfig())
+
+
+def test_goal_deep_in_an_obstacle():
+    res = plan_path(_block_map(), [0.5, 0.5], [2.0, 2.0], PCFG)
+    assert res.path is None and res.reason == "goal in obstacle"
+
+
+def test_goal_just_inside_the_inflation_plans_to_the_nearest_free_cell():
+    cm = _block_map()
+    goal = np.array([0.87, 2.0])   # 0.13 m from the block's face: inscribed
+    assert cm.cost_at(goal) == INSCRIBED
+    res = plan_path(cm, [0.2, 2.0], goal, PCFG)
+    assert res.reason == ""
+    assert 0.0 < res.goal_shift <= PCFG.tolerance
+    assert cm.cost_at(res.path[-1]) < INSCRIBED
+    assert res.goal_shift == pytest.approx(np.hypot(*(res.path[-1] - goal)))
+
+
+def test_tolerance_zero_refuses_a_blocked_goal():
+    res = plan_path(_block_map(), [0.2, 2.0], [0.87, 2.0], PlannerConfig(tolerance=0.0))
+    assert res.reason == "goal in obstacle"
+
+
+@pytest.mark.parametrize("start, reason", [((-1.0, 0.5), "start outside map"),
+                                           ((2.0, 2.0), "start in obstacle")])
+def test_bad_starts(start, reason):
+    res = plan_path(_block_map(), start, [0.5, 0.5], PCFG)
+    assert res.path is None and res.reason == reason
+
+
+def test_start_in_the_inscribed_zone_escapes():
+    cm = _block_map()
+    start = np.array([0.9, 2.0])   # 0.1 m from the block
+    assert cm.cost_at(start) == INSCRIBED
+    res = plan_path(cm, start, [0.3, 3.8], PCFG)
+    assert res.reason == ""
+    assert np.allclose(res.path[0], start)
+    assert_valid_path(cm, res.path, start, [0.3, 3.8], skip_first=True)
+
+
+def test_accepts_a_pose_as_start():
+    cm = _block_map()
+    res = plan_path(cm, np.array([0.5, 0.5, 1.0]), [3.5, 3.5], PCFG)
+    assert res.reason == "" and np.allclose(res.path[0], [0.5, 0.5])
+
+
+def test_shortcut_makes_open_space_paths_straight():
+    cm = build_costmap(grid_map(np.zeros((50, 50)), 0.1), CostmapConfig())
+    start, goal = np.array([1.0, 1.0]), np.array([4.0, 2.7])
+    res = plan_path(cm, start, goal, PCFG)
+    u = (goal - start) / np.hypot(*(goal - start))
+    d = (res.path[:, 0] - start[0]) * u[1] - (res.path[:, 1] - start[1]) * u[0]
+    assert np.abs(d).max() < 1e-9
+    assert path_length(res.path) == pytest.approx(np.hypot(*(goal - start)))
+
+
+def test_resample_path_spacing():
+    p = resample_path([[0.0, 0.0], [1.0, 0.0], [1.0, 0.55]], 0.1)
+    assert np.allclose(p[0], [0, 0]) and np.allclose(p[-1], [1.0, 0.55])
+    gaps = np.hypot(*np.diff(p, axis=0).T)
+    assert np.all(gaps <= 0.1 + 1e-9)
+    assert path_length(p) == pytest.approx(1.55, abs=0.02)
+
+
+LOADERS = np.array([[-7.74575, y] for y in (-3.57766, -1.38526, 0.97297, 3.20313, 5.78442,
+                                             8.36337)])
+
+
+@pytest.mark.parametrize("start", [(-6.5, 6.0), (-8.1, 4.5), (-7.75, 7.0)])
+def test_paths_keep_out_of_other_docks(start):
+    """Keep-out discs about workstations: paths keep to the lane, also from a costly start."""
+    cm = add_keepout(build_costmap(slim_blockage_map(), CostmapConfig()), LOADERS, 0.45, 180)
+    assert cm.cost_at(LOADERS).tolist() == [180] * 6
+    goal = LOADERS[0]
+    res = plan_path(cm, start, goal, PCFG)
+    assert res.reason == ""
+    assert_valid_path(cm, res.path, start, goal, skip_first=True)
+    t = np.linspace(0, 1, 20)[:, None]
+    dense = np.vstack([a + t * (b - a) for a, b in zip(res.path[:-1], res.path[1:], strict=True)])
+    far_from_start = np.hypot(*(dense - start).T) > 0.6
+    d_other = np.hypot(dense[:, None, 0] - LOADERS[None, 1:, 0],
+                       dense[:, None, 1] - LOADERS[None, 1:, 1]).min(axis=1)
+    assert np.all(d_other[far_from_start] > 0.45)
