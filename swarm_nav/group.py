@@ -100,6 +100,10 @@ def _run(argv: list[str]) -> int:
         spin_forever(executor, nodes[0].context)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except Exception:
+        if rclpy.ok():
+            raise
+        # Stopped while still starting: a node creation failed on the shut-down context.
     finally:
         for runner in runners:
             runner.stop()

@@ -457,6 +457,10 @@ def main(args=None) -> int:
         return 2
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except Exception:
+        if rclpy.ok():
+            raise
+        # Stopped while still starting: the node's creation failed on the shut-down context.
     finally:
         if node is not None:
             node.destroy_node()

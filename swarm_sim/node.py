@@ -76,8 +76,8 @@ class SimSettings:
     map_path: str | None = None
     summary: str | None = None
     control_rate: float = 10.0  # [Hz]
-    command_timeout: float = 1.0  # [s] wall
-    inactive_after: int = 3  # [ticks]
+    command_timeout: float = 3.0  # [s] wall
+    inactive_after: int = 1  # [ticks]
     wait_for: int = 0  # [robots]
     gui: bool = False
 
@@ -426,8 +426,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="write a JSON summary of the run here at exit")
     p.add_argument("--control-rate", default="10", metavar="HZ",
                    help="control ticks per simulated second [10]")
-    p.add_argument("--command-timeout", default="1.0", metavar="SEC",
-                   help="wall seconds to wait for a tick's commands before a robot is late [1.0]")
+    p.add_argument("--command-timeout", default="3.0", metavar="SEC",
+                   help="wall seconds to wait for a tick's commands before a robot is late and "
+                   "stopped; it is waited for again once it answers [3.0]")
     p.add_argument("--wait-for", default="0", metavar="K",
                    help="hold simulated time at the first tick until K robots answer it [0]")
     p.add_argument("--gui", action="store_true",

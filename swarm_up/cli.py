@@ -306,6 +306,28 @@ def resolve_robot(value: str) -> str:
     return str(as_path.resolve()) if is_path else value
 
 
+def _check_world_and_fit(world_path: Path, robot: str, n: int) -> None:
+    """Load the world and, when it has a spawn area, check that ``n`` robots fit in it.
+
+    Raises:
+        InputError: a malformed world (names ``--world``), or too many robots (names
+            ``--swarm-size`` and says how many fit).
+    """
+    from swarm_common.poi import poi_for_world
+    from swarm_common.robot_model import load_robot
+    from swarm_common.world import load_world, world_polygons
+    from swarm_sim.engine import spawn_poses
+
+    try:
+        world = load_world(world_path)
+    except InputError as exc:
+        raise _prefix("--world", exc) from None
+    poi = poi_for_world(world_path)
+    if poi is not None and poi.spawn is not None:
+        spawn_poses(poi.spawn, n, load_robot(robot).radius, world_polygons(world),
+                    where=f"spawn area of {world.name}")
+
+
 def _check_map(map_path: Path) -> Path:
     if not map_path.is_file():
         raise InputError(f"--map: no such file '{map_path}'")
@@ -389,6 +411,7 @@ def validate(args: argparse.Namespace) -> RunConfig:
     robot = resolve_robot(args.robot)
 
     n = args.swarm_size
+    _check_world_and_fit(world_path, robot, n)
     robots = tuple(f"{args.name_prefix}{i}" for i in range(1, n + 1))
     processes = args.processes
     if processes is None:

@@ -145,6 +145,7 @@ def test_child_commands_per_robot(cfg):
     argv = list(sim.argv)
     for flag, value in [("--world", str(cfg.world_path)), ("--robot", "turtlebot3_waffle"),
                         ("--swarm-size", "3"), ("--name-prefix", "Srobot"), ("--seed", "4"),
+                        ("--wait-for", "3"),
                         ("--rtf", "0.0"), ("--duration", "30.0"), ("--map", str(cfg.map_path)),
                         ("--summary", str(cfg.run_dir / "sim_summary.json"))]:
         assert argv[argv.index(flag) + 1] == value
@@ -154,7 +155,8 @@ def test_child_commands_per_robot(cfg):
                         str(cfg.run_dir / "params" / "Srobot2.yaml")]
     assert specs[2].log_path == cfg.run_dir / "logs" / "nav_Srobot2.log"
     cmd = list(specs[5].argv)
-    assert cmd[-5:] == ["Srobot2", "--world", str(cfg.world_path), "--seed", "4"]
+    assert cmd[-7:] == ["Srobot2", "--world", str(cfg.world_path), "--seed", "4",
+                        "--wait-timeout", repr(cfg.ready_timeout)]
     assert all(s.restart for s in specs[1:])
 
 

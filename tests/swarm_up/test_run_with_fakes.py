@@ -27,6 +27,7 @@ for flag in ("--world", "--robot", "--name-prefix", "--map", "--summary"):
     ap.add_argument(flag)
 ap.add_argument("--swarm-size", type=int)
 ap.add_argument("--seed", type=int)
+ap.add_argument("--wait-for", type=int)
 ap.add_argument("--rtf", type=float)
 ap.add_argument("--duration", type=float)
 ap.add_argument("--gui", action="store_true")
