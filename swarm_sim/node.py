@@ -42,6 +42,9 @@ from sensor_msgs.msg import LaserScan
 from swarm_common.errors import InputError, run_cli
 
 NS_PER_S = 1_000_000_000
+# A manual (zero-stamp) command outranks the navigator's answers for this long after it arrived,
+# as teleop outranks navigation in twist_mux (its default timeout is 0.5 s).
+MANUAL_PRIORITY_S = 0.5  # [s] wall
 
 
 @dataclass(frozen=True)
@@ -142,7 +145,7 @@ class SimulatorNode(Node):
         self.period_ns = round(NS_PER_S / settings.control_rate)
         self.t_ns = 0
         self.answers: dict[int, tuple[float, float]] = {}
-        self.manual: dict[int, tuple[float, float]] = {}
+        self.manual: dict[int, tuple[float, float, float]] = {}  # v, w, wall time received
         self.active = np.zeros(self.n, dtype=bool)
         self.late_streak = np.zeros(self.n, dtype=int)
         self.late_ticks = np.zeros(self.n, dtype=int)
@@ -209,10 +212,9 @@ class SimulatorNode(Node):
             return
         stamp = _stamp_ns(msg.header.stamp)
         if stamp == 0:  # manual driving: apply now, hold until replaced
-            self.manual[i] = (v, w)
+            self.manual[i] = (v, w, time.monotonic())
         elif stamp == self.t_ns:
             self.answers[i] = (v, w)
-            self.manual.pop(i, None)
             if not self.active[i]:
                 self.active[i] = True
                 if self.engine.ticks > 1 and self.late_ticks[i]:
@@ -300,11 +302,17 @@ class SimulatorNode(Node):
             executor.spin_once(timeout_sec=min(remaining, 0.05))
         v = np.zeros(self.n)
         w = np.zeros(self.n)
-        for i, (vi, wi) in self.manual.items():
+        now = time.monotonic()
+        for i, (vi, wi, _) in self.manual.items():
             v[i], w[i] = vi, wi
         for i, (vi, wi) in self.answers.items():
-            v[i], w[i] = vi, wi
             self.late_streak[i] = 0
+            manual = self.manual.get(i)
+            if manual is not None:
+                if now - manual[2] < MANUAL_PRIORITY_S:
+                    continue  # teleop outranks the navigator while it keeps coming
+                del self.manual[i]
+            v[i], w[i] = vi, wi
         for i in np.flatnonzero(self.active):
             if i in self.answers:
                 continue

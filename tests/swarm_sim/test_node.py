@@ -207,3 +207,37 @@ def test_same_seed_gives_identical_odometry(tmp_path):
     assert first == second
     assert first["Srobot1"][1] != pytest.approx(0.0)  # the robots did move
     assert first["Srobot3"][3] != pytest.approx(first["Srobot2"][3])
+
+
+def test_manual_commands_outrank_an_idle_navigator_while_they_keep_coming(tmp_path):
+    proc, _ = _sim(tmp_path, 2, "--duration", "60", wait_for=1, rtf="1")
+    try:
+        with ros_context() as (ctx, ex):
+            node = rclpy.create_node("teleop", context=ctx)
+            ex.add_node(node)
+            # An idle navigator: answers every tick of Srobot1 with a stamped zero.
+            driver = Driver(node, {"Srobot1": (0.0, 0.0)}, ticks=10**6)
+            teleop = node.create_publisher(TwistStamped, "/Srobot1/cmd_vel", RELIABLE)
+            spin_until(ex, lambda: len(driver.truth["Srobot1"]) > 5, 30, "Srobot1 running")
+            cmd = TwistStamped()  # zero stamp: manual driving, as `ros2 topic pub` sends it
+            cmd.twist.linear.x = 0.2
+            end = time.monotonic() + 2.0
+            while time.monotonic() < end:  # 10 Hz, like `ros2 topic pub -r 10`
+                teleop.publish(cmd)
+                t_stop = time.monotonic() + 0.1
+                while time.monotonic() < t_stop:
+                    ex.spin_once(timeout_sec=0.02)
+            moved = abs(driver.truth["Srobot1"][-1][1])
+            # Teleop stopped: within 0.5 s wall the navigator's zero answers take over.
+            t_end = time.monotonic() + 2.0
+            while time.monotonic() < t_end:
+                ex.spin_once(timeout_sec=0.05)
+            x1 = driver.truth["Srobot1"][-1][1]
+            t_more = time.monotonic() + 1.0
+            while time.monotonic() < t_more:
+                ex.spin_once(timeout_sec=0.05)
+            x2 = driver.truth["Srobot1"][-1][1]
+        assert moved > 0.2  # about 2 s at 0.2 m/s, towards -x
+        assert x2 == pytest.approx(x1, abs=1e-9)  # stopped: the navigator has the robot again
+    finally:
+        stop(proc)
