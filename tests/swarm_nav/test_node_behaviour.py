@@ -1,0 +1,474 @@
+"""Node tests of the navigator's behaviour (issue 3) against the real simulator.
+
+Every test starts ``swarm-sim --rtf 0`` (headless, simulated time, start gate ``--wait-for N``)
+and one ``python -m swarm_nav.group`` process that runs the navigators of all its robots, and
+drives them from a probe node in this process the way a commander does: goals on
+``/<ns>/goal_pose`` stamped with the navigator's latest ``nav_status`` time, outcomes from
+``/<ns>/nav_status``, true poses from ``/<ns>/ground_truth``, collisions from ``/swarm/events``
+and the simulator's ``--summary``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from contextlib import ExitStack
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+import rclpy
+import yaml
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import OccupancyGrid, Odometry
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+from tests.support.ros import ros_context, spin_until, start, stop
+
+pytestmark = pytest.mark.node
+
+ROOT = Path(__file__).resolve().parents[2]
+DATA = ROOT / "tests" / "data"
+SLIM_POI = ROOT / "worlds" / "slim_blockage.yaml"
+BOXED_WORLD = DATA / "world_boxed.world"
+TEMPLATE = yaml.safe_load((ROOT / "params" / "navigator.yaml").read_text())[
+    "navigator"]["ros__parameters"]
+NS_PER_S = 1_000_000_000
+TERMINAL = ("SUCCEEDED", "ABORTED", "CANCELED")
+XY_TOL, YAW_TOL = 0.25, 0.25  # [m], [rad] the goal checker's tolerances (nav2 defaults)
+
+RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+DEEP = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+STATUS_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
+                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
+LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+EVENTS_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
+                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+# slim_blockage (shared/reference/seed_facts.md): the closed blockage box and loader3.
+BLOCKAGE = (-5.262, -3.762, -3.016, 7.484)  # xmin, xmax, ymin, ymax [m]
+LOADER3 = (-7.74575, 0.97297, math.pi)
+
+
+def wrap(a: float) -> float:
+    """Angle wrapped to [-pi, pi) [rad]."""
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+@dataclass(frozen=True)
+class Status:
+    """One ``nav_status`` message: stamp [s] simulated, state, goal id and all values."""
+
+    t: float
+    state: str
+    goal_id: str
+    values: dict
+
+
+class Swarm:
+    """``swarm-sim`` + one navigator group for all robots + a probe node in this test.
+
+    Args:
+        tmp_path: the test's directory (logs, params, summary).
+        n: robots ``Srobot1..n``.
+        world: world name or path.
+        poi: the points-of-interest file the navigators get (holding spots).
+    """
+
+    def __init__(self, tmp_path: Path, n: int, world: str = "slim_blockage",
+                 poi: Path | None = SLIM_POI):
+        self.dir = tmp_path
+        self.names = [f"Srobot{i}" for i in range(1, n + 1)]
+        self.world = world
+        self.poi = poi
+        self.summary_path = tmp_path / "summary.json"
+        self.sim = self.nav = None
+        self._stack = ExitStack()
+        self._closed = False
+        self.summary: dict | None = None
+        self.statuses: dict[str, list[Status]] = {ns: [] for ns in self.names}
+        self.results: dict[tuple[str, str], Status] = {}
+        self.truth: dict[str, dict[int, tuple[float, float, float]]] = {
+            ns: {} for ns in self.names}
+        self.events: list[DiagnosticStatus] = []
+        self._last_goal_ns = dict.fromkeys(self.names, 0)
+
+    # -- processes ------------------------------------------------------------------------------
+
+    def launch(self) -> Swarm:
+        params = self.dir / "params"
+        params.mkdir()
+        for i, ns in enumerate(self.names, start=1):
+            values = dict(TEMPLATE, use_sim_time=True, robot_name=ns, robot_index=i,
+                          poi_file=str(self.poi) if self.poi else "", map_yaml_path="",
+                          robot="turtlebot3_waffle")
+            (params / f"{ns}.yaml").write_text(yaml.safe_dump(
+                {f"/{ns}/navigator": {"ros__parameters": values}}, sort_keys=False))
+        # The probe first, so that it hears the simulator from its first tick.
+        self.ctx, self.ex = self._stack.enter_context(ros_context())
+        node = self.node = rclpy.create_node("behaviour_probe", context=self.ctx)
+        self.ex.add_node(node)
+        self.goal_pubs = {}
+        for ns in self.names:
+            self.goal_pubs[ns] = node.create_publisher(PoseStamped, f"/{ns}/goal_pose", RELIABLE)
+            node.create_subscription(DiagnosticStatus, f"/{ns}/nav_status",
+                                     lambda m, ns=ns: self._on_status(ns, m), STATUS_QOS)
+            node.create_subscription(Odometry, f"/{ns}/ground_truth",
+                                     lambda m, ns=ns: self._on_truth(ns, m), DEEP)
+        node.create_subscription(DiagnosticArray, "/swarm/events",
+                                 lambda m: self.events.extend(m.status), EVENTS_QOS)
+        n = str(len(self.names))
+        self.sim = start(["swarm-sim", "--world", self.world, "--swarm-size", n, "--rtf", "0",
+                          "--seed", "3", "--wait-for", n, "--command-timeout", "5",
+                          "--summary", str(self.summary_path)],
+                         self.dir / "sim.log")
+        self.nav = start(["python", "-m", "swarm_nav.group", "--namespaces",
+                          ",".join(self.names), "--params-dir", str(params)],
+                         self.dir / "nav.log")
+        self.spin_until(lambda: all(self.statuses[ns] for ns in self.names)
+                        and all(p.get_subscription_count() for p in self.goal_pubs.values()),
+                        60, "every navigator to report ready")
+        return self
+
+    def close(self) -> dict | None:
+        """Stop the simulator (it writes its summary), then the navigators; the summary."""
+        if self._closed:
+            return self.summary
+        self._closed = True
+        try:
+            if self.sim is not None:
+                self.sim_exit = stop(self.sim)
+            if self.nav is not None:
+                self.nav_exit = stop(self.nav)
+        finally:
+            self._stack.close()
+        if self.summary_path.is_file():
+            self.summary = json.loads(self.summary_path.read_text())
+        return self.summary
+
+    def log(self, which: str = "nav") -> str:
+        return (self.dir / f"{which}.log").read_text()
+
+    # -- callbacks ------------------------------------------------------------------------------
+
+    def _on_status(self, ns: str, msg: DiagnosticStatus) -> None:
+        values = {kv.key: kv.value for kv in msg.values}
+        st = Status(float(values.get("stamp", "nan")), values.get("state", msg.message),
+                    values.get("goal_id", ""), values)
+        self.statuses[ns].append(st)
+        if st.state in TERMINAL:
+            self.results.setdefault((ns, st.goal_id), st)
+
+    def _on_truth(self, ns: str, msg: Odometry) -> None:
+        p, q = msg.pose.pose.position, msg.pose.pose.orientation
+        t = msg.header.stamp.sec * NS_PER_S + msg.header.stamp.nanosec
+        self.truth[ns][t] = (p.x, p.y, 2.0 * math.atan2(q.z, q.w))
+
+    # -- driving --------------------------------------------------------------------------------
+
+    def spin_until(self, condition, timeout: float, what: str) -> None:
+        """Spin until ``condition()``; on timeout, the message tells every robot's last state."""
+        try:
+            spin_until(self.ex, condition, timeout, what)
+        except AssertionError as exc:
+            raise AssertionError(f"{exc}; last statuses {self.last_states()}") from None
+
+    def last_states(self) -> dict:
+        """Per robot: (time [s], state, goal id, reason) of its latest status, and its pose."""
+        out = {}
+        for ns in self.names:
+            st = self.statuses[ns][-1] if self.statuses[ns] else None
+            pose = tuple(round(v, 3) for v in self.pose(ns)) if self.truth[ns] else None
+            out[ns] = (st and (st.t, st.state, st.goal_id, st.values.get("reason")), pose)
+        return out
+
+    def spin_for(self, wall_s: float) -> None:
+        deadline = time.monotonic() + wall_s
+        while time.monotonic() < deadline:
+            self.ex.spin_once(timeout_sec=0.02)
+
+    def status_ns(self, ns: str) -> int:
+        """The simulated time [ns] of the navigator's latest status."""
+        return round(self.statuses[ns][-1].t * NS_PER_S)
+
+    def goal_msg(self, ns: str, x: float, y: float, yaw: float, frame: str = "map",
+                 stamp_ns: int | None = None) -> PoseStamped:
+        """A goal stamped with the navigator's latest status time, unique per goal."""
+        base = self.status_ns(ns) if stamp_ns is None else stamp_ns
+        stamp = max(base, self._last_goal_ns[ns] + 1)
+        self._last_goal_ns[ns] = stamp
+        msg = PoseStamped()
+        msg.header.frame_id = frame
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp, NS_PER_S)
+        msg.pose.position.x, msg.pose.position.y = float(x), float(y)
+        msg.pose.orientation.z = math.sin(yaw / 2.0)
+        msg.pose.orientation.w = math.cos(yaw / 2.0)
+        return msg
+
+    def send(self, ns: str, x: float, y: float, yaw: float, frame: str = "map",
+             stamp_ns: int | None = None) -> str:
+        """Publish a goal; return its id ``"<sec>.<nanosec:09d>"``."""
+        msg = self.goal_msg(ns, x, y, yaw, frame, stamp_ns)
+        self.goal_pubs[ns].publish(msg)
+        return f"{msg.header.stamp.sec}.{msg.header.stamp.nanosec:09d}"
+
+    def send_together(self, goals: dict[str, tuple[float, float, float]]) -> dict[str, str]:
+        """Goals for several robots, all stamped alike: they take effect at the same tick."""
+        stamp = max(self.status_ns(ns) for ns in goals)
+        return {ns: self.send(ns, *g, stamp_ns=stamp) for ns, g in goals.items()}
+
+    def wait_result(self, ns: str, goal_id: str, timeout: float) -> Status:
+        self.spin_until(lambda: (ns, goal_id) in self.results, timeout,
+                        f"{ns} to finish goal {goal_id}")
+        return self.results[(ns, goal_id)]
+
+    def states(self, ns: str, goal_id: str) -> set[str]:
+        return {s.state for s in self.statuses[ns] if s.goal_id == goal_id}
+
+    def pose_at(self, ns: str, t_ns: int) -> tuple[float, float, float]:
+        """The true pose at the first tick at or after ``t_ns`` (spins until it arrived)."""
+        self.spin_until(lambda: any(t >= t_ns for t in self.truth[ns]), 30,
+                        f"{ns}'s ground truth at {t_ns / NS_PER_S:.1f} s")
+        return self.truth[ns][min(t for t in self.truth[ns] if t >= t_ns)]
+
+    def pose(self, ns: str) -> tuple[float, float, float]:
+        return self.truth[ns][max(self.truth[ns])]
+
+    def collisions(self) -> list[dict]:
+        return [{kv.key: kv.value for kv in e.values} for e in self.events
+                if e.name == "collision"]
+
+
+@pytest.fixture
+def swarm(tmp_path):
+    """``swarm(n, world=..., poi=...)`` starts a swarm; every swarm is stopped at the end."""
+    made: list[Swarm] = []
+
+    def make(n: int, **kwargs) -> Swarm:
+        sw = Swarm(tmp_path / f"run{len(made)}", n, **kwargs)
+        sw.dir.mkdir()
+        made.append(sw)
+        return sw.launch()
+
+    try:
+        yield make
+    finally:
+        for sw in made:
+            sw.close()
+
+
+def assert_reached(sw: Swarm, ns: str, result: Status, goal: tuple[float, float, float]):
+    """SUCCEEDED, and the true pose once the robot has stopped is within the tolerances."""
+    assert result.state == "SUCCEEDED", (ns, goal, result)
+    # Half a second after success the robot has braked (2.5 m/s^2, 3.2 rad/s^2) to a stop.
+    x, y, yaw = sw.pose_at(ns, round((result.t + 0.5) * NS_PER_S))
+    assert math.hypot(x - goal[0], y - goal[1]) <= XY_TOL, (ns, goal, (x, y, yaw))
+    assert abs(wrap(yaw - goal[2])) <= YAW_TOL, (ns, goal, (x, y, yaw))
+
+
+def assert_no_collisions(sw: Swarm) -> dict:
+    summary = sw.close()
+    assert sw.sim_exit == 0, sw.log("sim")[-2000:]
+    assert summary is not None
+    assert summary["collisions"] == {"robot_robot": 0, "robot_wall": 0}, sw.collisions()
+    assert sw.collisions() == []
+    return summary
+
+
+# -- 1. one robot around the slim blockage ---------------------------------------------------
+
+GOALS_AROUND = [(-6.5, 6.0, math.pi / 2), (-6.5, -3.9, -math.pi / 2), (-3.0, -3.9, 0.0),
+                (-2.5, 8.6, math.pi), (2.0, 4.0, -math.pi / 4)]
+
+
+def test_one_robot_reaches_five_goals_around_the_blockage(swarm):
+    sw = swarm(1)
+    for goal in GOALS_AROUND:
+        gid = sw.send("Srobot1", *goal)
+        result = sw.wait_result("Srobot1", gid, 60)
+        assert_reached(sw, "Srobot1", result, goal)
+    assert_no_collisions(sw)
+
+
+# -- 2. two robots swap ends of the passage below the blockage --------------------------------
+
+WEST_END, EAST_END = (-6.2, -3.9), (-2.8, -3.9)  # the 1.81 m passage y in [-4.824, -3.016]
+
+
+def test_two_robots_swap_ends_of_the_passage_below_the_blockage(swarm):
+    sw = swarm(2)
+    a, b = "Srobot1", "Srobot2"
+    # Staging, one after the other: A at the west end facing east, B at the east end facing west.
+    for ns, goal in ((a, (*WEST_END, 0.0)), (b, (*EAST_END, math.pi))):
+        assert_reached(sw, ns, sw.wait_result(ns, sw.send(ns, *goal), 60), goal)
+    goals = {a: (*EAST_END, 0.0), b: (*WEST_END, math.pi)}
+    ids = sw.send_together(goals)
+    for ns in (a, b):
+        assert_reached(sw, ns, sw.wait_result(ns, ids[ns], 60), goals[ns])
+    summary = assert_no_collisions(sw)
+    assert summary["min_separation_m"] > 0.0
+
+
+# -- 3. four robots, one workstation: dock in turn, the others hold ---------------------------
+
+# Where a robot that has docked goes to free loader3: up the left corridor, clear of the lane
+# below loader3 that the others come along, 1.2 m or more from the docks above (loader5, 6).
+AWAY = [(-6.3, 5.0, math.pi / 2), (-6.3, 6.6, math.pi / 2), (-6.6, 8.6, 0.0)]
+
+
+def test_four_robots_dock_at_one_workstation_in_turn(swarm):
+    sw = swarm(4)
+    goal_ids = sw.send_together(dict.fromkeys(sw.names, LOADER3))
+    waiting = dict(goal_ids)  # robots whose loader3 goal runs
+    docked: list[str] = []
+    while waiting:
+        sw.spin_until(lambda: any((ns, g) in sw.results for ns, g in waiting.items()), 120,
+                      f"one of {sorted(waiting)} to dock at loader3")
+        ns = next(ns for ns, g in waiting.items() if (ns, g) in sw.results)
+        result = sw.results[(ns, waiting.pop(ns))]
+        assert_reached(sw, ns, result, LOADER3)
+        docked.append(ns)
+        if waiting:  # free the workstation for the next one, as a commander would
+            sw.send(ns, *AWAY[len(docked) - 1])
+    assert sorted(docked) == sw.names
+    # Every robot but the first to dock saw its goal taken and held.
+    for ns in docked[1:]:
+        assert "HOLDING" in sw.states(ns, goal_ids[ns]), (ns, sw.states(ns, goal_ids[ns]))
+    assert_no_collisions(sw)
+    # From ground truth, every tick: never two robot centres in the goal disc at once.
+    ticks = sorted(set.intersection(*(set(tr) for tr in sw.truth.values())))
+    assert len(ticks) == (ticks[-1] - ticks[0]) // (NS_PER_S // 10) + 1  # no tick missed ...
+    assert ticks[-1] >= round(result.t * NS_PER_S)  # ... up to the last docking
+    assert all(math.dist(sw.truth[ns][ticks[0]][:2], LOADER3[:2]) > 5.0 for ns in sw.names)
+    inside = [sum(math.hypot(sw.truth[ns][t][0] - LOADER3[0], sw.truth[ns][t][1] - LOADER3[1])
+                  <= XY_TOL for ns in sw.names) for t in ticks]
+    assert max(inside) == 1  # someone docked, and never two at once
+
+
+# -- 4. unreachable goals are aborted at once, with the reason -------------------------------
+
+BAD_GOALS = [
+    ((-5.187, 2.0), "goal in obstacle"),   # in the blockage's left wall
+    ((-4.5, 2.0), "no path"),              # free space shut inside the closed blockage box
+    ((50.0, 50.0), "goal outside map"),
+    ((6.5, -3.0), "no path"),              # the closed bottom-right pocket
+]
+
+
+def test_unreachable_goals_are_aborted_at_once_with_the_reason(swarm):
+    sw = swarm(1)
+    for (x, y), reason in BAD_GOALS:
+        gid = sw.send("Srobot1", x, y, 0.0)
+        result = sw.wait_result("Srobot1", gid, 10)
+        assert result.state == "ABORTED", ((x, y), result)
+        assert result.values["reason"] == reason, ((x, y), result)
+        assert result.t - float(gid) <= 1.0, ((x, y), result)  # within 1 s simulated
+    # The robot never moved off its spawn point (0, 0).
+    x, y, _ = sw.pose_at("Srobot1", sw.status_ns("Srobot1"))
+    assert math.hypot(x, y) < 0.01
+    assert_no_collisions(sw)
+
+
+# -- 5. a robot parked in the corridor: the other passes around it ----------------------------
+
+PARKED = (-6.8, 3.5, math.pi / 2)
+
+
+def test_robot_passes_a_robot_parked_in_the_corridor(swarm):
+    sw = swarm(2)
+    a, b = "Srobot1", "Srobot2"
+    start_b = (-6.8, 0.5, math.pi / 2)
+    ids = sw.send_together({a: PARKED, b: start_b})
+    assert_reached(sw, a, sw.wait_result(a, ids[a], 90), PARKED)
+    assert_reached(sw, b, sw.wait_result(b, ids[b], 90), start_b)
+    parked_at = sw.pose(a)
+    beyond = (-6.8, 6.5, math.pi / 2)
+    gid = sw.send(b, *beyond)
+    assert_reached(sw, b, sw.wait_result(b, gid, 60), beyond)
+    # A stayed where it parked; B went past it.
+    assert math.dist(sw.pose(a)[:2], parked_at[:2]) < 0.01
+    assert max(p[1] for p in sw.truth[b].values()) > PARKED[1] + 2.0
+    summary = assert_no_collisions(sw)
+    assert summary["min_separation_m"] > 0.0
+
+
+# -- 6. a robot boxed in by others recovers once they leave -----------------------------------
+
+BOXED_GOAL = (3.0, 0.0, 0.0)
+# tests/data/world_boxed.yaml: Srobot1 spawns at (0, 0), its eight neighbours 0.6 m around it.
+NEIGHBOURS = {"Srobot2": (0.6, 0.0), "Srobot3": (-0.6, 0.0), "Srobot4": (0.0, 0.6),
+              "Srobot5": (0.6, 0.6), "Srobot6": (-0.6, 0.6), "Srobot7": (0.0, -0.6),
+              "Srobot8": (0.6, -0.6), "Srobot9": (-0.6, -0.6)}
+# Where the neighbours go: none on the middle robot's way east.
+NEIGHBOUR_SPOTS = {
+    "Srobot2": (2.0, 3.5, math.pi / 2), "Srobot3": (-3.5, 0.0, math.pi),
+    "Srobot4": (0.0, 3.5, math.pi / 2), "Srobot5": (3.5, 3.5, 0.0),
+    "Srobot6": (-3.0, 3.0, math.pi), "Srobot7": (0.0, -3.5, -math.pi / 2),
+    "Srobot8": (2.0, -3.5, -math.pi / 2), "Srobot9": (-3.0, -3.0, math.pi),
+}
+
+
+def test_boxed_in_robot_reaches_its_goal_once_the_others_leave(swarm):
+    sw = swarm(9, world=str(BOXED_WORLD), poi=DATA / "world_boxed.yaml")
+    middle = "Srobot1"
+    gid = sw.send(middle, *BOXED_GOAL)
+    t0 = float(gid)
+    # 15 s simulated boxed in: no way out, and it neither crashes nor gives up.
+    sw.pose_at(middle, round((t0 + 15.0) * NS_PER_S))
+    assert (middle, gid) not in sw.results, sw.results[(middle, gid)]
+    assert sw.collisions() == []
+    x, y, _ = sw.pose(middle)
+    assert math.hypot(x, y) < 0.15
+    for ns, spawn in NEIGHBOURS.items():
+        assert math.dist(sw.pose(ns)[:2], spawn) < 0.01, ns  # they stood still
+    ids = sw.send_together(NEIGHBOUR_SPOTS)
+    assert_reached(sw, middle, sw.wait_result(middle, gid, 120), BOXED_GOAL)
+    ended = {ns: sw.results[(ns, g)].state for ns, g in ids.items() if (ns, g) in sw.results}
+    assert "ABORTED" not in ended.values(), ended
+    assert_no_collisions(sw)
+
+
+# -- 7. bad input: refused with a reason, the navigator keeps working --------------------------
+
+def test_bad_input_is_refused_and_the_navigator_keeps_working(swarm):
+    sw = swarm(1)
+    ns = "Srobot1"
+    gid = sw.send(ns, math.nan, 1.0, 0.0)
+    result = sw.wait_result(ns, gid, 10)
+    assert result.state == "ABORTED" and result.values["reason"] == "goal pose has NaN or inf"
+    gid = sw.send(ns, -1.0, 0.0, math.pi, frame="odom")
+    result = sw.wait_result(ns, gid, 10)
+    assert result.state == "ABORTED"
+    assert result.values["reason"] == "goal frame 'odom' is not 'map'"
+    # A /map whose data does not match its size is dropped with a warning.
+    bad = OccupancyGrid()
+    bad.header.frame_id = "map"
+    bad.info.resolution, bad.info.width, bad.info.height = 0.05, 10, 10
+    bad.data = [0] * 5
+    map_pub = sw.node.create_publisher(OccupancyGrid, "/map", LATCHED)
+    sw.spin_until(lambda: map_pub.get_subscription_count() > 0, 10, "the navigator on /map")
+    map_pub.publish(bad)
+    sw.spin_until(lambda: "dropped a malformed /map: 10 x 10 cells but 5 values" in sw.log(), 10,
+                  "the navigator's warning about the malformed /map")
+    # A negative max_vel_x is refused with the reason; the value stays.
+    params = AsyncParameterClient(sw.node, f"/{ns}/navigator")
+    assert params.wait_for_services(timeout_sec=10)
+    future = params.set_parameters([Parameter("max_vel_x", Parameter.Type.DOUBLE, -0.1)])
+    sw.spin_until(future.done, 10, "the set_parameters answer")
+    (answer,) = future.result().results
+    assert not answer.successful
+    assert answer.reason == "max_vel_x: must be > 0, got -0.1"
+    future = params.get_parameters(["max_vel_x"])
+    sw.spin_until(future.done, 10, "the get_parameters answer")
+    assert future.result().values[0].double_value == pytest.approx(0.26)
+    # Still alive and still navigating: a good goal succeeds.
+    goal = (-1.0, 0.5, math.pi / 2)
+    assert_reached(sw, ns, sw.wait_result(ns, sw.send(ns, *goal), 30), goal)
+    assert sw.nav.poll() is None and sw.sim.poll() is None
+    assert_no_collisions(sw)
+    assert sw.nav_exit == 0
