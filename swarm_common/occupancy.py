@@ -17,30 +17,10 @@ FREE = 0
 OCCUPIED = 100
 
 
-@dataclass(frozen=True)
-class OccupancyMap:
-    """A 2D occupancy grid in the ``map`` frame.
-
-    Attributes:
-        data: (H, W) int8 array, -1 unknown / 0 free / 100 occupied; row 0 at ``y = origin[1]``.
-        resolution: cell size [m/cell].
-        origin: (3,) pose of cell (0, 0)'s lower-left corner in ``map``: x [m], y [m], yaw [rad]
-            (map_server's ``origin``; yaw is carried but, as in nav2, not applied).
-    """
-
-    data: np.ndarray
-    resolution: float
-    origin: np.ndarray
-
-    @property
-    def height(self) -> int:
-        """Number of rows (cells along y)."""
-        return int(self.data.shape[0])
-
-    @property
-    def width(self) -> int:
-        """Number of columns (cells along x)."""
-        return int(self.data.shape[1])
+class GridGeometry:
+    """Cell <-> ``map`` conversions of a grid with ``resolution``, ``origin``, ``height`` and
+    ``width`` (row 0 at ``y = origin[1]``, as ``nav_msgs/OccupancyGrid``); a mixin of
+    :class:`OccupancyMap` and the navigator's costmap."""
 
     def world_to_cell(self, xy) -> np.ndarray:
         """Convert (..., 2) points x, y [m] in ``map`` to integer (..., 2) cells ``(row, col)``.
@@ -65,3 +45,29 @@ class OccupancyMap:
         return (rc[..., 0] >= 0) & (rc[..., 0] < self.height) & (rc[..., 1] >= 0) & (
             rc[..., 1] < self.width
         )
+
+
+@dataclass(frozen=True)
+class OccupancyMap(GridGeometry):
+    """A 2D occupancy grid in the ``map`` frame.
+
+    Attributes:
+        data: (H, W) int8 array, -1 unknown / 0 free / 100 occupied; row 0 at ``y = origin[1]``.
+        resolution: cell size [m/cell].
+        origin: (3,) pose of cell (0, 0)'s lower-left corner in ``map``: x [m], y [m], yaw [rad]
+            (map_server's ``origin``; yaw is carried but, as in nav2, not applied).
+    """
+
+    data: np.ndarray
+    resolution: float
+    origin: np.ndarray
+
+    @property
+    def height(self) -> int:
+        """Number of rows (cells along y)."""
+        return int(self.data.shape[0])
+
+    @property
+    def width(self) -> int:
+        """Number of columns (cells along x)."""
+        return int(self.data.shape[1])

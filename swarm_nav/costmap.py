@@ -22,7 +22,7 @@ import numpy as np
 from scipy import ndimage
 
 from swarm_common.geometry import Points2D
-from swarm_common.occupancy import OccupancyMap
+from swarm_common.occupancy import GridGeometry, OccupancyMap
 from swarm_nav.config import CostmapConfig
 
 LETHAL = CostmapConfig.LETHAL_OBSTACLE
@@ -34,7 +34,7 @@ _EIGHT = np.ones((3, 3), dtype=bool)
 
 
 @dataclass(frozen=True)
-class Costmap:
+class Costmap(GridGeometry):
     """A 2D costmap in ``map``, in the layout of :class:`OccupancyMap` (row 0 at the bottom).
 
     Attributes:
@@ -74,27 +74,6 @@ class Costmap:
     def width(self) -> int:
         """Number of columns (cells along x)."""
         return int(self.costs.shape[1])
-
-    def world_to_cell(self, xy) -> np.ndarray:
-        """Convert (..., 2) x, y [m] in ``map`` to integer (..., 2) cells ``(row, col)``."""
-        xy = np.asarray(xy, dtype=float)
-        col = np.floor((xy[..., 0] - self.origin[0]) / self.resolution).astype(int)
-        row = np.floor((xy[..., 1] - self.origin[1]) / self.resolution).astype(int)
-        return np.stack((row, col), axis=-1)
-
-    def cell_to_world(self, rc) -> np.ndarray:
-        """Convert (..., 2) cells ``(row, col)`` to the (..., 2) x, y [m] of their centres."""
-        rc = np.asarray(rc)
-        x = self.origin[0] + (rc[..., 1] + 0.5) * self.resolution
-        y = self.origin[1] + (rc[..., 0] + 0.5) * self.resolution
-        return np.stack((x, y), axis=-1)
-
-    def in_bounds(self, rc) -> np.ndarray:
-        """Boolean (...,) mask of cells ``(row, col)`` inside the grid."""
-        rc = np.asarray(rc)
-        return (rc[..., 0] >= 0) & (rc[..., 0] < self.height) & (rc[..., 1] >= 0) & (
-            rc[..., 1] < self.width
-        )
 
     def cost_at(self, xy) -> np.ndarray:
         """The (...,) uint8 costs at (..., 2) points x, y [m] in ``map``; ``LETHAL`` outside."""
