@@ -24,13 +24,6 @@ from .fake_navigator import running_fake_navigator
 pytestmark = pytest.mark.node
 
 
-@pytest.fixture(autouse=True)
-def no_thread_outlives_the_test():
-    before = set(threading.enumerate())
-    yield
-    left = [t for t in threading.enumerate() if t not in before and t.is_alive()]
-    assert not left, f"threads left running: {left}"
-
 _COUNTER = itertools.count(1)
 GOAL_ID = re.compile(r"^\d+\.\d{9}$")
 
