@@ -56,8 +56,12 @@ _CONTEXT_PARAMS = {
     "robot_name": ("", "-", "the robot's namespace without '/', for logs (default: the node's)"),
     "wait_for_commander": (False, "-", "hold the first answer to the simulator until a goal_pose "
                            "publisher (a commander) is connected (swarm-up --commanders)"),
+    "goal_wait_timeout": (0.5, "s", "wall time the first tick after a goal ended may wait for a "
+                          "connected commander's next goal; a wait that times out makes the run "
+                          "irreproducible and is counted (nav_status goal_wait_timeouts); "
+                          "swarm-up --commanders sets 30"),
 }
-GOAL_WAIT_S = 0.5  # [s] wall: how long a tick's answer may wait for the commander's next goal
+GOAL_WAIT_POLL_S = 0.05  # [s] wall: how often a waiting tick checks its commander is still there
 COMMANDER_WAIT_S = 60.0  # [s] wall: how long the first answer waits for a commander to connect
 _TERMINAL = (NavState.IDLE, NavState.SUCCEEDED, NavState.ABORTED, NavState.CANCELED)
 
@@ -135,8 +139,15 @@ class NavigatorNode(Node):
         self._pending: Odometry | None = None
         self._goals: list[tuple[int, np.ndarray, str]] = []  # (stamp, pose, id) awaiting a tick
         self._terminal_ns: int | None = None  # tick at which the current terminal state began
-        self._goal_wait_over: int | None = None  # tick whose wait for a goal timed out
+        self._goal_wait_over: int | None = None  # tick whose wait for a goal ended without one
         self._goal_timer = None
+        self._goal_wait_started = 0.0  # [s] monotonic, when the current wait began
+        self._goal_wait_timeout = float(self.get_parameter("goal_wait_timeout").value)
+        if not (math.isfinite(self._goal_wait_timeout) and self._goal_wait_timeout >= 0.0):
+            raise InputError(f"parameter goal_wait_timeout: must be a finite number >= 0 "
+                             f"[s], got {self._goal_wait_timeout}")
+        self.goal_wait_timeouts = 0
+        """Ticks answered without the commander's goal because the wait timed out."""
         self._answered = False
         self._started = time.monotonic()
         self._goal_topic = f"{self.get_namespace().rstrip('/')}/goal_pose"
@@ -243,8 +254,9 @@ class NavigatorNode(Node):
 
         - on a lidar tick, that tick's scan has arrived (a lost scan makes the tick late);
         - on the first tick after the goal ended (or the first tick at all), with a commander
-          connected, its next goal has arrived or ``GOAL_WAIT_S`` wall seconds passed; with
-          ``wait_for_commander``, the very first answer waits for a commander to connect.
+          connected, its next goal has arrived, the commander left, or ``goal_wait_timeout`` wall
+          seconds passed (counted in ``goal_wait_timeouts``: the run is no longer reproducible);
+          with ``wait_for_commander``, the very first answer waits for a commander to connect.
         """
         msg = self._pending
         if msg is None:
@@ -254,8 +266,9 @@ class NavigatorNode(Node):
             return
         if self._awaits_goal(t):
             if self._goal_timer is None and self._answered:
+                self._goal_wait_started = time.monotonic()
                 self._goal_timer = self.create_timer(
-                    GOAL_WAIT_S, lambda: self._on_goal_wait_over(t),
+                    GOAL_WAIT_POLL_S, lambda: self._on_goal_wait_poll(t),
                     clock=Clock(clock_type=ClockType.STEADY_TIME))
             return
         self._pending = None
@@ -278,7 +291,16 @@ class NavigatorNode(Node):
         return (self._terminal_ns is not None and t == self._terminal_ns + self._tick_ns
                 and self._goal_wait_over != t and self.count_publishers(self._goal_topic) > 0)
 
-    def _on_goal_wait_over(self, t: int) -> None:
+    def _on_goal_wait_poll(self, t: int) -> None:
+        waited = time.monotonic() - self._goal_wait_started
+        if self.count_publishers(self._goal_topic) > 0 and waited < self._goal_wait_timeout:
+            return
+        if self.count_publishers(self._goal_topic) > 0:
+            self.goal_wait_timeouts += 1
+            self._warn("goal_wait", f"the commander's next goal did not come within "
+                       f"{self._goal_wait_timeout:g} s (wall); tick {t / NS_PER_S:.3f} s answered "
+                       f"without it: this run is not reproducible "
+                       f"({self.goal_wait_timeouts} time(s) so far)")
         self._cancel_goal_timer()
         self._goal_wait_over = t
         self._release()
@@ -398,6 +420,7 @@ class NavigatorNode(Node):
                ("navigation_time_s", f"{st.navigation_time:.3f}" if st else "0.0"),
                ("recoveries", str(st.recoveries) if st else "0"),
                ("holding_time_s", f"{st.holding_time:.3f}" if st else "0.0"),
+               ("goal_wait_timeouts", str(self.goal_wait_timeouts)),
                ("reason", reason)]
         self.status_pub.publish(DiagnosticStatus(
             level=_LEVEL.get(state, DiagnosticStatus.OK), name=f"{self.ns}/navigator",

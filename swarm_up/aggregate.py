@@ -14,6 +14,11 @@ Definitions (``docs/ARCHITECTURE.md``, ``/<ns>/nav_status``):
   transition into the state.
 - *time to goal*: ``navigation_time_s`` of the first ``SUCCEEDED`` status of a goal [s].
 - *holding time*: the latest ``holding_time_s`` of every goal, summed [s].
+- *goal-wait timeouts*: ticks a navigator answered without its commander's next goal because
+  the wait (``goal_wait_timeout``) ran out, summed over restarts; see *reproducible*.
+- *reproducible*: the run's simulated figures depend on the seed alone, as far as the run can
+  tell: no late tick, no goal-wait timeout and no restart (each lets wall-clock timing decide
+  something the simulation then depends on); None when the late ticks are unknown.
 - *task*: one goal reached (every commander goal is one workstation visit), so
   ``tasks_completed == goals_reached`` and ``throughput_per_hour`` is tasks per simulated hour.
 """
@@ -65,6 +70,13 @@ class RobotRecord:
     collisions: int = 0  # from /swarm/events
     spawned: bool = False
     late_events: int = 0
+    goal_wait_timeouts: int = 0  # the navigator's counter, as last published
+    goal_wait_timeouts_before: int = 0  # the counters of earlier (restarted) navigator processes
+
+    @property
+    def goal_wait_timeouts_total(self) -> int:
+        """Goal-wait timeouts of every process this robot's navigator ran in."""
+        return self.goal_wait_timeouts_before + self.goal_wait_timeouts
 
 
 @dataclass
@@ -106,6 +118,11 @@ class RunRecorder:
         state = (values.get("state") or message or "").strip().upper()
         goal = (values.get("goal_id") or "").strip()
         previous, rec.state = rec.state, state
+        waits = _float(values.get("goal_wait_timeouts"))
+        if waits is not None and waits >= 0:
+            if waits < rec.goal_wait_timeouts:  # a restarted navigator counts from 0 again
+                rec.goal_wait_timeouts_before += rec.goal_wait_timeouts
+            rec.goal_wait_timeouts = int(waits)
         holding = _float(values.get("holding_time_s"))
         if goal and holding is not None:
             rec.holding_s[goal] = holding
@@ -292,6 +309,7 @@ def aggregate(
             "distance_m": sim_r.get("distance_m"),
             "holding_time_s": r_hold,
             "late_ticks": sim_r.get("late_ticks"),
+            "goal_wait_timeouts": rec.goal_wait_timeouts_total,
             "ready_s": rec.ready_wall_s,
         }
 
@@ -307,6 +325,8 @@ def aggregate(
     if late is None and any(r.late_events for r in recorder.per_robot.values()):
         late = sum(r.late_events for r in recorder.per_robot.values())
 
+    waits = sum(r.goal_wait_timeouts_total for r in recorder.per_robot.values())
+    reproducible = None if late is None else (late == 0 and waits == 0 and restarts == 0)
     rtf = _ratio(sim_time, wall)
     robot_ticks = _ratio(ticks * n, wall) if ticks is not None else None
     hours = sim_time / 3600.0 if sim_time else None
@@ -332,6 +352,8 @@ def aggregate(
         "mean_time_to_goal_s": (sum(ttgs) / len(ttgs)) if ttgs else None,
         "holding_time_s": holding_total,
         "late_ticks": late,
+        "goal_wait_timeouts": waits,
+        "reproducible": reproducible,
         "cpu_percent": resources.get("cpu_percent"),
         "peak_rss_mb_per_robot": resources.get("peak_rss_mb_per_robot"),
         "sim_peak_rss_mb": resources.get("sim_peak_rss_mb"),

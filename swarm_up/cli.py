@@ -43,6 +43,7 @@ PER_ROBOT = "per-robot"
 PER_ROBOT_MAX = 8
 DEFAULT_READY_TIMEOUT_S = 120.0
 POLL_PERIOD_S = 0.1  # supervision poll [s] (10 Hz; restarts within 2 s need >= 5 Hz)
+COMMANDER_GOAL_WAIT_S = 30.0  # [s] wall: navigator goal_wait_timeout with --commanders
 NAME_PREFIX_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 SPAWNED_RE = re.compile(r"spawned\s+(\d+)\s+robots?", re.IGNORECASE)
 
@@ -502,6 +503,9 @@ def navigator_params(template: dict, ns: str, index: int, cfg: RunConfig) -> dic
         # With commanders, simulated time starts once each robot's commander is connected, and
         # each goal takes effect at a fixed tick: the same seed gives the same run.
         wait_for_commander=bool(cfg.commanders),
+        # Our commanders answer every ended goal at once; a loaded machine may delay that answer
+        # by seconds of wall time, and a wait that times out would make the run irreproducible.
+        goal_wait_timeout=COMMANDER_GOAL_WAIT_S if cfg.commanders else 0.5,
     )
     return {f"/{ns}/navigator": {"ros__parameters": params}}
 
@@ -692,6 +696,9 @@ def print_summary(metrics: dict, metrics_files: list[Path]) -> None:
         ("mean time to goal", _fmt(metrics.get("mean_time_to_goal_s"), "s", 1)),
         ("time holding", _fmt(metrics.get("holding_time_s"), "s", 1)),
         ("late ticks", _fmt(metrics.get("late_ticks"))),
+        ("goal-wait timeouts", _fmt(metrics.get("goal_wait_timeouts"))),
+        ("reproducible (seed alone decides)", {True: "yes", False: "no", None: "unknown"}.get(
+            metrics.get("reproducible"), "unknown")),
         ("CPU (100 % = one core)", _fmt(metrics.get("cpu_percent"), "%", 0)),
         ("peak RSS per robot", _fmt(metrics.get("peak_rss_mb_per_robot"), "MB", 1)),
         ("restarts", _fmt(metrics.get("restarts"))),
@@ -982,7 +989,8 @@ def run(cfg: RunConfig) -> int:
         outcome = Outcome(EXIT_RUNTIME, str(exc), "failed to start")
     finally:
         wall_s = orch.shutdown(outcome.ended_by if outcome else "error")
-        removed = shm.clean_stale(shm_before)
+        # Our metrics node still maps the segments of peers that died; that use does not count.
+        removed = shm.clean_stale(shm_before, ignore_pids=frozenset({os.getpid()}))
         for sig, handler in old_handlers.items():
             signal.signal(sig, handler)
     if removed:

@@ -22,6 +22,12 @@ cleaner removes a file only when all of these hold:
    mmapped (``/proc/*/maps``) or ``flock``-ed (``/proc/locks``) by anyone;
 4. it is older than ``min_age_s`` (a file being created right now by someone else is spared).
 
+The process that cleans may exclude its own open files and mappings (``ignore_pids``): a
+participant keeps a dead peer's segment mapped until it is destroyed, so swarm-up, whose metrics
+node talked to a killed navigator, would otherwise spare that navigator's files until it exits
+itself.  Locks are never ignored: a segment whose owner (even this process) holds its ``_el``
+lock is live.
+
 The directory is a parameter so that tests can stand a temporary directory in for ``/dev/shm``.
 """
 
@@ -94,11 +100,15 @@ def _pids() -> list[str]:
         return []
 
 
-def _paths_in_use(shm_dir: Path) -> set[str]:
-    """Names in ``shm_dir`` that some live process has open or mmapped (any user we may read)."""
+def _paths_in_use(shm_dir: Path, ignore_pids: frozenset[int] = frozenset()) -> set[str]:
+    """Names in ``shm_dir`` that some live process has open or mmapped (any user we may read),
+    bar the processes in ``ignore_pids``."""
     prefix = str(shm_dir) + os.sep
     used: set[str] = set()
+    skip = {str(pid) for pid in ignore_pids}
     for pid in _pids():
+        if pid in skip:
+            continue
         fd_dir = f"/proc/{pid}/fd"
         try:
             fds = os.listdir(fd_dir)
@@ -136,17 +146,19 @@ def _locked_inodes() -> set[tuple[int, int, int]]:
     return locked
 
 
-def in_use_groups(shm_dir: Path | str = SHM_DIR) -> set[str]:
+def in_use_groups(shm_dir: Path | str = SHM_DIR,
+                  ignore_pids: frozenset[int] = frozenset()) -> set[str]:
     """Group keys (see :func:`group_key`) of which a live process uses at least one member.
 
     Args:
         shm_dir: the shared-memory directory.
+        ignore_pids: processes whose open files and mappings do not count (their locks do).
 
     Returns:
         The set of group base names that are open, mmapped or locked by a live process.
     """
     shm_dir = Path(os.path.realpath(shm_dir))
-    groups = {group_key(n) for n in _paths_in_use(shm_dir) if is_fastdds_name(n)}
+    groups = {group_key(n) for n in _paths_in_use(shm_dir, ignore_pids) if is_fastdds_name(n)}
     locked = _locked_inodes()
     if locked:
         for name in snapshot(shm_dir):
@@ -163,6 +175,7 @@ def stale_files(
     before: frozenset[str] | set[str],
     shm_dir: Path | str = SHM_DIR,
     min_age_s: float = 1.0,
+    ignore_pids: frozenset[int] = frozenset(),
 ) -> list[Path]:
     """The Fast DDS files created since ``before`` that no live process uses.
 
@@ -170,6 +183,7 @@ def stale_files(
         before: the :func:`snapshot` taken before the run.
         shm_dir: the shared-memory directory.
         min_age_s: spare files whose last status change is younger than this [s].
+        ignore_pids: processes whose open files and mappings do not count (their locks do).
 
     Returns:
         Paths to remove, sorted by name.
@@ -178,7 +192,7 @@ def stale_files(
     new = sorted(snapshot(shm_dir) - set(before))
     if not new:
         return []
-    busy = in_use_groups(shm_dir)
+    busy = in_use_groups(shm_dir, ignore_pids)
     now = time.time()
     stale = []
     for name in new:
@@ -198,6 +212,7 @@ def clean_stale(
     before: frozenset[str] | set[str],
     shm_dir: Path | str = SHM_DIR,
     min_age_s: float = 1.0,
+    ignore_pids: frozenset[int] = frozenset(),
 ) -> list[Path]:
     """Remove the files :func:`stale_files` finds; never raises.
 
@@ -205,12 +220,13 @@ def clean_stale(
         before: the :func:`snapshot` taken before the run.
         shm_dir: the shared-memory directory.
         min_age_s: spare files younger than this [s].
+        ignore_pids: processes whose open files and mappings do not count (their locks do).
 
     Returns:
         The paths actually removed.
     """
     removed = []
-    for path in stale_files(before, shm_dir, min_age_s):
+    for path in stale_files(before, shm_dir, min_age_s, ignore_pids):
         try:
             path.unlink()
         except OSError:

@@ -258,6 +258,8 @@ def test_six_robots_with_commanders_run_clean(run_180):
                for fig in m["per_robot"].values()), msg
     assert m["late_ticks"] == 0, msg
     assert m["restarts"] == 0, msg
+    assert m["goal_wait_timeouts"] == 0, msg
+    assert m["reproducible"] is True, msg
 
 
 # ------------------------------------------------------------------------- 2. determinism
@@ -271,8 +273,10 @@ def test_same_seed_gives_same_simulated_figures(run_180, tmp_path):
                                        f"{sorted(set(first) ^ set(second))}\n{diag2}")
     diffs = _diff(a, b)
     late = (first.get("late_ticks"), second.get("late_ticks"))
+    waits = (first.get("goal_wait_timeouts"), second.get("goal_wait_timeouts"))
     assert not diffs, (f"simulated figures differ between two identical runs (late ticks "
-                       f"{late[0]} / {late[1]}):\n  " + "\n  ".join(diffs)
+                       f"{late[0]} / {late[1]}, goal-wait timeouts {waits[0]} / {waits[1]}):\n  "
+                       + "\n  ".join(diffs)
                        + f"\nfirst run:\n{diag1}\nsecond run:\n{diag2}")
 
 

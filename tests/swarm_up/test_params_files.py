@@ -78,6 +78,15 @@ def test_one_file_per_namespace_rooted_at_ns_navigator(cfg, template):
         assert params["poi_file"] == str(cfg.poi_path)
         assert params["map_yaml_path"] == ""  # navigators take the map from /map
         assert params["robot"] == "turtlebot3_waffle"
+        assert params["wait_for_commander"] is True and params["goal_wait_timeout"] == 30.0
+
+
+def test_without_commanders_no_start_gate_and_the_short_goal_wait(cfg, template):
+    """With commanders (above) a loaded machine must not turn a late goal into a different run;
+    without, a user's commander may have nothing more to send, so ticks wait 0.5 s at most."""
+    params = yaml.safe_load(write_params_files(replace(cfg, commanders=False), template)[0]
+                            .read_text())["/Srobot1/navigator"]["ros__parameters"]
+    assert params["wait_for_commander"] is False and params["goal_wait_timeout"] == 0.5
 
 
 def test_missing_poi_and_map_give_empty_strings(cfg, template):

@@ -259,3 +259,25 @@ def test_mmap_in_this_process_is_busy(tmp_path):
     finally:
         mem.close()
     assert [p.name for p in shm.clean_stale(frozenset(), d, min_age_s=0.0)] == [seg.name]
+
+
+def test_own_mappings_may_be_ignored_but_not_locks(tmp_path):
+    """swarm-up still maps a killed peer's segment; it may clean it, never a locked one."""
+    d = tmp_path / "shm"
+    d.mkdir()
+    dead, live = d / "fastrtps_eeeeeeeeeeeeeeee", d / "fastrtps_ffffffffffffffff"
+    for seg in (dead, live):
+        _touch(seg, 4096)
+        _touch(Path(f"{seg}_el"))
+    me = frozenset({os.getpid()})
+    with open(dead, "r+b") as fh:
+        mem = mmap.mmap(fh.fileno(), 4096)
+    lock = open(f"{live}_el", "rb")  # noqa: SIM115 - held across the asserts
+    fcntl.flock(lock, fcntl.LOCK_EX)
+    try:
+        assert shm.stale_files(frozenset(), d, min_age_s=0.0) == []
+        removed = shm.clean_stale(frozenset(), d, min_age_s=0.0, ignore_pids=me)
+        assert sorted(p.name for p in removed) == [dead.name, f"{dead.name}_el"]
+    finally:
+        mem.close()
+        lock.close()
