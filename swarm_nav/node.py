@@ -59,7 +59,7 @@ _CONTEXT_PARAMS = {
     "goal_wait_timeout": (0.5, "s", "wall time the first tick after a goal ended may wait for a "
                           "connected commander's next goal; a wait that times out makes the run "
                           "irreproducible and is counted (nav_status goal_wait_timeouts); "
-                          "swarm-up --commanders sets 30"),
+                          "swarm-up --commanders sets 2.5"),
 }
 GOAL_WAIT_POLL_S = 0.05  # [s] wall: how often a waiting tick checks its commander is still there
 COMMANDER_WAIT_S = 60.0  # [s] wall: how long the first answer waits for a commander to connect
@@ -402,7 +402,7 @@ class NavigatorNode(Node):
 
     def _publish_status(self, force: bool = False) -> None:
         st = self.core.status
-        key = (st.state, st.goal_id, st.reason)
+        key = (st.state, st.goal_id, st.reason, self.goal_wait_timeouts)
         if not force and key == self._last_status and (
                 self._now_ns - self._last_status_ns < STATUS_PERIOD_NS):
             return

@@ -43,7 +43,9 @@ PER_ROBOT = "per-robot"
 PER_ROBOT_MAX = 8
 DEFAULT_READY_TIMEOUT_S = 120.0
 POLL_PERIOD_S = 0.1  # supervision poll [s] (10 Hz; restarts within 2 s need >= 5 Hz)
-COMMANDER_GOAL_WAIT_S = 30.0  # [s] wall: navigator goal_wait_timeout with --commanders
+# [s] wall: the navigators' goal_wait_timeout with --commanders; below the simulator's
+# command_timeout (3 s), so a commander slower than this is a goal-wait timeout, not a late tick.
+COMMANDER_GOAL_WAIT_S = 2.5
 NAME_PREFIX_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 SPAWNED_RE = re.compile(r"spawned\s+(\d+)\s+robots?", re.IGNORECASE)
 

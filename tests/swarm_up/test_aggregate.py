@@ -156,6 +156,32 @@ def test_anonymous_goals_count_on_transition():
     assert m["throughput_per_hour"] is None  # no simulated time known
 
 
+def _waits(n):
+    return {**_status("DRIVING", "g"), "goal_wait_timeouts": str(n)}
+
+
+def test_goal_wait_timeouts_summed_over_restarts_and_reproducibility():
+    rec = RunRecorder(robots=("a", "b"))
+    for n in (0, 1, 2, 2):
+        rec.on_status("a", _waits(n), 0.0)
+    for n in (0, 1):  # a restarted navigator counts from 0 again
+        rec.on_status("a", _waits(n), 0.0)
+    rec.on_status("b", _waits("x"), 0.0)  # malformed: ignored
+    clean = {"late_ticks": 0, "sim_time_s": 10.0}
+    m = aggregate(rec, clean, world="w", seed=0, coordination="decentralized", wall_time_s=1.0)
+    assert m["goal_wait_timeouts"] == 3
+    assert m["per_robot"]["a"]["goal_wait_timeouts"] == 3
+    assert m["per_robot"]["b"]["goal_wait_timeouts"] == 0
+    assert m["reproducible"] is False
+    quiet = RunRecorder(robots=("a",))
+    quiet.on_status("a", _waits(0), 0.0)
+    args = dict(world="w", seed=0, coordination="decentralized", wall_time_s=1.0)
+    assert aggregate(quiet, clean, **args)["reproducible"] is True
+    assert aggregate(quiet, clean, restarts=1, **args)["reproducible"] is False
+    assert aggregate(quiet, {**clean, "late_ticks": 2}, **args)["reproducible"] is False
+    assert aggregate(quiet, {"sim_time_s": 10.0}, **args)["reproducible"] is None
+
+
 def test_malformed_numbers_are_ignored():
     rec = RunRecorder(robots=("a",))
     rec.on_status("a", _status("SUCCEEDED", "g", nav_t="nan", hold="x"), 0.0)

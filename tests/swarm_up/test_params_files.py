@@ -78,7 +78,7 @@ def test_one_file_per_namespace_rooted_at_ns_navigator(cfg, template):
         assert params["poi_file"] == str(cfg.poi_path)
         assert params["map_yaml_path"] == ""  # navigators take the map from /map
         assert params["robot"] == "turtlebot3_waffle"
-        assert params["wait_for_commander"] is True and params["goal_wait_timeout"] == 30.0
+        assert params["wait_for_commander"] is True and params["goal_wait_timeout"] == 2.5
 
 
 def test_without_commanders_no_start_gate_and_the_short_goal_wait(cfg, template):

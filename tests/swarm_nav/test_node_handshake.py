@@ -1,0 +1,168 @@
+"""Node tests of the navigator's goal handshake (docs/ARCHITECTURE.md, "Goal handshake").
+
+A :class:`NavigatorNode` runs in this process next to a probe node that plays the simulator (it
+publishes odometry and scans tick by tick and reads the stamped ``cmd_vel`` answers) and the
+commander (``goal_pose``).  The map comes from the bundled ``empty`` world's file, so no simulator
+process is needed.  What is checked: on the first tick after the start (or after a goal ended)
+the navigator withholds its answer until a connected commander's goal arrives, the goal then takes
+effect on that tick, and a commander that never answers costs ``goal_wait_timeout`` wall seconds
+once, counted in ``nav_status``.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+import rclpy
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import PoseStamped, TwistStamped
+from nav_msgs.msg import Odometry
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from sensor_msgs.msg import LaserScan
+
+from swarm_nav.node import NavigatorNode
+from tests.support.ros import spin_until
+
+pytestmark = pytest.mark.node
+
+ROOT = Path(__file__).resolve().parents[2]
+NS_PER_S = 1_000_000_000
+TICK_NS = NS_PER_S // 10  # control_rate 10 Hz (params/navigator.yaml)
+RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+class Probe:
+    """The simulator and the commander of one robot ``/hs``, at (0, 0) facing +x."""
+
+    def __init__(self, goal_wait_timeout: float):
+        self.ctx = rclpy.Context()
+        rclpy.init(context=self.ctx)
+        self.executor = SingleThreadedExecutor(context=self.ctx)
+        self.nav = NavigatorNode(
+            namespace="/hs", context=self.ctx,
+            parameter_overrides=[
+                Parameter("map_yaml_path", value=str(ROOT / "maps" / "empty.yaml")),
+                Parameter("goal_wait_timeout", value=goal_wait_timeout),
+            ])
+        self.node = rclpy.create_node("probe", context=self.ctx)
+        self.answers: dict[int, tuple[float, float]] = {}  # tick [ns] -> (v, w)
+        self.status: dict[str, str] = {}
+        self.node.create_subscription(TwistStamped, "/hs/cmd_vel", self._on_cmd, RELIABLE)
+        self.node.create_subscription(DiagnosticStatus, "/hs/nav_status", self._on_status,
+                                      LATCHED)
+        self.odom_pub = self.node.create_publisher(Odometry, "/hs/odom", RELIABLE)
+        self.scan_pub = self.node.create_publisher(LaserScan, "/hs/scan", qos_profile_sensor_data)
+        self.goal_pub = self.node.create_publisher(PoseStamped, "/hs/goal_pose", RELIABLE)
+        for n in (self.nav, self.node):
+            self.executor.add_node(n)
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.nav.destroy_node()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.ctx)
+
+    def _on_cmd(self, msg: TwistStamped) -> None:
+        t = msg.header.stamp.sec * NS_PER_S + msg.header.stamp.nanosec
+        self.answers[t] = (msg.twist.linear.x, msg.twist.angular.z)
+
+    def _on_status(self, msg: DiagnosticStatus) -> None:
+        self.status = {kv.key: kv.value for kv in msg.values}
+
+    def _stamp(self, msg, t: int) -> None:
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(t, NS_PER_S)
+
+    def tick(self, t: int) -> None:
+        """Publish tick ``t``'s scan (every tick; the navigator uses those of lidar ticks) and
+        odometry, as the simulator does."""
+        scan = LaserScan()
+        self._stamp(scan, t)
+        scan.header.frame_id = "hs/base_scan"
+        scan.angle_min, scan.angle_max, scan.angle_increment = -3.14159, 3.14159, 0.0174533
+        scan.range_min, scan.range_max = 0.12, 3.5
+        scan.ranges = [float("inf")] * 360
+        self.scan_pub.publish(scan)
+        odom = Odometry()
+        self._stamp(odom, t)
+        odom.header.frame_id = "hs/odom"
+        odom.pose.pose.orientation.w = 1.0
+        self.odom_pub.publish(odom)
+
+    def answer(self, t: int, timeout: float) -> float:
+        """Spin until tick ``t`` is answered; the wall seconds it took."""
+        t0 = time.monotonic()
+        spin_until(self.executor, lambda: t in self.answers, timeout, f"the answer to tick {t}")
+        return time.monotonic() - t0
+
+    def silent_for(self, t: int, seconds: float) -> bool:
+        """Spin ``seconds`` wall; True if tick ``t`` stayed unanswered."""
+        end = time.monotonic() + seconds
+        while time.monotonic() < end and t not in self.answers:
+            self.executor.spin_once(timeout_sec=0.02)
+        return t not in self.answers
+
+    def send_goal(self, stamp: int, x: float, y: float) -> None:
+        goal = PoseStamped()
+        self._stamp(goal, stamp)
+        goal.header.frame_id = "map"
+        goal.pose.position.x, goal.pose.position.y = x, y
+        goal.pose.orientation.w = 1.0
+        self.goal_pub.publish(goal)
+
+
+@pytest.fixture
+def probe(request):
+    p = Probe(request.param)
+    yield p
+    p.close()
+
+
+@pytest.mark.parametrize("probe", [5.0], indirect=True)
+def test_tick_after_the_start_waits_for_the_commanders_goal(probe):
+    spin_until(probe.executor, lambda: probe.nav.count_subscribers("/hs/goal_pose") > 0
+               and probe.node.count_subscribers("/hs/odom") > 0, 10.0, "discovery")
+    t0 = 10 * TICK_NS
+    probe.tick(t0)
+    probe.answer(t0, 10.0)  # the start: IDLE, nothing to wait for yet
+    spin_until(probe.executor, lambda: probe.status.get("stamp") == "1.000000000", 5.0,
+               "the status of the first tick")
+    t1 = t0 + TICK_NS
+    probe.tick(t1)
+    assert probe.silent_for(t1, 1.0), "the tick after the start did not wait for the goal"
+    probe.send_goal(t0, 2.0, 0.0)  # stamped with the status time, as BasicNavigator does
+    probe.answer(t1, 5.0)
+    v, _ = probe.answers[t1]
+    assert v > 0.0, "the goal did not take effect on the tick it was waited for"
+    spin_until(probe.executor, lambda: probe.status.get("goal_id") == "1.000000000", 5.0,
+               "the goal's status")
+    assert probe.status["goal_wait_timeouts"] == "0"
+    # While the goal runs, ticks are answered at once.
+    t2 = t1 + TICK_NS
+    probe.tick(t2)
+    assert probe.answer(t2, 5.0) < 0.5
+
+
+@pytest.mark.parametrize("probe", [0.3], indirect=True)
+def test_a_commander_that_never_answers_costs_one_timeout_and_is_counted(probe):
+    spin_until(probe.executor, lambda: probe.nav.count_subscribers("/hs/goal_pose") > 0
+               and probe.node.count_subscribers("/hs/odom") > 0, 10.0, "discovery")
+    t0 = 10 * TICK_NS
+    probe.tick(t0)
+    probe.answer(t0, 10.0)
+    t1 = t0 + TICK_NS
+    probe.tick(t1)
+    took = probe.answer(t1, 5.0)
+    assert took >= 0.3, f"tick answered after {took:.2f} s, before goal_wait_timeout"
+    assert probe.answers[t1] == (0.0, 0.0)
+    spin_until(probe.executor, lambda: probe.status.get("goal_wait_timeouts") == "1", 5.0,
+               "goal_wait_timeouts 1 in nav_status")
+    # Only the first tick after the goal ended waits.
+    t2 = t1 + TICK_NS
+    probe.tick(t2)
+    assert probe.answer(t2, 5.0) < 0.25
