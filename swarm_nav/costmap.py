@@ -46,6 +46,10 @@ class Costmap(GridGeometry):
         shareable: whether planners may keep what they derive from this costmap (its search
             graph) in a process-wide cache shared by all robots with the same map; False for
             short-lived costmaps such as :func:`overlay_obstacles`'s.
+        base: for :func:`overlay_obstacles`'s costmaps, the shareable costmap it was made from
+            (None otherwise): a planner patches the base's search graph instead of building one.
+        changed: with ``base``, the window ``(r0, r1, c0, c1)`` (rows ``r0:r1``, columns
+            ``c0:c1``) outside which the costs equal the base's.
     """
 
     @property
@@ -63,6 +67,8 @@ class Costmap(GridGeometry):
     origin: np.ndarray
     obstacle_distance: np.ndarray
     shareable: bool = True
+    base: Costmap | None = field(default=None, compare=False, repr=False)
+    changed: tuple[int, int, int, int] | None = field(default=None, compare=False, repr=False)
     _cache: dict = field(default_factory=dict, compare=False, repr=False)
 
     @property
@@ -220,7 +226,9 @@ def overlay_obstacles(costmap: Costmap, points: Points2D, cfg: CostmapConfig) ->
     window[~known & (new >= INSCRIBED)] = new[~known & (new >= INSCRIBED)]
     odist = costmap.obstacle_distance.copy()
     odist[r0:r1, c0:c1] = np.minimum(odist[r0:r1, c0:c1], dist)
-    return Costmap(costs, costmap.resolution, costmap.origin, odist, shareable=False)
+    base = costmap if costmap.shareable else None
+    return Costmap(costs, costmap.resolution, costmap.origin, odist, shareable=False, base=base,
+                   changed=(r0, r1, c0, c1) if base is not None else None)
 
 
 def add_keepout(costmap: Costmap, points, radius: float, cost: int) -> Costmap:

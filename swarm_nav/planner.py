@@ -70,10 +70,19 @@ def step_multipliers(costmap: Costmap, cfg: PlannerConfig) -> np.ndarray:
     Returns:
         ``1 + cost_penalty * cost / 252`` for traversable cells, 0 for the others.
     """
-    c = costmap.costs.astype(float)
-    c[costmap.costs == UNKNOWN] = _UNKNOWN_AS
+    return _multipliers(costmap.costs, cfg)
+
+
+def _multipliers(costs: np.ndarray, cfg: PlannerConfig) -> np.ndarray:
+    """:func:`step_multipliers` of an array of costs (a whole costmap or a window of one)."""
+    unknown = costs == UNKNOWN
+    c = costs.astype(float)
+    c[unknown] = _UNKNOWN_AS
     mult = 1.0 + cfg.cost_penalty * c / (INSCRIBED - 1)
-    mult[~costmap.traversable(cfg.allow_unknown)] = 0.0
+    ok = costs < INSCRIBED  # Costmap.traversable
+    if cfg.allow_unknown:
+        ok |= unknown
+    mult[~ok] = 0.0
     return mult
 
 
@@ -155,7 +164,12 @@ def cell_path(costmap: Costmap, start_rc: tuple[int, int], goal_rc: tuple[int, i
     cell's cost-to-go; the path follows the predecessors from the start.  The graph is built once
     per costmap and the cost-to-go once per goal cell, both shared by all the robots of a process
     that use the same map, so a replan to the same goal (the robot left its path) only walks the
-    predecessors.
+    predecessors.  On an overlay of a shareable costmap (a replan around robots seen) the search
+    first stops at ``OVERLAY_BOUND_RATIO`` times the base's cost from the start plus
+    ``OVERLAY_BOUND_SLACK``: the overlay only raises costs, so the base's cost bounds the
+    overlay's from below, and when the start lies within that bound the bounded search has
+    settled the optimal path exactly (Dijkstra settles cells in order of cost); only a longer
+    detour, or none, needs the search over the whole map.
 
     Args:
         costmap: the costmap.
@@ -170,7 +184,9 @@ def cell_path(costmap: Costmap, start_rc: tuple[int, int], goal_rc: tuple[int, i
     w = costmap.width
     s = int(start_rc[0]) * w + int(start_rc[1])
     t = int(goal_rc[0]) * w + int(goal_rc[1])
-    togo, nxt = _cost_to_go(costmap, t, cfg)
+    togo, nxt = _bounded_cost_to_go(costmap, s, t, cfg)
+    if togo is None:
+        togo, nxt = _cost_to_go(costmap, t, cfg)
     if not np.isfinite(togo[s]):
         return [], math.inf
     cells = [s]
@@ -180,12 +196,13 @@ def cell_path(costmap: Costmap, start_rc: tuple[int, int], goal_rc: tuple[int, i
 
 
 # Process-wide caches of what shareable costmaps derive (robots of one process share a map):
-# key -> search graph, and (key, goal cell) -> cost-to-go.  About 11 MB per graph and 1.5 MB per
-# cost-to-go on a 380 x 310 grid.
+# key -> search graph (with the slot index of every move, to patch a copy for an overlay), and
+# (key, goal cell) -> cost-to-go.  About 15 MB per graph and 1.5 MB per cost-to-go on a
+# 380 x 310 grid.
 _GRAPHS: OrderedDict = OrderedDict()
 _TOGO: OrderedDict = OrderedDict()
 _GRAPHS_MAX = 2
-_TOGO_MAX = 6
+_TOGO_MAX = 16
 
 
 def _lru(cache: OrderedDict, key, make, size: int):
@@ -197,6 +214,34 @@ def _lru(cache: OrderedDict, key, make, size: int):
     while len(cache) > size:
         cache.popitem(last=False)
     return value
+
+
+OVERLAY_BOUND_RATIO = 1.25  # [-] first search bound of a replan around robots: ratio ...
+OVERLAY_BOUND_SLACK = 1.0  # [m] ... and slack over the static cost (a search-cost setting only)
+
+
+def _bounded_cost_to_go(costmap: Costmap, s: int, t: int, cfg: PlannerConfig
+                        ) -> tuple[np.ndarray, np.ndarray] | tuple[None, None]:
+    """An overlay's cost-to-go to ``t`` searched only up to a bound, if that reaches ``s``.
+
+    Returns ``(None, None)`` when the costmap is no overlay of a shareable one, the start is
+    unreachable on the base, or the optimal path costs more than the bound.
+    """
+    base = costmap.base
+    if costmap.shareable or base is None or not base.shareable:
+        return None, None
+    static = float(_cost_to_go(base, t, cfg)[0][s])
+    if not math.isfinite(static):
+        return None, None
+    key = ("togo-bounded", s, t, cfg.cost_penalty, cfg.allow_unknown)
+    if key not in costmap._cache:
+        bound = OVERLAY_BOUND_RATIO * static + OVERLAY_BOUND_SLACK
+        costmap._cache[key] = dijkstra(_reverse_graph(costmap, cfg), directed=True, indices=t,
+                                       return_predecessors=True, limit=bound)
+    togo, nxt = costmap._cache[key]
+    if not np.isfinite(togo[s]):
+        return None, None
+    return togo, nxt
 
 
 def _cost_to_go(costmap: Costmap, t: int, cfg: PlannerConfig) -> tuple[np.ndarray, np.ndarray]:
@@ -220,37 +265,84 @@ def _reverse_graph(costmap: Costmap, cfg: PlannerConfig) -> csr_matrix:
     """The reversed cell graph: entry (v, u) is the cost [m] of the move u -> v (cached).
 
     Built row by row without sorting: each cell's 8 neighbour slots in a fixed order, invalid
-    moves masked out.
+    moves masked out.  An overlay of a shareable costmap (``costmap.base``) patches a copy of the
+    base's graph in the rows its changed window touches: an overlay only raises costs, so its
+    valid moves are a subset of the base's, and a move it forbids keeps its slot with an
+    infinite cost (which Dijkstra never relaxes).
     """
     if costmap.shareable:
-        key = (costmap.key, cfg.cost_penalty, cfg.allow_unknown)
-        return _lru(_GRAPHS, key, lambda: _build_graph(costmap, cfg), _GRAPHS_MAX)
+        return _shared_graph(costmap, cfg)[0]
     key = ("graph", cfg.cost_penalty, cfg.allow_unknown)
     if key not in costmap._cache:
-        costmap._cache[key] = _build_graph(costmap, cfg)
+        if costmap.base is not None and costmap.base.shareable and costmap.changed is not None:
+            costmap._cache[key] = _patched_graph(costmap, cfg)
+        else:
+            costmap._cache[key] = _build_graph(costmap, cfg)[0]
     return costmap._cache[key]
 
 
-def _build_graph(costmap: Costmap, cfg: PlannerConfig) -> csr_matrix:
-    h, w = costmap.height, costmap.width
-    mult = step_multipliers(costmap, cfg)
-    pad = np.zeros((h + 2, w + 2))
-    pad[1:-1, 1:-1] = mult
+def _shared_graph(costmap: Costmap, cfg: PlannerConfig) -> tuple[csr_matrix, np.ndarray]:
+    key = (costmap.key, cfg.cost_penalty, cfg.allow_unknown)
+    return _lru(_GRAPHS, key, lambda: _build_graph(costmap, cfg), _GRAPHS_MAX)
+
+
+def _edge_costs(mult_pad: np.ndarray, resolution: float) -> np.ndarray:
+    """(h, w, 8) cost [m] of the move from each neighbour (slot k: ``_MOVES[k]``) into each cell
+    of the padded multipliers' interior; ``inf`` where the move is invalid.
+
+    Args:
+        mult_pad: (h + 2, w + 2) step multipliers (0 = impassable) with a one-cell margin.
+        resolution: [m/cell].
+    """
+    h, w = mult_pad.shape[0] - 2, mult_pad.shape[1] - 2
+    mult = mult_pad[1:-1, 1:-1]
     here = mult > 0.0
+    cost = np.empty((h, w, 8))
+    for k, (dr, dc) in enumerate(_MOVES):
+        there = mult_pad[1 + dr:h + 1 + dr, 1 + dc:w + 1 + dc] > 0.0
+        if dr and dc:
+            there = there & (mult_pad[1 + dr:h + 1 + dr, 1:w + 1] > 0.0) & (
+                mult_pad[1:h + 1, 1 + dc:w + 1 + dc] > 0.0)
+        cost[..., k] = np.where(here & there, math.hypot(dr, dc) * resolution * mult, np.inf)
+    return cost
+
+
+def _build_graph(costmap: Costmap, cfg: PlannerConfig) -> tuple[csr_matrix, np.ndarray]:
+    """The reversed graph and the (H*W, 8) data index of every (cell, move slot), -1 if none."""
+    h, w = costmap.height, costmap.width
+    pad = np.zeros((h + 2, w + 2))
+    pad[1:-1, 1:-1] = step_multipliers(costmap, cfg)
+    cost = _edge_costs(pad, costmap.resolution)
+    valid = np.isfinite(cost)
     idx = np.arange(h * w, dtype=np.int32).reshape(h, w)
     nbr = np.empty((h, w, 8), dtype=np.int32)
-    cost = np.empty((h, w, 8))
-    valid = np.empty((h, w, 8), dtype=bool)
     for k, (dr, dc) in enumerate(_MOVES):
-        there = pad[1 + dr:h + 1 + dr, 1 + dc:w + 1 + dc] > 0.0
-        if dr and dc:
-            there = there & (pad[1 + dr:h + 1 + dr, 1:w + 1] > 0.0) & (
-                pad[1:h + 1, 1 + dc:w + 1 + dc] > 0.0)
-        valid[..., k] = here & there
         nbr[..., k] = idx + dr * w + dc
-        cost[..., k] = math.hypot(dr, dc) * costmap.resolution * mult
     indptr = np.concatenate(([0], np.cumsum(valid.sum(axis=2).ravel()))).astype(np.int32)
-    return csr_matrix((cost[valid], nbr[valid], indptr), shape=(h * w, h * w))
+    slots = np.full(h * w * 8, -1, dtype=np.int32)
+    slots[valid.ravel()] = np.arange(int(indptr[-1]), dtype=np.int32)
+    graph = csr_matrix((cost[valid], nbr[valid], indptr), shape=(h * w, h * w))
+    return graph, slots.reshape(h * w, 8)
+
+
+def _patched_graph(costmap: Costmap, cfg: PlannerConfig) -> csr_matrix:
+    """The reversed graph of an overlay: its base's, re-costed in the rows around the window."""
+    base, slots = _shared_graph(costmap.base, cfg)
+    h, w = costmap.height, costmap.width
+    r0, r1, c0, c1 = costmap.changed
+    r0, r1, c0, c1 = max(r0 - 1, 0), min(r1 + 1, h), max(c0 - 1, 0), min(c1 + 1, w)
+    pad = np.zeros((r1 - r0 + 2, c1 - c0 + 2))
+    pr0, pc0 = r0 - 1, c0 - 1  # the padded window's first row/column in the map (may be -1)
+    rs, cs = max(pr0, 0), max(pc0, 0)
+    re, ce = min(r1 + 1, h), min(c1 + 1, w)
+    pad[rs - pr0:re - pr0, cs - pc0:ce - pc0] = _multipliers(costmap.costs[rs:re, cs:ce], cfg)
+    cost = _edge_costs(pad, costmap.resolution).reshape(-1)
+    rows = (np.arange(r0, r1)[:, None] * w + np.arange(c0, c1)[None, :]).ravel()
+    at = slots[rows].ravel()
+    have = at >= 0
+    data = base.data.copy()
+    data[at[have]] = cost[have]
+    return csr_matrix((data, base.indices, base.indptr), shape=base.shape, copy=False)
 
 
 def shortcut_path(costmap: Costmap, pts: np.ndarray, cfg: PlannerConfig,

@@ -30,7 +30,7 @@ from swarm_common.occupancy import OccupancyMap  # noqa: E402
 from swarm_nav import planner  # noqa: E402
 from swarm_nav.config import NavigatorConfig  # noqa: E402
 from swarm_nav.core import NavigatorCore  # noqa: E402
-from swarm_nav.costmap import build_costmap  # noqa: E402
+from swarm_nav.costmap import build_costmap, overlay_obstacles  # noqa: E402
 from swarm_nav.dwa import Footprint, RobotState, dwa_command  # noqa: E402
 from swarm_nav.planner import plan_path  # noqa: E402
 
@@ -191,6 +191,18 @@ def main(argv=None) -> int:
     res = plan_path(cm, (0.0, 0.0), (6.5, -3.0), cfg.planner)
     pocket = median_ms(lambda: plan_path(cm, (0.0, 0.0), (6.5, -3.0), cfg.planner), 5)
     rows.append(("plan_path into the closed pocket", f"{pocket:.2f} ms -> {res.reason!r}"))
+
+    # replans around a robot standing on the path (a costmap with that robot overlaid), as the
+    # navigator does when its path is blocked: a far goal, and a goal 3 m away
+    for name, start, goal in (("far goal", (0.0, 0.0), (-7.74575, -3.57766)),
+                              ("goal 3 m away", (-4.5, -3.9), (-1.5, -3.9))):
+        res = plan_path(cm, start, goal, cfg.planner)
+        blocker = res.path[min(20, len(res.path) - 1)]
+        ring = blocker + 0.15 * np.column_stack((np.cos(np.linspace(0, 6.2, 24)),
+                                                np.sin(np.linspace(0, 6.2, 24))))
+        around = median_ms(lambda s=start, g=goal, r=ring: plan_path(
+            overlay_obstacles(cm, r, cfg.costmap), s, g, cfg.planner), args.plans)
+        rows.append((f"replan around a robot, {name}", f"{around:.1f} ms"))
 
     width = max(len(name) for name, _ in rows)
     for name, value in rows:

@@ -1,13 +1,15 @@
 """The global planner: optimal cost, valid paths, NavFn-like goal tolerance, distinct failures."""
 
+import dataclasses
 import heapq
 import math
 
 import numpy as np
 import pytest
 
+from swarm_nav import planner
 from swarm_nav.config import CostmapConfig, PlannerConfig
-from swarm_nav.costmap import INSCRIBED, add_keepout, build_costmap
+from swarm_nav.costmap import INSCRIBED, add_keepout, build_costmap, overlay_obstacles
 from swarm_nav.planner import path_length, plan_path, resample_path
 from tests.swarm_nav.helpers import grid_map, random_grid, slim_blockage_map
 
@@ -79,6 +81,43 @@ def test_cost_equals_brute_force_dijkstra(seed, penalty):
             assert res.reason == ""
             assert res.cost == pytest.approx(want, rel=1e-9, abs=1e-9)
             assert_valid_path(cm, res.path, cm.cell_to_world(s), cm.cell_to_world(g))
+
+
+@pytest.mark.parametrize("seed", range(8))
+@pytest.mark.parametrize("penalty", [0.0, 3.0])
+def test_replans_around_overlaid_points_equal_brute_force_dijkstra(seed, penalty):
+    """An overlay's search graph is its base's, patched around the points (not rebuilt): the
+    costs must equal a search written from the definition on the overlay's costs, including
+    windows at the map's edge."""
+    rng = np.random.default_rng(100 + seed)
+    occ = random_grid(rng, 24, 30, 0.08)
+    base = build_costmap(occ, SMALL)
+    cfg = PlannerConfig(cost_penalty=penalty)
+    plan_path(base, base.cell_to_world(np.argwhere(base.costs < INSCRIBED)[0]),
+              base.cell_to_world(np.argwhere(base.costs < INSCRIBED)[-1]), cfg)  # base graph
+    extent = np.array([occ.width, occ.height]) * occ.resolution
+    points = rng.uniform(0.0, 1.0, size=(rng.integers(1, 6), 2)) * extent
+    cm = overlay_obstacles(base, points, SMALL)
+    assert cm.base is base and cm.changed is not None
+    patched = planner._reverse_graph(cm, cfg)
+    rebuilt = planner._build_graph(cm, cfg)[0]
+    plain = dataclasses.replace(cm, base=None, changed=None, _cache={})  # searched on `rebuilt`
+    free = np.argwhere(cm.costs < INSCRIBED)
+    for _ in range(4):
+        s, g = free[rng.choice(len(free), 2, replace=False)]
+        want = brute_force_cost(cm.costs, s, g, penalty, cm.resolution)
+        res = plan_path(cm, cm.cell_to_world(s), cm.cell_to_world(g), cfg)
+        if math.isinf(want):
+            assert res.path is None and res.reason == "no path"
+        else:
+            assert res.cost == pytest.approx(want, rel=1e-9, abs=1e-9)
+            same = plan_path(plain, cm.cell_to_world(s), cm.cell_to_world(g), cfg)
+            assert np.array_equal(res.path, same.path)
+    # the same graph as a rebuild, bar the slots of forbidden moves (infinite in the patch)
+    dense_p, dense_r = patched.toarray(), rebuilt.toarray()
+    finite = np.isfinite(dense_p) & (dense_p > 0)
+    assert np.array_equal(finite, dense_r > 0)
+    assert np.allclose(dense_p[finite], dense_r[finite], rtol=0, atol=1e-12)
 
 
 def test_cross_map_plan_on_slim_blockage():
