@@ -263,11 +263,17 @@ class BasicNavigator(Node):
         """Cancel the running task (``<ns>/navigator/cancel``).
 
         The task ends as ``CANCELED`` when the navigator reports the goal canceled (or as
-        ``SUCCEEDED`` / ``FAILED`` if it ended before the request arrived, as in nav2).
+        ``SUCCEEDED`` / ``FAILED`` if it ended before the request arrived, as in nav2).  After
+        ROS has been shut down (a Ctrl-C in a route script) nothing can be sent: a warning says
+        so and the navigator keeps the goal until it ends or is replaced.
         """
         with self._cond:
             task = self._task
             if task is None or task.result is not None:
+                return
+            if not self.context.ok():
+                self.warn(f"ROS is shut down: cannot cancel goal {task.goal_id}; the navigator "
+                          "keeps it")
                 return
             task.cancel_requested = True
         self.info("Canceling current task.")
@@ -532,6 +538,8 @@ class BasicNavigator(Node):
     def _spin_until(self, predicate, timeout_sec) -> bool:
         """Spin (or, if spun elsewhere, wait) until ``predicate()`` or ``timeout_sec`` [s]."""
         deadline = math.inf if timeout_sec is None else time.monotonic() + timeout_sec
+        if not self.context.ok():  # shut down (Ctrl-C): nothing more will arrive
+            return bool(predicate())
         if self._in_executor():
             with self._cond:
                 while not predicate() and time.monotonic() < deadline:

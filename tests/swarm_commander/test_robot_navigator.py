@@ -140,6 +140,17 @@ def test_cancel_task_cancels(context, ns, navigator):
         assert fake.cancels == 1 and fake.state == "CANCELED"
 
 
+def test_cancel_after_ros_shut_down_warns_instead_of_raising(context, ns, navigator, capfd):
+    """A Ctrl-C in a route script shuts ROS down; a cancelTask in its cleanup must not raise."""
+    with running_fake_navigator(ns, drive_time=30.0):  # its own context: it keeps running
+        assert navigator.waitUntilNav2Active(timeout_sec=10.0)
+        assert navigator.goToPose(pose(1.0, 0.0))
+        rclpy.shutdown(context=context)
+        navigator.cancelTask()
+        assert not navigator.isTaskComplete()  # no answer can come any more; no exception
+    assert "ROS is shut down: cannot cancel goal" in capfd.readouterr().err
+
+
 def test_follow_waypoints_visits_all_in_order(context, ns, navigator):
     xs = [1.0, 2.0, 3.0]
     with running_fake_navigator(ns, context, drive_time=0.4) as fake:
