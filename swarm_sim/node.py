@@ -150,6 +150,8 @@ class SimulatorNode(Node):
         self.late_streak = np.zeros(self.n, dtype=int)
         self.late_ticks = np.zeros(self.n, dtype=int)
         self.dropped = 0
+        self.stop_requested = False
+        """Set by :meth:`request_stop` (SIGINT/SIGTERM): the loops end at their next check."""
         self._last_warn = 0.0
         self._scans = None  # the current tick's scans, cast once (re-publishing reuses them)
         # Publishers and subscribers.
@@ -289,12 +291,16 @@ class SimulatorNode(Node):
                 msg.twist.twist.angular.z = float(eng.w[i])
                 pub.publish(msg)
 
+    def request_stop(self, signum=None, frame=None) -> None:
+        """Ask the run loop to end after the current step (a signal handler: only sets a flag)."""
+        self.stop_requested = True
+
     def collect_commands(self, executor) -> tuple[np.ndarray, np.ndarray]:
         """Wait for this tick's answers of the active robots, then build the command vectors."""
         deadline = time.monotonic() + self.settings.command_timeout
         while True:
             waiting = [i for i in np.flatnonzero(self.active) if i not in self.answers]
-            if not waiting:
+            if not waiting or self.stop_requested:
                 break
             remaining = deadline - time.monotonic()
             if remaining <= 0.0:
@@ -349,13 +355,14 @@ class SimulatorNode(Node):
         ``wait_for`` robots have answered it (navigators that start late still see it)."""
         want = min(self.settings.wait_for, self.n)
         announced = -1
-        while rclpy.ok() and int(self.active.sum()) < want:
+        while rclpy.ok() and not self.stop_requested and int(self.active.sum()) < want:
             if int(self.active.sum()) != announced:
                 announced = int(self.active.sum())
                 self.get_logger().info(f"start gate: {announced}/{want} robots answering")
             self.publish_tick()
             until = time.monotonic() + 0.5
-            while time.monotonic() < until and int(self.active.sum()) < want:
+            while (time.monotonic() < until and int(self.active.sum()) < want
+                   and not self.stop_requested):
                 executor.spin_once(timeout_sec=0.05)
 
     def run(self, executor) -> None:
@@ -367,14 +374,14 @@ class SimulatorNode(Node):
         wall0 = time.monotonic()
         sim0_ns = self.t_ns
         end_ns = None if s.duration is None else round(s.duration * NS_PER_S)
-        while rclpy.ok() and (end_ns is None or self.t_ns < end_ns):
+        while rclpy.ok() and not self.stop_requested and (end_ns is None or self.t_ns < end_ns):
             self.publish_tick()
             v, w = self.collect_commands(executor)
             self.step(v, w)
             if s.rtf > 0.0:  # pace: keep servicing callbacks until the wall clock catches up
                 due = wall0 + (self.t_ns - sim0_ns) / NS_PER_S / s.rtf
-                while (left := due - time.monotonic()) > 0.0:
-                    executor.spin_once(timeout_sec=left)
+                while (left := due - time.monotonic()) > 0.0 and not self.stop_requested:
+                    executor.spin_once(timeout_sec=min(left, 0.1))
             else:
                 executor.spin_once(timeout_sec=0.0)
         self.wall_s = time.monotonic() - wall0
@@ -566,12 +573,16 @@ def main(args=None) -> int:
         engine = holder["engine"]
         print(f"spawned {len(namespaces)} robots in {settings.world} "
               f"({namespaces[0]}..{namespaces[-1]})", flush=True)
-        # Ctrl-C and SIGTERM raise KeyboardInterrupt in the loop (not rclpy's handler, which would
-        # invalidate the context mid-tick), so the summary is always written.
+        # Until the node runs, Ctrl-C and SIGTERM raise KeyboardInterrupt (not rclpy's handler,
+        # which would invalidate the context mid-tick); then they only ask the loop to stop at the
+        # next check (<= 0.1 s): an exception raised inside the executor's C++ dispatch of a
+        # callback comes out as pybind11's "Unable to convert call argument" RuntimeError.
         signal.signal(signal.SIGTERM, _raise_interrupt)
         signal.signal(signal.SIGINT, signal.default_int_handler)  # even if started ignoring it
         rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
         node = SimulatorNode(settings, engine, occ, namespaces)
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, node.request_stop)
         node.set_parameters([Parameter("use_sim_time", value=False)])
         executor = EventsExecutor()
         executor.add_node(node)
