@@ -183,7 +183,8 @@ class Swarm:
         out = {}
         for ns in self.names:
             st = self.statuses[ns][-1] if self.statuses[ns] else None
-            pose = tuple(round(v, 3) for v in self.pose(ns)) if self.truth[ns] else None
+            tr = self.truth[ns]
+            pose = tuple(round(v, 3) for v in tr[max(tr)]) if tr else None  # latest received
             out[ns] = (st and (st.t, st.state, st.goal_id, st.values.get("reason")), pose)
         return out
 
@@ -237,7 +238,10 @@ class Swarm:
         return self.truth[ns][min(t for t in self.truth[ns] if t >= t_ns)]
 
     def pose(self, ns: str) -> tuple[float, float, float]:
-        return self.truth[ns][max(self.truth[ns])]
+        """The true pose at the latest tick any robot's ground truth has reached (spins until
+        ``ns``'s has too: its subscription may have matched later than the others')."""
+        latest = max((max(tr) for tr in self.truth.values() if tr), default=0)
+        return self.pose_at(ns, latest)
 
     def collisions(self) -> list[dict]:
         return [{kv.key: kv.value for kv in e.values} for e in self.events
