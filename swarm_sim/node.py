@@ -295,12 +295,15 @@ class SimulatorNode(Node):
         """Ask the run loop to end after the current step (a signal handler: only sets a flag)."""
         self.stop_requested = True
 
-    def collect_commands(self, executor) -> tuple[np.ndarray, np.ndarray]:
-        """Wait for this tick's answers of the active robots, then build the command vectors."""
+    def collect_commands(self, executor) -> tuple[np.ndarray, np.ndarray] | None:
+        """Wait for this tick's answers of the active robots, then build the command vectors;
+        None if a stop was requested meanwhile (the tick is neither stepped nor counted late)."""
         deadline = time.monotonic() + self.settings.command_timeout
         while True:
+            if self.stop_requested:
+                return None
             waiting = [i for i in np.flatnonzero(self.active) if i not in self.answers]
-            if not waiting or self.stop_requested:
+            if not waiting:
                 break
             remaining = deadline - time.monotonic()
             if remaining <= 0.0:
@@ -376,8 +379,10 @@ class SimulatorNode(Node):
         end_ns = None if s.duration is None else round(s.duration * NS_PER_S)
         while rclpy.ok() and not self.stop_requested and (end_ns is None or self.t_ns < end_ns):
             self.publish_tick()
-            v, w = self.collect_commands(executor)
-            self.step(v, w)
+            commands = self.collect_commands(executor)
+            if commands is None:
+                break
+            self.step(*commands)
             if s.rtf > 0.0:  # pace: keep servicing callbacks until the wall clock catches up
                 due = wall0 + (self.t_ns - sim0_ns) / NS_PER_S / s.rtf
                 while (left := due - time.monotonic()) > 0.0 and not self.stop_requested:
