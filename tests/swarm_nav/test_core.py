@@ -222,3 +222,41 @@ def test_a_waiting_robot_makes_room(occ):
     assert r.core.status.state == NavState.HOLDING
     assert np.hypot(*(r.pose[:2] - visitor.pose[:2])) > 1.0     # moved away from the visitor
     assert np.hypot(*(r.pose[:2] - ws[:2])) >= 2.0              # and stays off the busy dock
+
+
+# ------------------------------------------------------------------ prediction vs padding
+def _box_points(cx: float, cy: float) -> np.ndarray:
+    """The outline of a 0.266 m square robot centred at (cx, cy), facing +x, 1 cm apart."""
+    t = np.linspace(-0.133, 0.133, 27)
+    ends = [np.column_stack((np.full_like(t, cx + sx * 0.133), cy + t)) for sx in (-1, 1)]
+    sides = [np.column_stack((cx + t, np.full_like(t, cy + sy * 0.133))) for sy in (-1, 1)]
+    return np.vstack(ends + sides)
+
+
+def test_a_robot_predicted_into_our_footprint_does_not_unlock_driving_into_another(occ):
+    """Found at 100 robots (a collision in loader1's queue): a robot perceived as moving toward
+    us is predicted *inside* our footprint. DWA relaxes its padding to the current gap when the
+    robot already is that near (so that it can leave a tight spot); a predicted point there
+    relaxed it against the real robot standing 6.5 cm in front, and we drove into it."""
+    from swarm_nav.dwa import Footprint, footprint_gaps, rollout
+
+    pose = np.array([2.0, 3.0, 0.0])
+    core = NavigatorCore(NavigatorConfig(), WAFFLE_FOOTPRINT)
+    core.set_map(occ)
+    core.step(pose, 0.0, 0.0, 0.0)
+    core.set_goal(np.array([6.0, 3.0, 0.0]), "g", 0.0)
+    # in front: a standing robot whose rear face is 0.065 m from our front edge (x_max 0.069)
+    ahead = _box_points(pose[0] + 0.069 + 0.065 + 0.133, pose[1])
+    # behind: a robot 8 cm off our rear edge (beyond the 5 cm padding), seen 0.25 m farther back
+    # a second ago, so "driving at us" at 0.25 m/s: predicted 0.5 cm off and 7 cm into the rear
+    # half of our footprint
+    behind_now = _box_points(pose[0] - 0.197 - 0.08 - 0.133, pose[1])
+    core.on_scan(np.vstack((ahead, behind_now - [0.25, 0.0])), 0.1)
+    core.step(pose, 0.0, 0.0, 0.1)
+    core.on_scan(np.vstack((ahead, behind_now)), 1.1)
+    assert any(np.hypot(*r.velocity) > 0.1 for r in core.robots_seen)
+    v, w = core.step(pose, 0.0, 0.0, 1.1)
+    fp = Footprint.from_polygon(WAFFLE_FOOTPRINT)
+    x, y, th = rollout(pose, np.array([v]), np.array([w]), np.linspace(0.05, 1.7, 34))
+    gaps = footprint_gaps(x[0], y[0], th[0], ahead, fp)
+    assert gaps.min() >= NavigatorConfig().dwa.footprint_padding - 1e-6, (v, w, gaps.min())
