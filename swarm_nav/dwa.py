@@ -202,16 +202,21 @@ def footprint_gaps(x, y, yaw, points: Points2D, footprint: Footprint) -> np.ndar
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
     if len(pts) == 0:
         return np.full(x.shape, np.inf)
+    return _gaps(x, y, yaw, pts, footprint).min(axis=-1)
+
+
+def _gaps(x, y, yaw, pts: np.ndarray, footprint: Footprint) -> np.ndarray:
+    """(..., M) Chebyshev gaps between the box at each pose (x, y, yaw of shape (...)) and each
+    point of the (M, 2) ``pts`` (see :func:`footprint_gaps`)."""
     cx, cy = footprint.centre
     hx, hy = footprint.half_size
+    yaw = np.asarray(yaw, dtype=float)
     c, s = np.cos(yaw)[..., None], np.sin(yaw)[..., None]
-    bx = x[..., None] + c * cx - s * cy
+    bx = np.asarray(x, dtype=float)[..., None] + c * cx - s * cy
     by = np.asarray(y, dtype=float)[..., None] + s * cx + c * cy
     dx = pts[:, 0] - bx
     dy = pts[:, 1] - by
-    qx = np.abs(c * dx + s * dy) - hx
-    qy = np.abs(c * dy - s * dx) - hy
-    return np.maximum(qx, qy).min(axis=-1)
+    return np.maximum(np.abs(c * dx + s * dy) - hx, np.abs(c * dy - s * dx) - hy)
 
 
 def point_gaps(pose, points: Points2D, footprint: Footprint) -> np.ndarray:
@@ -226,12 +231,7 @@ def point_gaps(pose, points: Points2D, footprint: Footprint) -> np.ndarray:
         footprint: the footprint box.
     """
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
-    c, s = math.cos(pose[2]), math.sin(pose[2])
-    cx, cy = footprint.centre
-    hx, hy = footprint.half_size
-    dx = pts[:, 0] - (pose[0] + c * cx - s * cy)
-    dy = pts[:, 1] - (pose[1] + s * cx + c * cy)
-    return np.maximum(np.abs(c * dx + s * dy) - hx, np.abs(c * dy - s * dx) - hy)
+    return _gaps(pose[0], pose[1], pose[2], pts, footprint)
 
 
 def dwa_command(state: RobotState, path: Path2D, obstacles: Points2D, cfg: DwaConfig, *,

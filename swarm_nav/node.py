@@ -293,9 +293,10 @@ class NavigatorNode(Node):
 
     def _on_goal_wait_poll(self, t: int) -> None:
         waited = time.monotonic() - self._goal_wait_started
-        if self.count_publishers(self._goal_topic) > 0 and waited < self._goal_wait_timeout:
+        commander = self.count_publishers(self._goal_topic) > 0
+        if commander and waited < self._goal_wait_timeout:
             return
-        if self.count_publishers(self._goal_topic) > 0:
+        if commander:
             self.goal_wait_timeouts += 1
             self._warn("goal_wait", f"the commander's next goal did not come within "
                        f"{self._goal_wait_timeout:g} s (wall); tick {t / NS_PER_S:.3f} s answered "

@@ -118,15 +118,16 @@ class Probe:
 
 @pytest.fixture
 def probe(request):
+    """A :class:`Probe` whose nodes have discovered each other."""
     p = Probe(request.param)
+    spin_until(p.executor, lambda: p.nav.count_subscribers("/hs/goal_pose") > 0
+               and p.node.count_subscribers("/hs/odom") > 0, 10.0, "discovery")
     yield p
     p.close()
 
 
 @pytest.mark.parametrize("probe", [5.0], indirect=True)
 def test_tick_after_the_start_waits_for_the_commanders_goal(probe):
-    spin_until(probe.executor, lambda: probe.nav.count_subscribers("/hs/goal_pose") > 0
-               and probe.node.count_subscribers("/hs/odom") > 0, 10.0, "discovery")
     t0 = 10 * TICK_NS
     probe.tick(t0)
     probe.answer(t0, 10.0)  # the start: IDLE, nothing to wait for yet
@@ -150,8 +151,6 @@ def test_tick_after_the_start_waits_for_the_commanders_goal(probe):
 
 @pytest.mark.parametrize("probe", [0.3], indirect=True)
 def test_a_commander_that_never_answers_costs_one_timeout_and_is_counted(probe):
-    spin_until(probe.executor, lambda: probe.nav.count_subscribers("/hs/goal_pose") > 0
-               and probe.node.count_subscribers("/hs/odom") > 0, 10.0, "discovery")
     t0 = 10 * TICK_NS
     probe.tick(t0)
     probe.answer(t0, 10.0)

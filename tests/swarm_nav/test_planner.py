@@ -63,6 +63,22 @@ def assert_valid_path(cm, path, start, goal, resolution=0.1, skip_first=False):
         assert np.all(cm.cost_at(a + t * (b - a)) < INSCRIBED), (a, b)
 
 
+def assert_costs_match_brute_force(cm, cfg: PlannerConfig, rng, check, queries: int = 4):
+    """Plan between random free cells; the cost must equal :func:`brute_force_cost` (or the
+    planner says "no path"), and ``check(result, start_xy, goal_xy)`` holds for each path."""
+    free = np.argwhere(cm.costs < INSCRIBED)
+    for _ in range(queries):
+        s, g = free[rng.choice(len(free), 2, replace=False)]
+        want = brute_force_cost(cm.costs, s, g, cfg.cost_penalty, cm.resolution)
+        res = plan_path(cm, cm.cell_to_world(s), cm.cell_to_world(g), cfg)
+        if math.isinf(want):
+            assert res.path is None and res.reason == "no path"
+        else:
+            assert res.reason == ""
+            assert res.cost == pytest.approx(want, rel=1e-9, abs=1e-9)
+            check(res, cm.cell_to_world(s), cm.cell_to_world(g))
+
+
 @pytest.mark.parametrize("seed", range(12))
 @pytest.mark.parametrize("penalty", [0.0, 2.0, 10.0])
 def test_cost_equals_brute_force_dijkstra(seed, penalty):
@@ -70,17 +86,8 @@ def test_cost_equals_brute_force_dijkstra(seed, penalty):
     occ = random_grid(rng, 22, 27, 0.12)
     cm = build_costmap(occ, SMALL)
     cfg = PlannerConfig(cost_penalty=penalty)
-    free = np.argwhere(cm.costs < INSCRIBED)
-    for _ in range(4):
-        s, g = free[rng.choice(len(free), 2, replace=False)]
-        want = brute_force_cost(cm.costs, s, g, penalty, cm.resolution)
-        res = plan_path(cm, cm.cell_to_world(s), cm.cell_to_world(g), cfg)
-        if math.isinf(want):
-            assert res.path is None and res.reason == "no path"
-        else:
-            assert res.reason == ""
-            assert res.cost == pytest.approx(want, rel=1e-9, abs=1e-9)
-            assert_valid_path(cm, res.path, cm.cell_to_world(s), cm.cell_to_world(g))
+    check = lambda res, s, g: assert_valid_path(cm, res.path, s, g)  # noqa: E731
+    assert_costs_match_brute_force(cm, cfg, rng, check)
 
 
 @pytest.mark.parametrize("seed", range(8))
@@ -102,17 +109,9 @@ def test_replans_around_overlaid_points_equal_brute_force_dijkstra(seed, penalty
     patched = planner._reverse_graph(cm, cfg)
     rebuilt = planner._build_graph(cm, cfg)[0]
     plain = dataclasses.replace(cm, base=None, changed=None, _cache={})  # searched on `rebuilt`
-    free = np.argwhere(cm.costs < INSCRIBED)
-    for _ in range(4):
-        s, g = free[rng.choice(len(free), 2, replace=False)]
-        want = brute_force_cost(cm.costs, s, g, penalty, cm.resolution)
-        res = plan_path(cm, cm.cell_to_world(s), cm.cell_to_world(g), cfg)
-        if math.isinf(want):
-            assert res.path is None and res.reason == "no path"
-        else:
-            assert res.cost == pytest.approx(want, rel=1e-9, abs=1e-9)
-            same = plan_path(plain, cm.cell_to_world(s), cm.cell_to_world(g), cfg)
-            assert np.array_equal(res.path, same.path)
+    check = lambda res, s, g: np.testing.assert_array_equal(  # noqa: E731
+        res.path, plan_path(plain, s, g, cfg).path)
+    assert_costs_match_brute_force(cm, cfg, rng, check)
     # the same graph as a rebuild, bar the slots of forbidden moves (infinite in the patch)
     dense_p, dense_r = patched.toarray(), rebuilt.toarray()
     finite = np.isfinite(dense_p) & (dense_p > 0)
