@@ -26,7 +26,8 @@ navigator's topics (docs/ARCHITECTURE.md, "ROS conventions chosen by us"):
   stamp, so the same seed gives the same run (docs/ARCHITECTURE.md, "goal handshake");
   ``"<sec>.<nanosec:09d>"`` of the stamp is the goal's id;
 - progress and the outcome come from ``<ns>/nav_status`` (``diagnostic_msgs/DiagnosticStatus``,
-  reliable + transient local); a status refers to our goal when its ``goal_id`` value is our id;
+  reliable + transient local; its values are :mod:`swarm_common.nav_status`'s record); a status
+  refers to our goal when its ``goal_id`` value is our id;
   ``SUCCEEDED`` / ``ABORTED`` / ``CANCELED`` map onto :class:`TaskResult` ``SUCCEEDED`` /
   ``FAILED`` / ``CANCELED``;
 - ``cancelTask`` calls ``<ns>/navigator/cancel`` (``std_srvs/Trigger``).
@@ -65,6 +66,9 @@ from rclpy.node import Node
 from rclpy.qos import QoSDurabilityPolicy, QoSHistoryPolicy, QoSProfile, QoSReliabilityPolicy
 from std_srvs.srv import Trigger
 
+from swarm_common.nav_status import NavState, NavStatusRecord, decode
+from swarm_common.stamps import NS_PER_S, format_stamp
+
 __all__ = ["BasicNavigator", "NavFeedback", "TaskResult"]
 
 NAV_STATUS_QOS = QoSProfile(
@@ -77,7 +81,6 @@ NAV_STATUS_QOS = QoSProfile(
 local, depth 1)."""
 
 MAP_FRAME = "map"
-_NS_PER_S = 1_000_000_000
 
 
 class TaskResult(IntEnum):
@@ -89,11 +92,13 @@ class TaskResult(IntEnum):
     FAILED = 3
 
 
-_TERMINAL = {
-    "SUCCEEDED": TaskResult.SUCCEEDED,
-    "ABORTED": TaskResult.FAILED,
-    "CANCELED": TaskResult.CANCELED,
+_RESULT_OF = {
+    NavState.SUCCEEDED: TaskResult.SUCCEEDED,
+    NavState.ABORTED: TaskResult.FAILED,
+    NavState.CANCELED: TaskResult.CANCELED,
 }
+"""The task result of each navigator state that ends a goal
+(:data:`swarm_common.nav_status.OUTCOMES`)."""
 
 
 @dataclass
@@ -417,10 +422,10 @@ class BasicNavigator(Node):
             base = self.get_clock().now().nanoseconds
         stamp_ns = max(base, self._last_stamp_ns + 1)
         self._last_stamp_ns = stamp_ns
-        sec, nanosec = divmod(stamp_ns, _NS_PER_S)
+        sec, nanosec = divmod(stamp_ns, NS_PER_S)
         msg.header.stamp = Time(sec=sec, nanosec=nanosec)
         msg.pose = pose.pose
-        task.goal_id = f"{sec}.{nanosec:09d}"
+        task.goal_id = format_stamp(sec, nanosec)
         task.sent_wall = time.monotonic()
         task.seen = False
         task.sample = None
@@ -429,27 +434,21 @@ class BasicNavigator(Node):
         self.debug(f"sent goal {task.goal_id} ({task.index + 1}/{len(task.poses)})")
 
     def _on_nav_status(self, msg: DiagnosticStatus):
-        values = {kv.key: kv.value for kv in msg.values}
-        state = values.get("state") or msg.message
-        goal_id = values.get("goal_id", "")
+        status = decode({kv.key: kv.value for kv in msg.values}, msg.message)
+        state, goal_id = status.state, status.goal_id
         ended = None
-        stamp = values.get("stamp", "")
         with self._cond:
-            if stamp:
-                try:
-                    sec, _, nsec = stamp.partition(".")
-                    self._status_stamp_ns = int(sec) * _NS_PER_S + int(nsec)
-                except ValueError:
-                    pass
+            if status.stamp_ns is not None:
+                self._status_stamp_ns = status.stamp_ns
             self.last_nav_status = msg
             self._nav_status_received = True
             task = self._task
             if task is not None and task.result is None:
                 self._check_cancel_response(task)
             if task is not None and task.result is None:
-                if goal_id == task.goal_id and state != "IDLE":
-                    self._on_own_status(task, state, values)
-                elif state == "IDLE":
+                if goal_id == task.goal_id and state != NavState.IDLE:
+                    self._on_own_status(task, status)
+                elif state == NavState.IDLE:
                     self._on_idle(task)
                 elif task.seen and goal_id not in self._sent_ids:
                     reason = f"goal {task.goal_id} was replaced by goal {goal_id!r}"
@@ -461,10 +460,10 @@ class BasicNavigator(Node):
         if ended is not None and self.on_task_complete is not None:
             self.on_task_complete(ended)
 
-    def _on_own_status(self, task: _Task, state: str, values: dict):
+    def _on_own_status(self, task: _Task, status: NavStatusRecord):
         task.seen = True
-        self._update_feedback(task, state, values)
-        result = _TERMINAL.get(state)
+        self._update_feedback(task, status)
+        result = _RESULT_OF.get(status.state)
         if result is None:
             return
         last = task.index == len(task.poses) - 1
@@ -472,8 +471,8 @@ class BasicNavigator(Node):
             if task.cancel_requested:
                 self._finish(task, TaskResult.CANCELED)
                 return
-            task.done_time += _number(values, "navigation_time_s")
-            task.done_recoveries += int(_number(values, "recoveries"))
+            task.done_time += status.navigation_time or 0.0
+            task.done_recoveries += status.recoveries or 0
             task.index += 1
             self._send_current()
             self.feedback.current_waypoint = task.index
@@ -506,9 +505,9 @@ class BasicNavigator(Node):
         self._result = result
         self._cond.notify_all()
 
-    def _update_feedback(self, task: _Task, state: str, values: dict):
-        distance = _number(values, "distance_remaining_m")
-        nav_time = _number(values, "navigation_time_s")
+    def _update_feedback(self, task: _Task, status: NavStatusRecord):
+        distance = status.distance_remaining or 0.0
+        nav_time = status.navigation_time or 0.0
         if task.sample is not None and nav_time > task.sample[0]:
             speed = (task.sample[1] - distance) / (nav_time - task.sample[0])
             task.speed = max(0.0, 0.5 * task.speed + 0.5 * speed)
@@ -520,13 +519,13 @@ class BasicNavigator(Node):
             distance_remaining=distance,
             navigation_time=_duration(task.done_time + nav_time),
             estimated_time_remaining=_duration(eta),
-            number_of_recoveries=task.done_recoveries + int(_number(values, "recoveries")),
+            number_of_recoveries=task.done_recoveries + (status.recoveries or 0),
             number_of_poses_remaining=len(task.poses) - task.index,
             current_waypoint=task.index,
-            state=state,
+            state=status.state or "",
             goal_id=task.goal_id,
-            holding_time=_number(values, "holding_time_s"),
-            reason=values.get("reason", ""),
+            holding_time=status.holding_time or 0.0,
+            reason=status.reason,
         )
 
     def _in_executor(self) -> bool:
@@ -572,18 +571,9 @@ def _pose_problem(pose) -> str:
     return ""
 
 
-def _number(values: dict, key: str) -> float:
-    """A finite float from a status value, 0.0 if missing or malformed."""
-    try:
-        value = float(values.get(key, 0.0))
-    except ValueError:
-        return 0.0
-    return value if math.isfinite(value) else 0.0
-
-
 def _duration(seconds: float) -> Duration:
-    ns = max(0, round(seconds * _NS_PER_S))
-    sec, nanosec = divmod(ns, _NS_PER_S)
+    ns = max(0, round(seconds * NS_PER_S))
+    sec, nanosec = divmod(ns, NS_PER_S)
     return Duration(sec=sec, nanosec=nanosec)
 
 

@@ -30,11 +30,11 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from enum import StrEnum
 
 import numpy as np
 
 from swarm_common.geometry import Path2D, Points2D, Pose2D, wrap_angle
+from swarm_common.nav_status import TERMINAL, NavState
 from swarm_common.occupancy import OccupancyMap
 from swarm_nav.config import NavigatorConfig
 from swarm_nav.costmap import INSCRIBED, Costmap, add_keepout, build_costmap, overlay_obstacles
@@ -66,22 +66,6 @@ from swarm_nav.recovery import (
 
 _LOCAL_WINDOW = 3.0  # [m] of path handed to the DWA
 _SEARCH_AHEAD = 40   # path points searched ahead of the progress index
-
-
-class NavState(StrEnum):
-    """The navigator's state, as published in ``nav_status``."""
-
-    IDLE = "IDLE"
-    PLANNING = "PLANNING"
-    DRIVING = "DRIVING"
-    HOLDING = "HOLDING"
-    RECOVERING = "RECOVERING"
-    SUCCEEDED = "SUCCEEDED"
-    ABORTED = "ABORTED"
-    CANCELED = "CANCELED"
-
-
-TERMINAL = (NavState.IDLE, NavState.SUCCEEDED, NavState.ABORTED, NavState.CANCELED)
 
 
 @dataclass

@@ -34,18 +34,13 @@ from std_srvs.srv import Trigger
 
 from swarm_common.errors import InputError
 from swarm_common.geometry import quaternion_to_yaw, yaw_to_quaternion
+from swarm_common.nav_status import TERMINAL, NavState, NavStatusRecord, encode, level_of
 from swarm_common.occupancy import OccupancyMap
+from swarm_common.stamps import NS_PER_S, format_stamp
 from swarm_nav.config import NavigatorConfig, flat_defaults
-from swarm_nav.core import NavigatorCore, NavState
+from swarm_nav.core import NavigatorCore
 
-NS_PER_S = 1_000_000_000
 STATUS_PERIOD_NS = NS_PER_S // 2  # nav_status at 2 Hz simulated, and on every change of state
-_LEVEL = {
-    NavState.ABORTED: DiagnosticStatus.ERROR,
-    NavState.HOLDING: DiagnosticStatus.WARN,
-    NavState.RECOVERING: DiagnosticStatus.WARN,
-    NavState.CANCELED: DiagnosticStatus.WARN,
-}
 # Parameters that describe the robot and its world rather than an algorithm.
 _CONTEXT_PARAMS = {
     "robot": ("turtlebot3_waffle", "-", "robot name under robots/ or a .urdf/.xacro path: the "
@@ -63,7 +58,6 @@ _CONTEXT_PARAMS = {
 }
 GOAL_WAIT_POLL_S = 0.05  # [s] wall: how often a waiting tick checks its commander is still there
 COMMANDER_WAIT_S = 60.0  # [s] wall: how long the first answer waits for a commander to connect
-_TERMINAL = (NavState.IDLE, NavState.SUCCEEDED, NavState.ABORTED, NavState.CANCELED)
 
 
 def stamp_ns(stamp) -> int:
@@ -72,8 +66,8 @@ def stamp_ns(stamp) -> int:
 
 
 def goal_id_of(stamp) -> str:
-    """The goal id of docs/ARCHITECTURE.md: ``"<sec>.<nanosec:09d>"`` of the goal's stamp."""
-    return f"{int(stamp.sec)}.{int(stamp.nanosec):09d}"
+    """The goal id (:mod:`swarm_common.nav_status`): the text of the goal's stamp."""
+    return format_stamp(stamp.sec, stamp.nanosec)
 
 
 def occupancy_from_msg(msg: OccupancyGrid) -> OccupancyMap:
@@ -332,8 +326,7 @@ class NavigatorNode(Node):
         self._publish_raw(NavState.ABORTED, goal_id, None, reason)
 
     def _on_cancel(self, request, response):
-        active = self.core.state not in (NavState.IDLE, NavState.SUCCEEDED, NavState.ABORTED,
-                                         NavState.CANCELED)
+        active = self.core.state not in TERMINAL
         self.core.cancel(self._now_ns / NS_PER_S)
         self._publish_status(force=True)
         response.success = active
@@ -374,7 +367,7 @@ class NavigatorNode(Node):
         cmd.twist.linear.x = float(v)
         cmd.twist.angular.z = float(w)
         self.cmd_pub.publish(cmd)
-        if self.core.state in _TERMINAL:
+        if self.core.state in TERMINAL:
             if self._terminal_ns is None:
                 self._terminal_ns = t
         else:
@@ -411,22 +404,20 @@ class NavigatorNode(Node):
         self._last_status_ns = self._now_ns
         self._publish_raw(st.state, st.goal_id, st.goal, st.reason, st)
 
-    def _publish_raw(self, state, goal_id, goal, reason, st=None) -> None:
-        sec, nsec = divmod(self._now_ns, NS_PER_S)
-        kv = [("state", state.value), ("goal_id", goal_id), ("stamp", f"{sec}.{nsec:09d}")]
-        if goal is not None:
-            kv += [("goal_x", f"{goal[0]:.3f}"), ("goal_y", f"{goal[1]:.3f}"),
-                   ("goal_yaw", f"{goal[2]:.4f}")]
-        kv += [("distance_remaining_m", f"{st.distance_remaining:.3f}" if st else "0.0"),
-               ("navigation_time_s", f"{st.navigation_time:.3f}" if st else "0.0"),
-               ("recoveries", str(st.recoveries) if st else "0"),
-               ("holding_time_s", f"{st.holding_time:.3f}" if st else "0.0"),
-               ("goal_wait_timeouts", str(self.goal_wait_timeouts)),
-               ("reason", reason)]
+    def _publish_raw(self, state: NavState, goal_id: str, goal, reason: str, st=None) -> None:
+        """Publish a status (:mod:`swarm_common.nav_status`); ``st`` None: no goal figures."""
+        record = NavStatusRecord(
+            state=state, goal_id=goal_id, stamp_ns=self._now_ns,
+            goal=None if goal is None else (float(goal[0]), float(goal[1]), float(goal[2])),
+            distance_remaining=st.distance_remaining if st else 0.0,
+            navigation_time=st.navigation_time if st else 0.0,
+            recoveries=st.recoveries if st else 0,
+            holding_time=st.holding_time if st else 0.0,
+            goal_wait_timeouts=self.goal_wait_timeouts, reason=reason)
         self.status_pub.publish(DiagnosticStatus(
-            level=_LEVEL.get(state, DiagnosticStatus.OK), name=f"{self.ns}/navigator",
+            level=bytes((level_of(state),)), name=f"{self.ns}/navigator",
             message=state.value, hardware_id=self.ns,
-            values=[KeyValue(key=k, value=v) for k, v in kv]))
+            values=[KeyValue(key=k, value=v) for k, v in encode(record).items()]))
 
     def _publish_plan(self, stamp) -> None:
         if self.core.path_version == self._path_version:

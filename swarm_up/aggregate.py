@@ -30,8 +30,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-SUCCEEDED = "SUCCEEDED"
-ABORTED = "ABORTED"
+from swarm_common.nav_status import NavState, decode
 
 SIM_SUMMARY_KEYS = (
     "ticks",
@@ -58,7 +57,7 @@ class RobotRecord:
     """What the recorder knows about one robot."""
 
     ready_wall_s: float | None = None  # [s] since the run's start
-    state: str = ""
+    state: NavState | None = None  # as last published (None: none yet, or unknown)
     statuses: int = 0
     reached: dict[str, float | None] = field(default_factory=dict)  # goal id -> time to goal [s]
     aborted: set[str] = field(default_factory=set)
@@ -106,8 +105,8 @@ class RunRecorder:
 
         Args:
             robot: namespace without ``/``.
-            values: the status's ``values`` as a dict of strings (``state``, ``goal_id``,
-                ``navigation_time_s``, ``holding_time_s``, ``reason``, ...).
+            values: the status's ``values`` as a dict of strings
+                (:func:`swarm_common.nav_status.decode` reads them).
             wall_s: receive time since the run's start [s].
             message: the status's ``message`` (the state, used if ``values`` has none).
         """
@@ -115,32 +114,31 @@ class RunRecorder:
         rec.statuses += 1
         if rec.ready_wall_s is None:
             rec.ready_wall_s = wall_s
-        state = (values.get("state") or message or "").strip().upper()
-        goal = (values.get("goal_id") or "").strip()
+        status = decode(values, message)  # malformed values come back as None
+        goal, state = status.goal_id, status.state
         previous, rec.state = rec.state, state
-        waits = _float(values.get("goal_wait_timeouts"))
-        if waits is not None and waits >= 0:
+        waits = status.goal_wait_timeouts
+        if waits is not None:
             if waits < rec.goal_wait_timeouts:  # a restarted navigator counts from 0 again
                 rec.goal_wait_timeouts_before += rec.goal_wait_timeouts
-            rec.goal_wait_timeouts = int(waits)
-        holding = _float(values.get("holding_time_s"))
-        if goal and holding is not None:
-            rec.holding_s[goal] = holding
-        if state == SUCCEEDED:
-            ttg = _float(values.get("navigation_time_s"))
+            rec.goal_wait_timeouts = waits
+        if goal and status.holding_time is not None:
+            rec.holding_s[goal] = status.holding_time
+        if state == NavState.SUCCEEDED:
+            ttg = status.navigation_time
             if goal:
                 if goal not in rec.reached:
                     rec.reached[goal] = ttg
-            elif previous != SUCCEEDED:
+            elif previous != NavState.SUCCEEDED:
                 rec.anonymous_reached += 1
                 if ttg is not None:
                     rec.anonymous_ttg.append(ttg)
-        elif state == ABORTED:
+        elif state == NavState.ABORTED:
             if goal:
                 if goal not in rec.aborted:
                     rec.aborted.add(goal)
-                    rec.abort_reasons[goal] = values.get("reason", "")
-            elif previous != ABORTED:
+                    rec.abort_reasons[goal] = status.reason
+            elif previous != NavState.ABORTED:
                 rec.anonymous_aborted += 1
 
     def on_event(self, kind: str, values: dict[str, str]) -> None:

@@ -26,6 +26,9 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSDurabilityPolicy, QoSHistoryPolicy, QoSProfile, QoSReliabilityPolicy
 from std_srvs.srv import Trigger
 
+from swarm_common.nav_status import NavState, NavStatusRecord, encode, level_of
+from swarm_common.stamps import format_stamp
+
 # rclpy imports rosidl_generator_py -> lark -> the deprecated sre_* modules on the first node; the
 # suite turns warnings into errors, so import it here once with that one warning silenced.
 with warnings.catch_warnings():
@@ -39,7 +42,6 @@ STATUS_QOS = QoSProfile(
     depth=1,
 )
 ACTIVE = ("PLANNING", "DRIVING")
-LEVELS = {"ABORTED": DiagnosticStatus.ERROR, "CANCELED": DiagnosticStatus.WARN}
 
 
 class FakeNavigatorNode(Node):
@@ -79,7 +81,7 @@ class FakeNavigatorNode(Node):
         self._publish()
 
     def _on_goal_pose(self, msg: PoseStamped):
-        goal_id = f"{msg.header.stamp.sec}.{msg.header.stamp.nanosec:09d}"
+        goal_id = format_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
         x, y = msg.pose.position.x, msg.pose.position.y
         self.goals.append((goal_id, x, y))
         if self.ignore_goals > 0:
@@ -128,15 +130,12 @@ class FakeNavigatorNode(Node):
             distance = self.distance0 * (1.0 - fraction)
         else:
             distance = 0.0 if self.state == "SUCCEEDED" else self.distance0
-        values = {
-            "state": self.state, "goal_id": self.goal_id,
-            "goal_x": f"{self.goal[0]:.3f}", "goal_y": f"{self.goal[1]:.3f}",
-            "goal_yaw": f"{self.goal[2]:.3f}", "distance_remaining_m": f"{distance:.3f}",
-            "navigation_time_s": f"{self.elapsed:.3f}", "recoveries": "0",
-            "holding_time_s": "0.0", "reason": self.reason,
-        }
+        state = NavState(self.state)
+        values = encode(NavStatusRecord(
+            state=state, goal_id=self.goal_id, goal=self.goal, distance_remaining=distance,
+            navigation_time=self.elapsed, recoveries=0, holding_time=0.0, reason=self.reason))
         msg = DiagnosticStatus(
-            level=LEVELS.get(self.state, DiagnosticStatus.OK), name=f"{self.ns}/navigator",
+            level=bytes((level_of(state),)), name=f"{self.ns}/navigator",
             message=self.state, hardware_id=self.ns,
             values=[KeyValue(key=k, value=v) for k, v in values.items()])
         self._last_publish = time.monotonic()

@@ -27,6 +27,8 @@ from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
+from swarm_common.nav_status import OUTCOMES
+from swarm_common.stamps import NS_PER_S, format_stamp
 from tests.support.ros import ros_context, spin_until, start, stop
 
 pytestmark = pytest.mark.node
@@ -37,8 +39,6 @@ SLIM_POI = ROOT / "worlds" / "slim_blockage.yaml"
 BOXED_WORLD = DATA / "world_boxed.world"
 TEMPLATE = yaml.safe_load((ROOT / "params" / "navigator.yaml").read_text())[
     "navigator"]["ros__parameters"]
-NS_PER_S = 1_000_000_000
-TERMINAL = ("SUCCEEDED", "ABORTED", "CANCELED")
 XY_TOL, YAW_TOL = 0.25, 0.25  # [m], [rad] the goal checker's tolerances (nav2 defaults)
 
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
@@ -161,7 +161,7 @@ class Swarm:
         st = Status(float(values.get("stamp", "nan")), values.get("state", msg.message),
                     values.get("goal_id", ""), values)
         self.statuses[ns].append(st)
-        if st.state in TERMINAL:
+        if st.state in OUTCOMES:
             self.results.setdefault((ns, st.goal_id), st)
 
     def _on_truth(self, ns: str, msg: Odometry) -> None:
@@ -216,7 +216,7 @@ class Swarm:
         """Publish a goal; return its id ``"<sec>.<nanosec:09d>"``."""
         msg = self.goal_msg(ns, x, y, yaw, frame, stamp_ns)
         self.goal_pubs[ns].publish(msg)
-        return f"{msg.header.stamp.sec}.{msg.header.stamp.nanosec:09d}"
+        return format_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
 
     def send_together(self, goals: dict[str, tuple[float, float, float]]) -> dict[str, str]:
         """Goals for several robots, all stamped alike: they take effect at the same tick."""

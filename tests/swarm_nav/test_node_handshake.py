@@ -24,13 +24,13 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import LaserScan
 
+from swarm_common.stamps import NS_PER_S
 from swarm_nav.node import NavigatorNode
 from tests.support.ros import spin_until
 
 pytestmark = pytest.mark.node
 
 ROOT = Path(__file__).resolve().parents[2]
-NS_PER_S = 1_000_000_000
 TICK_NS = NS_PER_S // 10  # control_rate 10 Hz (params/navigator.yaml)
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
