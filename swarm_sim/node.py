@@ -40,8 +40,9 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 
 from swarm_common.errors import InputError, run_cli
+from swarm_common.sim_summary import CollisionCounts, RobotSummary, SimSummary
+from swarm_common.stamps import NS_PER_S
 
-NS_PER_S = 1_000_000_000
 # A manual (zero-stamp) command outranks the navigator's answers for this long after it arrived,
 # as teleop outranks navigation in twist_mux (its default timeout is 0.5 s).
 MANUAL_PRIORITY_S = 0.5  # [s] wall
@@ -391,30 +392,38 @@ class SimulatorNode(Node):
                 executor.spin_once(timeout_sec=0.0)
         self.wall_s = time.monotonic() - wall0
 
-    def summary(self, wall_s: float) -> dict:
-        """The run's figures for ``--summary`` (see docs/ARCHITECTURE.md)."""
+    def summary_record(self, wall_s: float) -> SimSummary:
+        """The run's figures for ``--summary`` (:mod:`swarm_common.sim_summary`).
+
+        Args:
+            wall_s: [s] wall time of the simulation loop.
+        """
         eng = self.engine
         sim_s = self.t_ns / NS_PER_S
         per_robot = {
-            ns: {"distance_m": round(float(eng.distance[i]), 3),
-                 "collisions": int(eng.collisions[i]),
-                 "late_ticks": int(self.late_ticks[i])}
+            ns: RobotSummary(distance_m=round(float(eng.distance[i]), 3),
+                             collisions=int(eng.collisions[i]),
+                             late_ticks=int(self.late_ticks[i]))
             for i, ns in enumerate(self.namespaces)
         }
-        return {
-            "robots": self.n,
-            "ticks": int(eng.ticks),
-            "sim_time_s": round(sim_s, 3),
-            "wall_time_s": round(wall_s, 3),
-            "rtf": round(sim_s / wall_s, 3) if wall_s > 0 else None,
-            "robot_ticks_per_s": round(self.n * eng.ticks / wall_s, 1) if wall_s > 0 else None,
-            "late_ticks": int(self.late_ticks.sum()),
-            "dropped_messages": self.dropped,
-            "collisions": dict(eng.collision_counts),
-            "min_separation_m": (round(eng.min_separation, 4)
-                                 if math.isfinite(eng.min_separation) else None),
-            "per_robot": per_robot,
-        }
+        return SimSummary(
+            robots=self.n,
+            ticks=int(eng.ticks),
+            sim_time_s=round(sim_s, 3),
+            wall_time_s=round(wall_s, 3),
+            rtf=round(sim_s / wall_s, 3) if wall_s > 0 else None,
+            robot_ticks_per_s=round(self.n * eng.ticks / wall_s, 1) if wall_s > 0 else None,
+            late_ticks=int(self.late_ticks.sum()),
+            dropped_messages=self.dropped,
+            collisions=CollisionCounts(**eng.collision_counts),
+            min_separation_m=(round(eng.min_separation, 4)
+                              if math.isfinite(eng.min_separation) else None),
+            per_robot=per_robot,
+        )
+
+    def summary(self, wall_s: float) -> dict:
+        """:meth:`summary_record` as the JSON object the file holds (``SimSummary.to_dict``)."""
+        return self.summary_record(wall_s).to_dict()
 
 
 # -- command line ------------------------------------------------------------------------------

@@ -25,12 +25,12 @@ Definitions (``docs/ARCHITECTURE.md``, ``/<ns>/nav_status``):
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from swarm_common.nav_status import NavState, decode
+from swarm_common.sim_summary import RobotSummary, SimSummary, SimSummaryError
 
 SIM_SUMMARY_KEYS = (
     "ticks",
@@ -202,35 +202,32 @@ class RunRecorder:
         return max(times)
 
 
-def load_sim_summary(path: Path | str | None) -> tuple[dict, list[str]]:
-    """Read the simulator's ``--summary`` JSON tolerantly.
+def load_sim_summary(path: Path | str | None) -> tuple[SimSummary, list[str]]:
+    """Read the simulator's ``--summary`` file tolerantly.
 
     Args:
         path: the file (None: there is none).
 
     Returns:
-        ``(summary, warnings)``: every key of :data:`SIM_SUMMARY_KEYS` is present (None when the
-        file or the key is missing), plus any other keys the file has; one warning line per
-        problem.
+        ``(summary, warnings)``: the summary (all figures None when the file is missing or
+        malformed), and one warning line per problem, including the figures of
+        :data:`SIM_SUMMARY_KEYS` it lacks.
     """
-    summary: dict = dict.fromkeys(SIM_SUMMARY_KEYS)
-    warnings: list[str] = []
     if path is None:
-        return summary, ["no simulator summary; simulator figures are null"]
+        return SimSummary(), ["no simulator summary; simulator figures are null"]
     path = Path(path)
     try:
-        data = json.loads(path.read_text())
+        summary = SimSummary.read(path)
     except FileNotFoundError:
-        return summary, [f"{path}: simulator summary missing; simulator figures are null"]
-    except (OSError, ValueError) as exc:
-        return summary, [f"{path}: unreadable simulator summary ({exc}); figures are null"]
-    if not isinstance(data, dict):
-        return summary, [f"{path}: simulator summary is not a JSON object; figures are null"]
-    summary.update(data)
-    missing = [k for k in SIM_SUMMARY_KEYS if data.get(k) is None]
+        return SimSummary(), [f"{path}: simulator summary missing; simulator figures are null"]
+    except OSError as exc:
+        return SimSummary(), [f"{path}: unreadable simulator summary ({exc}); figures are null"]
+    except SimSummaryError as exc:
+        return SimSummary(), [f"malformed simulator summary: {exc}; figures are null"]
+    missing = [k for k in SIM_SUMMARY_KEYS if getattr(summary, k) is None]
     if missing:
-        warnings.append(f"{path}: simulator summary lacks {', '.join(missing)}; those are null")
-    return summary, warnings
+        return summary, [f"{path}: simulator summary lacks {', '.join(missing)}; those are null"]
+    return summary, []
 
 
 def _ratio(num, den) -> float | None:
@@ -240,9 +237,44 @@ def _ratio(num, den) -> float | None:
     return num / den
 
 
+def _robot_metrics(rec: RobotRecord, sim: RobotSummary) -> dict:
+    """One robot's ``per_robot`` entry of ``--metrics``: the recorder's goal figures, the
+    simulator's distance and late ticks, its collisions (the events' count without them)."""
+    return {
+        "goals_reached": len(rec.reached) + rec.anonymous_reached,
+        "goals_aborted": len(rec.aborted) + rec.anonymous_aborted,
+        "collisions": sim.collisions if sim.collisions is not None else rec.collisions,
+        "distance_m": sim.distance_m,
+        "holding_time_s": sum(rec.holding_s.values()),
+        "late_ticks": sim.late_ticks,
+        "goal_wait_timeouts": rec.goal_wait_timeouts_total,
+        "ready_s": rec.ready_wall_s,
+    }
+
+
+def _times_to_goal(rec: RobotRecord) -> list[float]:
+    """A robot's known times to goal [s]: goals with an id, then those without."""
+    return [t for t in rec.reached.values() if t is not None] + rec.anonymous_ttg
+
+
+def _collisions(recorder: RunRecorder, sim: SimSummary) -> dict:
+    """The run's collisions by kind: the simulator's, else the ``/swarm/events`` count."""
+    if sim.collisions is None:
+        return dict(recorder.collision_events)
+    return {"robot_robot": sim.collisions.robot_robot, "robot_wall": sim.collisions.robot_wall}
+
+
+def _late_ticks(recorder: RunRecorder, sim: SimSummary) -> int | None:
+    """The simulator's late ticks, else the ``late`` events seen (None if there were none)."""
+    if sim.late_ticks is not None:
+        return sim.late_ticks
+    late = sum(r.late_events for r in recorder.per_robot.values())
+    return late if late else None
+
+
 def aggregate(
     recorder: RunRecorder,
-    sim_summary: dict,
+    sim_summary: SimSummary,
     *,
     world: str,
     seed: int,
@@ -273,60 +305,20 @@ def aggregate(
     Returns:
         A JSON-serialisable dict with the keys of SPEC §6 (None where unknown).
     """
+    sim = sim_summary
     robots = recorder.robots
     n = len(robots)
-    sim_time = _float(sim_summary.get("sim_time_s"))
+    sim_time = _float(sim.sim_time_s)
     if sim_time is None:
         sim_time = recorder.last_sim_time_s
-    sim_wall = _float(sim_summary.get("wall_time_s"))
+    sim_wall = _float(sim.wall_time_s)
     wall = sim_wall if sim_wall is not None else wall_time_s
-    ticks = _float(sim_summary.get("ticks"))
-
-    reached = aborted = 0
-    ttgs: list[float] = []
-    holding_total = 0.0
-    sim_per_robot = sim_summary.get("per_robot") or {}
-    if not isinstance(sim_per_robot, dict):
-        sim_per_robot = {}
-    per_robot = {}
-    for ns in robots:
-        rec = recorder.per_robot[ns]
-        r_reached = len(rec.reached) + rec.anonymous_reached
-        r_aborted = len(rec.aborted) + rec.anonymous_aborted
-        ttgs += [t for t in rec.reached.values() if t is not None] + rec.anonymous_ttg
-        r_hold = sum(rec.holding_s.values())
-        reached += r_reached
-        aborted += r_aborted
-        holding_total += r_hold
-        sim_r = sim_per_robot.get(ns) or sim_per_robot.get("/" + ns) or {}
-        collisions = sim_r.get("collisions")
-        per_robot[ns] = {
-            "goals_reached": r_reached,
-            "goals_aborted": r_aborted,
-            "collisions": collisions if collisions is not None else rec.collisions,
-            "distance_m": sim_r.get("distance_m"),
-            "holding_time_s": r_hold,
-            "late_ticks": sim_r.get("late_ticks"),
-            "goal_wait_timeouts": rec.goal_wait_timeouts_total,
-            "ready_s": rec.ready_wall_s,
-        }
-
-    collisions = sim_summary.get("collisions")
-    if not isinstance(collisions, dict):
-        collisions = dict(recorder.collision_events)
-    else:
-        collisions = {
-            "robot_robot": collisions.get("robot_robot"),
-            "robot_wall": collisions.get("robot_wall"),
-        }
-    late = sim_summary.get("late_ticks")
-    if late is None and any(r.late_events for r in recorder.per_robot.values()):
-        late = sum(r.late_events for r in recorder.per_robot.values())
-
+    ticks = sim.ticks
+    per_robot = {ns: _robot_metrics(recorder.per_robot[ns], sim.robot(ns)) for ns in robots}
+    reached = sum(r["goals_reached"] for r in per_robot.values())
+    ttgs = [t for ns in robots for t in _times_to_goal(recorder.per_robot[ns])]
+    late = _late_ticks(recorder, sim)
     waits = sum(r.goal_wait_timeouts_total for r in recorder.per_robot.values())
-    reproducible = None if late is None else (late == 0 and waits == 0 and restarts == 0)
-    rtf = _ratio(sim_time, wall)
-    robot_ticks = _ratio(ticks * n, wall) if ticks is not None else None
     hours = sim_time / 3600.0 if sim_time else None
     resources = resources or {}
     metrics = {
@@ -337,21 +329,21 @@ def aggregate(
         "sim_time_s": sim_time,
         "wall_time_s": wall,
         "orchestrator_wall_time_s": wall_time_s,
-        "rtf": rtf,
-        "ticks": int(ticks) if ticks is not None else None,
-        "robot_ticks_per_s": robot_ticks,
+        "rtf": _ratio(sim_time, wall),
+        "ticks": ticks,
+        "robot_ticks_per_s": _ratio(ticks * n, wall) if ticks is not None else None,
         "spawn_to_ready_s": recorder.spawn_to_ready_s(),
         "goals_reached": reached,
-        "goals_aborted": aborted,
+        "goals_aborted": sum(r["goals_aborted"] for r in per_robot.values()),
         "tasks_completed": reached,
         "throughput_per_hour": (reached / hours) if hours else None,
-        "collisions": collisions,
-        "min_separation_m": _float(sim_summary.get("min_separation_m")),
+        "collisions": _collisions(recorder, sim),
+        "min_separation_m": _float(sim.min_separation_m),
         "mean_time_to_goal_s": (sum(ttgs) / len(ttgs)) if ttgs else None,
-        "holding_time_s": holding_total,
+        "holding_time_s": sum((r["holding_time_s"] for r in per_robot.values()), 0.0),
         "late_ticks": late,
         "goal_wait_timeouts": waits,
-        "reproducible": reproducible,
+        "reproducible": None if late is None else (late == 0 and waits == 0 and restarts == 0),
         "cpu_percent": resources.get("cpu_percent"),
         "peak_rss_mb_per_robot": resources.get("peak_rss_mb_per_robot"),
         "sim_peak_rss_mb": resources.get("sim_peak_rss_mb"),

@@ -1,11 +1,13 @@
 """Run figures from a synthetic status/event stream and simulator summary (pure, no ROS)."""
 
 import ast
+import dataclasses
 import json
 from pathlib import Path
 
 import pytest
 
+from swarm_common.sim_summary import SimSummary
 from swarm_up.aggregate import RunRecorder, aggregate, load_sim_summary
 
 ROBOTS = ("Srobot1", "Srobot2", "Srobot3")
@@ -62,7 +64,10 @@ SUMMARY = {
 }
 
 
-def _metrics(summary=SUMMARY, **kw):
+SUMMARY_RECORD = SimSummary.from_dict(SUMMARY)
+
+
+def _metrics(summary=SUMMARY_RECORD, **kw):
     rec = RunRecorder(robots=ROBOTS)
     _stream(rec)
     args = dict(world="slim_blockage", seed=7, coordination="decentralized", wall_time_s=22.0,
@@ -167,7 +172,7 @@ def test_goal_wait_timeouts_summed_over_restarts_and_reproducibility():
     for n in (0, 1):  # a restarted navigator counts from 0 again
         rec.on_status("a", _waits(n), 0.0)
     rec.on_status("b", _waits("x"), 0.0)  # malformed: ignored
-    clean = {"late_ticks": 0, "sim_time_s": 10.0}
+    clean = SimSummary(late_ticks=0, sim_time_s=10.0)
     m = aggregate(rec, clean, world="w", seed=0, coordination="decentralized", wall_time_s=1.0)
     assert m["goal_wait_timeouts"] == 3
     assert m["per_robot"]["a"]["goal_wait_timeouts"] == 3
@@ -178,8 +183,9 @@ def test_goal_wait_timeouts_summed_over_restarts_and_reproducibility():
     args = dict(world="w", seed=0, coordination="decentralized", wall_time_s=1.0)
     assert aggregate(quiet, clean, **args)["reproducible"] is True
     assert aggregate(quiet, clean, restarts=1, **args)["reproducible"] is False
-    assert aggregate(quiet, {**clean, "late_ticks": 2}, **args)["reproducible"] is False
-    assert aggregate(quiet, {"sim_time_s": 10.0}, **args)["reproducible"] is None
+    late = dataclasses.replace(clean, late_ticks=2)
+    assert aggregate(quiet, late, **args)["reproducible"] is False
+    assert aggregate(quiet, SimSummary(sim_time_s=10.0), **args)["reproducible"] is None
 
 
 def test_malformed_numbers_are_ignored():
@@ -194,23 +200,35 @@ def test_malformed_numbers_are_ignored():
 
 def test_load_sim_summary_tolerant(tmp_path: Path):
     summary, warnings = load_sim_summary(tmp_path / "missing.json")
-    assert summary["sim_time_s"] is None and len(warnings) == 1 and "missing" in warnings[0]
+    assert summary.sim_time_s is None and len(warnings) == 1 and "missing" in warnings[0]
 
     partial = tmp_path / "partial.json"
     partial.write_text(json.dumps({"ticks": 10, "sim_time_s": 1.0, "extra": 5}))
     summary, warnings = load_sim_summary(partial)
-    assert summary["ticks"] == 10 and summary["extra"] == 5 and summary["collisions"] is None
+    assert summary.ticks == 10 and summary.extras["extra"] == 5 and summary.collisions is None
     assert len(warnings) == 1 and "collisions" in warnings[0]
 
     bad = tmp_path / "bad.json"
     bad.write_text("{not json")
     summary, warnings = load_sim_summary(bad)
-    assert summary["ticks"] is None and len(warnings) == 1
+    assert summary.ticks is None and len(warnings) == 1
 
     full = tmp_path / "full.json"
     full.write_text(json.dumps(SUMMARY))
     summary, warnings = load_sim_summary(full)
-    assert warnings == [] and summary["ticks"] == 1200
+    assert warnings == [] and summary.ticks == 1200
+
+
+def test_malformed_sim_summary_is_one_warning_naming_the_key(tmp_path: Path):
+    bad = tmp_path / "sim_summary.json"
+    bad.write_text(json.dumps({**SUMMARY, "late_ticks": "4"}))
+    summary, warnings = load_sim_summary(bad)
+    assert summary == SimSummary()  # every simulator figure null, none guessed
+    assert warnings == [f"malformed simulator summary: {bad}: late_ticks: expected an integer, "
+                        "got '4'; figures are null"]
+    _, m = _metrics(summary=summary)
+    assert (m["sim_time_s"], m["late_ticks"], m["collisions"]) == (
+        60.0, 1, {"robot_robot": 1, "robot_wall": 1})  # the recorder's fallbacks
 
 
 def test_aggregate_module_is_pure():
