@@ -510,8 +510,9 @@ def prepare(settings: SimSettings):
     from swarm_common.poi import poi_for_world
     from swarm_common.rasterize import rasterize_world
     from swarm_common.robot_model import load_robot
+    from swarm_common.spawn import spawn_poses, spawn_poses_free
     from swarm_common.world import load_world, resolve_world, world_polygons
-    from swarm_sim.engine import EngineConfig, SimEngine, spawn_poses, spawn_poses_free
+    from swarm_sim.engine import EngineConfig, SimEngine
 
     if not settings.name_prefix.replace("_", "a").isalnum() or settings.name_prefix[0].isdigit():
         raise InputError(f"--name-prefix: '{settings.name_prefix}' is not a valid ROS name "
