@@ -8,14 +8,9 @@ import pytest
 import yaml
 
 from swarm_common.errors import InputError
-from swarm_up.cli import (
-    RunConfig,
-    RunError,
-    child_specs,
-    load_nav_template,
-    split_groups,
-    write_params_files,
-)
+from swarm_up.args import RunConfig, split_groups
+from swarm_up.children import child_specs
+from swarm_up.rundir import RunError, load_nav_template, write_params_files
 
 TEMPLATE = """\
 navigator:
