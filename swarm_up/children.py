@@ -70,7 +70,7 @@ def child_specs(cfg: RunConfig):
                                        kind="cmd", robots=(ns,), env=env))
     else:
         for g, group in enumerate(cfg.groups, start=1):
-            argv = [sys.executable, "-m", "swarm_nav.group", "--namespaces", ",".join(group),
+            argv = [sys.executable, "-m", "swarm_up.group", "--namespaces", ",".join(group),
                     "--params-dir", str(params)]
             if cfg.commanders:
                 argv += ["--commanders", "--world", world, "--seed", str(cfg.seed)]
