@@ -24,7 +24,7 @@ COMMANDER_GOAL_WAIT_S = 2.5
 
 # Template keys that are not navigator algorithm parameters (swarm_nav.config): ROS's own
 # use_sim_time and the node's context parameters (swarm_nav.node), which swarm-up sets per robot
-# in navigator_params.  tests/swarm_up/test_params_files.py holds this list to the node's.
+# in navigator_params.  tests/swarm_up/test_validate.py holds this list to the node's.
 CONTEXT_KEYS = frozenset({"use_sim_time", "robot", "poi_file", "map_yaml_path", "robot_name",
                           "wait_for_commander", "goal_wait_timeout"})
 
