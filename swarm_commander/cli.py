@@ -23,7 +23,6 @@ never by a blocking loop, so the commanders of many robots can share one executo
 from __future__ import annotations
 
 import argparse
-import re
 import sys
 import time
 from collections.abc import Callable
@@ -40,24 +39,13 @@ from rclpy.task import Future
 from rclpy.utilities import remove_ros_args
 
 from swarm_commander.robot_navigator import BasicNavigator, TaskResult
-from swarm_commander.route import (
-    FixedRoute,
-    RandomRoute,
-    RouteStop,
-    load_route,
-    route_rng,
-    stops_from_workstations,
-    visits,
-)
+from swarm_commander.route import FixedRoute, RandomRoute, RouteStop, build_route, visits
+from swarm_common import cli
 from swarm_common.errors import EXIT_BAD_INPUT, EXIT_OK, EXIT_RUNTIME, InputError, run_cli
 from swarm_common.geometry import yaw_to_quaternion
-from swarm_common.poi import poi_for_world
-from swarm_common.world import resolve_world
 
 PROG = "swarm-commander"
 NODE_NAME = "commander"
-_NAME_TOKEN = r"[A-Za-z_][A-Za-z0-9_]*"
-_NAMESPACE = re.compile(rf"^{_NAME_TOKEN}(/{_NAME_TOKEN})*$")
 
 
 @dataclass(frozen=True)
@@ -226,16 +214,10 @@ def _pose_msg(stop: RouteStop) -> PoseStamped:
     return msg
 
 
-class _Parser(argparse.ArgumentParser):
-    """argparse whose errors are the one-line InputError of the exit-code contract."""
-
-    def error(self, message):
-        raise InputError(message)
-
-
 def _parser() -> argparse.ArgumentParser:
-    p = _Parser(prog=PROG, description="Drive one robot through the world's workstations "
-                "(nav2 simple-commander style), looping, and print each arrival.")
+    p = cli.ArgumentParser(prog=PROG, description="Drive one robot through the world's "
+                           "workstations (nav2 simple-commander style), looping, and print each "
+                           "arrival.")
     p.add_argument("ns", metavar="NS",
                    help="the robot's namespace (Srobot3, /Srobot3) or number (3, with "
                         "--name-prefix)")
@@ -246,55 +228,26 @@ def _parser() -> argparse.ArgumentParser:
                    help="'random': every workstation once per loop in a seeded random order; "
                         "or a route file (waypoints: names or {name, x, y, yaw}) "
                         "(default: %(default)s)")
-    p.add_argument("--loops", type=int, default=0, metavar="N",
+    p.add_argument("--loops", type=cli.non_negative_int, default=0, metavar="N",
                    help="loops over the route; 0 = forever (default: %(default)s)")
-    p.add_argument("--seed", type=int, default=0, metavar="S",
+    p.add_argument("--seed", type=cli.seed, default=0, metavar="S",
                    help="seed of the random order, mixed with NS (default: %(default)s)")
-    p.add_argument("--wait-timeout", type=float, default=30.0, metavar="SEC",
+    p.add_argument("--wait-timeout", type=cli.positive_float, default=30.0, metavar="SEC",
                    help="wall seconds to wait for the navigator (default: %(default)s)")
-    p.add_argument("--name-prefix", default="Srobot", metavar="PREFIX",
+    p.add_argument("--name-prefix", type=cli.ros_name, default="Srobot", metavar="PREFIX",
                    help="prefix of robot namespaces, for a numeric NS (default: %(default)s)")
     return p
 
 
 def _namespace(ns: str, prefix: str) -> str:
-    if not re.fullmatch(_NAME_TOKEN, prefix):
-        raise InputError(f"--name-prefix: {prefix!r} is not a valid ROS name (letters, digits "
-                         "and _, not starting with a digit)")
     name = ns.strip()
     if name.isdigit():
         name = f"{prefix}{int(name)}"
     name = name[1:] if name.startswith("/") else name
-    if not _NAMESPACE.match(name):
-        raise InputError(f"NS: {ns!r} is not a valid ROS namespace (letters, digits and _ "
-                         "separated by /, each part not starting with a digit)")
+    if not cli.is_ros_namespace(name):
+        raise InputError(f"NS: {ns!r} is not a valid ROS namespace (ROS names: "
+                         f"{cli.ROS_NAME_RULE}; separated by /)")
     return name
-
-
-def _route(opts, ns: str) -> RandomRoute | FixedRoute:
-    try:
-        world = resolve_world(opts.world)
-    except InputError as exc:
-        raise InputError(f"--world: {exc}") from None
-    poi = poi_for_world(world)
-    workstations = poi.workstations if poi is not None else ()
-    if opts.route == "random":
-        if not workstations:
-            where = (f"none in {poi.source}" if poi is not None
-                     else f"no {world.with_suffix('.yaml').name} beside it")
-            raise InputError(f"--world: world {world.stem} has no workstations ({where})")
-        return RandomRoute(stops_from_workstations(workstations), route_rng(opts.seed, ns))
-    return FixedRoute(load_route(opts.route, workstations))
-
-
-def _check(opts) -> None:
-    if opts.loops < 0:
-        raise InputError(f"--loops: must be >= 0 (0 = forever), got {opts.loops}")
-    if opts.seed < 0:
-        raise InputError(f"--seed: must be a non-negative integer, got {opts.seed}")
-    if not opts.wait_timeout > 0:
-        raise InputError(f"--wait-timeout: must be a positive number of seconds, got "
-                         f"{opts.wait_timeout:g}")
 
 
 def _use_sim_time_by_default(node: BasicNavigator) -> None:
@@ -319,9 +272,8 @@ def _non_ros_args(argv: list[str]) -> list[str]:
 
 def _run(argv: list[str]) -> int:
     opts = _parser().parse_args(_non_ros_args(argv))
-    _check(opts)
     ns = _namespace(opts.ns, opts.name_prefix)
-    route = _route(opts, ns)
+    route = build_route(opts.world, opts.seed, ns, opts.route)
     cfg = CommanderConfig(loops=opts.loops, wait_timeout=opts.wait_timeout)
 
     rclpy.init(args=[PROG, *argv])

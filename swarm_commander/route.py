@@ -6,6 +6,7 @@ order, one task per stop, and asks for the next loop when it is done.
 - :class:`RandomRoute` visits every workstation once per loop in a seeded random order (a fresh
   permutation each loop, never the same workstation twice in a row across a loop boundary).
 - :class:`FixedRoute` visits the stops of a route file (:func:`load_route`) in the file's order.
+- :func:`build_route` makes either for one robot of a world (the commander's ``--route``).
 
 All randomness comes from a ``numpy.random.Generator`` (STYLE.md point 11); :func:`route_rng`
 derives one from the user's seed and the robot's namespace, so robots started with the same
@@ -145,6 +146,43 @@ def visits(route: RandomRoute | FixedRoute, loops: int = 0) -> Iterator[tuple[in
 
 _ROUTE_KEYS = ("frame_id", "waypoints")
 _WAYPOINT_KEYS = ("name", "x", "y", "yaw")
+
+
+def build_route(world: str | Path, seed: int, ns: str,
+                route: str | Path = "random") -> RandomRoute | FixedRoute:
+    """The route of robot ``ns`` in a world: what ``swarm-commander`` and a group process run.
+
+    Args:
+        world: a world name under ``worlds/`` or a ``.world``/``.sdf`` path; its workstations
+            come from the points-of-interest YAML beside it.
+        seed: the user's seed (>= 0), mixed with ``ns`` (:func:`route_rng`).
+        ns: the robot's namespace without a leading ``/``.
+        route: ``"random"`` (every workstation once per loop, seeded order) or a route file
+            (:func:`load_route`).
+
+    Returns:
+        A :class:`RandomRoute` or a :class:`FixedRoute`.
+
+    Raises:
+        InputError: an unknown world (names ``--world``), a world without workstations for a
+            random route, or a malformed route file (names the file).
+    """
+    from swarm_common.poi import poi_for_world
+    from swarm_common.world import resolve_world
+
+    try:
+        world_path = resolve_world(world)
+    except InputError as exc:
+        raise InputError(f"--world: {exc}") from None
+    poi = poi_for_world(world_path)
+    workstations = poi.workstations if poi is not None else ()
+    if str(route) == "random":
+        if not workstations:
+            where = (f"none in {poi.source}" if poi is not None
+                     else f"no {world_path.with_suffix('.yaml').name} beside it")
+            raise InputError(f"--world: world {world_path.stem} has no workstations ({where})")
+        return RandomRoute(stops_from_workstations(workstations), route_rng(seed, ns))
+    return FixedRoute(load_route(route, workstations))
 
 
 def load_route(path: str | Path, workstations=None) -> tuple[RouteStop, ...]:

@@ -10,3 +10,23 @@ MAPS_DIR = ROOT / "maps"
 ROBOTS_DIR = ROOT / "robots"
 PARAMS_DIR = ROOT / "params"
 ROBOT_PARAMS_DIR = PARAMS_DIR / "robots"
+
+
+def default_map_for(world_path: str | Path) -> Path | None:
+    """The bundled map of a bundled world: ``maps/<stem>.yaml`` for a world under ``worlds/``.
+
+    ``swarm-up`` and ``swarm-sim`` both take their default map from here.  A world given by a
+    path outside ``worlds/`` gets None (rasterise the map from the world itself), never a bundled
+    map that merely shares its name.
+
+    Args:
+        world_path: the world file (a resolved or relative path).
+
+    Returns:
+        The map YAML, or None when the world is not bundled or has no bundled map.
+    """
+    world_path = Path(world_path).resolve()
+    if world_path.parent != WORLDS_DIR.resolve():
+        return None
+    candidate = MAPS_DIR / f"{world_path.stem}.yaml"
+    return candidate if candidate.is_file() else None

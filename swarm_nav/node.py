@@ -7,7 +7,7 @@ synchronous control loop (docs/ARCHITECTURE.md): every ``odom`` tick gets exactl
 answer waits until that tick's scan has arrived, so a run does not depend on message order.
 
 Nothing is shared with any other robot's navigator: it knows the others only through its scan.
-Several navigators may share a process and an executor (:mod:`swarm_nav.group`).
+Several navigators may share a process and an executor (:mod:`swarm_up.group`).
 
 Usage: ``swarm-nav --ros-args -r __ns:=/Srobot3 --params-file RUN/params/Srobot3.yaml``.
 """

@@ -11,10 +11,10 @@ Exit codes (SPEC §2): 0 written, 2 bad input (one line on stderr), 1 runtime fa
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from pathlib import Path
 
+from swarm_common import cli
 from swarm_common.errors import InputError, run_cli
 from swarm_common.map_io import save_map
 from swarm_common.rasterize import rasterize_world
@@ -23,26 +23,9 @@ from swarm_common.world import load_world
 PROG = "swarm-map"
 
 
-class _Parser(argparse.ArgumentParser):
-    """argparse that reports usage errors as one InputError line instead of usage + error."""
-
-    def error(self, message: str):  # argparse calls this on a usage error
-        raise InputError(message)
-
-
-def _metres(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: '{text}'") from None
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"not a finite number: '{text}'")
-    return value
-
-
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``swarm-map``."""
-    parser = _Parser(
+    parser = cli.ArgumentParser(
         prog=PROG,
         description="Rasterise a Gazebo world (SDF) into a nav2 map_server map: PREFIX.yaml + "
                     "PREFIX.pgm (trinary: 254 free, 0 occupied). A cell is occupied when any "
@@ -52,27 +35,22 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("world", metavar="WORLD",
                         help="a world name under worlds/ (e.g. slim_blockage) or a path to a "
                              ".world/.sdf file")
-    parser.add_argument("--resolution", type=_metres, default=0.05, metavar="M",
+    parser.add_argument("--resolution", type=cli.positive_float, default=0.05, metavar="M",
                         help="cell size [m/cell] (default: 0.05)")
     parser.add_argument("--output", "-o", metavar="PREFIX", default=None,
                         help="output path without suffix (default: the world's name, in the "
                              "current directory)")
-    parser.add_argument("--padding", type=_metres, default=0.5, metavar="M",
+    parser.add_argument("--padding", type=cli.non_negative_float, default=0.5, metavar="M",
                         help="free margin around the world's shapes [m] (default: 0.5)")
-    parser.add_argument("--z-min", type=_metres, default=0.0, metavar="M",
+    parser.add_argument("--z-min", type=cli.finite_float, default=0.0, metavar="M",
                         help="bottom of the robots' height band [m] (default: 0.0)")
-    parser.add_argument("--z-max", type=_metres, default=2.0, metavar="M",
+    parser.add_argument("--z-max", type=cli.finite_float, default=2.0, metavar="M",
                         help="top of the robots' height band [m] (default: 2.0)")
     return parser
 
 
 def _run(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
-    if args.resolution <= 0.0:
-        raise InputError(f"--resolution: must be a positive number of metres per cell, got "
-                         f"{args.resolution:g}")
-    if args.padding < 0.0:
-        raise InputError(f"--padding: must be >= 0 m, got {args.padding:g}")
     if args.z_max <= args.z_min:
         raise InputError(f"--z-max: must be above --z-min ({args.z_min:g} m), got "
                          f"{args.z_max:g}")

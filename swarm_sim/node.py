@@ -39,6 +39,7 @@ from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 
+from swarm_common import cli
 from swarm_common.errors import InputError, run_cli
 from swarm_common.sim_summary import CollisionCounts, RobotSummary, SimSummary
 from swarm_common.stamps import NS_PER_S
@@ -430,7 +431,7 @@ class SimulatorNode(Node):
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``swarm-sim`` argument parser."""
-    p = argparse.ArgumentParser(
+    p = cli.ArgumentParser(
         prog="swarm-sim",
         description="The swarm simulator node (/swarm_sim): loads a Gazebo world and a URDF "
         "robot, spawns N robots and publishes /clock, /map, /<ns>/scan, /<ns>/odom, "
@@ -442,41 +443,30 @@ def build_parser() -> argparse.ArgumentParser:
                    help="world name under worlds/ or path to a .world/.sdf [slim_blockage]")
     p.add_argument("--robot", default="turtlebot3_waffle",
                    help="robot name under robots/ or path to a .urdf/.xacro [turtlebot3_waffle]")
-    p.add_argument("--swarm-size", default="5", metavar="N", help="number of robots [5]")
-    p.add_argument("--name-prefix", default="Srobot", help="namespace prefix [Srobot]")
-    p.add_argument("--seed", default="0", help="random seed (lidar noise) [0]")
-    p.add_argument("--rtf", default="1.0", metavar="X",
+    p.add_argument("--swarm-size", type=cli.positive_int, default=5, metavar="N",
+                   help="number of robots [5]")
+    p.add_argument("--name-prefix", type=cli.ros_name, default="Srobot",
+                   help=f"namespace prefix, a ROS name ({cli.ROS_NAME_RULE}) [Srobot]")
+    p.add_argument("--seed", type=cli.seed, default=0, help="random seed (lidar noise) [0]")
+    p.add_argument("--rtf", type=cli.non_negative_float, default=1.0, metavar="X",
                    help="real-time factor to pace to; 0 = as fast as possible [1.0]")
-    p.add_argument("--duration", default=None, metavar="SEC",
+    p.add_argument("--duration", type=cli.positive_float, default=None, metavar="SEC",
                    help="simulated seconds to run [until Ctrl-C]")
     p.add_argument("--map", default=None, metavar="PATH",
                    help="map_server YAML to publish on /map [maps/<world>.yaml, else rasterised]")
     p.add_argument("--summary", default=None, metavar="PATH",
                    help="write a JSON summary of the run here at exit")
-    p.add_argument("--control-rate", default="10", metavar="HZ",
+    p.add_argument("--control-rate", type=cli.positive_float, default=10.0, metavar="HZ",
                    help="control ticks per simulated second [10]")
-    p.add_argument("--command-timeout", default="3.0", metavar="SEC",
+    p.add_argument("--command-timeout", type=cli.positive_float, default=3.0, metavar="SEC",
                    help="wall seconds to wait for a tick's commands before a robot is late and "
                    "stopped; it is waited for again once it answers [3.0]")
-    p.add_argument("--wait-for", default="0", metavar="K",
+    p.add_argument("--wait-for", type=cli.non_negative_int, default=0, metavar="K",
                    help="hold simulated time at the first tick until K robots answer it [0]")
     p.add_argument("--gui", action="store_true",
                    help="open the PyBullet window (default headless)")
     p.add_argument("--headless", action="store_true", help="run without a window (the default)")
     return p
-
-
-def _number(flag: str, text: str, kind=float, minimum=None, strict=False):
-    try:
-        value = kind(text)
-    except (TypeError, ValueError):
-        raise InputError(f"{flag}: expected a {'n integer' if kind is int else ' number'}"
-                         f", got '{text}'") from None
-    if kind is float and not math.isfinite(value):
-        raise InputError(f"{flag}: must be finite, got '{text}'")
-    if minimum is not None and (value <= minimum if strict else value < minimum):
-        raise InputError(f"{flag}: must be {'>' if strict else '>='} {minimum:g}, got {text}")
-    return value
 
 
 def parse_settings(argv: list[str]) -> SimSettings:
@@ -485,21 +475,11 @@ def parse_settings(argv: list[str]) -> SimSettings:
     Raises:
         InputError: a flag's value is malformed or out of range.
     """
-    parser = build_parser()
-    parser.error = lambda message: (_ for _ in ()).throw(InputError(message))  # one line, exit 2
-    a = parser.parse_args(argv)
+    a = build_parser().parse_args(argv)
     return SimSettings(
-        world=a.world, robot=a.robot,
-        swarm_size=_number("--swarm-size", a.swarm_size, int, 0, strict=True),
-        name_prefix=a.name_prefix,
-        seed=_number("--seed", a.seed, int, 0),
-        rtf=_number("--rtf", a.rtf, float, 0.0),
-        duration=None if a.duration is None else _number("--duration", a.duration, float, 0.0,
-                                                        strict=True),
-        map_path=a.map, summary=a.summary,
-        control_rate=_number("--control-rate", a.control_rate, float, 0.0, strict=True),
-        command_timeout=_number("--command-timeout", a.command_timeout, float, 0.0, strict=True),
-        wait_for=_number("--wait-for", a.wait_for, int, 0),
+        world=a.world, robot=a.robot, swarm_size=a.swarm_size, name_prefix=a.name_prefix,
+        seed=a.seed, rtf=a.rtf, duration=a.duration, map_path=a.map, summary=a.summary,
+        control_rate=a.control_rate, command_timeout=a.command_timeout, wait_for=a.wait_for,
         gui=a.gui,
     )
 
@@ -515,24 +495,26 @@ def prepare(settings: SimSettings):
             more robots than fit.
     """
     from swarm_common.map_io import load_map
-    from swarm_common.paths import MAPS_DIR, WORLDS_DIR
+    from swarm_common.paths import default_map_for
     from swarm_common.poi import poi_for_world
     from swarm_common.rasterize import rasterize_world
     from swarm_common.robot_model import load_robot
+    from swarm_common.spawn import spawn_poses, spawn_poses_free
     from swarm_common.world import load_world, resolve_world, world_polygons
-    from swarm_sim.engine import EngineConfig, SimEngine, spawn_poses, spawn_poses_free
+    from swarm_sim.engine import EngineConfig, SimEngine
 
-    if not settings.name_prefix.replace("_", "a").isalnum() or settings.name_prefix[0].isdigit():
-        raise InputError(f"--name-prefix: '{settings.name_prefix}' is not a valid ROS name "
-                         "(letters, digits and '_', not starting with a digit)")
+    if not cli.is_ros_name(settings.name_prefix):
+        raise InputError(f"--name-prefix: must be a ROS name ({cli.ROS_NAME_RULE}), got "
+                         f"{settings.name_prefix!r}")
     world_path = resolve_world(settings.world)
     world = load_world(world_path)
     robot = load_robot(settings.robot)
     poi = poi_for_world(world_path)
+    default_map = default_map_for(world_path)
     if settings.map_path is not None:
         occ = load_map(settings.map_path)
-    elif world_path.parent == WORLDS_DIR and (MAPS_DIR / f"{world.name}.yaml").is_file():
-        occ = load_map(MAPS_DIR / f"{world.name}.yaml")
+    elif default_map is not None:
+        occ = load_map(default_map)
     else:
         occ = rasterize_world(world)
     polygons = world_polygons(world)

@@ -1,1 +1,3 @@
-"""The orchestrator (``swarm-up``), metrics and the benchmark (``swarm-bench``)."""
+"""The orchestrator (``swarm-up``), its group processes and metrics."""
+
+PROG = "swarm-up"  # the command's name, first word of its error lines

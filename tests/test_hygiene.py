@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-ROS_SHELLS = {"node.py", "group.py"}
+ROS_SHELLS = {"node.py"}
 
 
 def _pure_modules():

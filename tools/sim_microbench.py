@@ -17,8 +17,9 @@ import numpy as np
 
 from swarm_common.poi import poi_for_world
 from swarm_common.robot_model import load_robot
+from swarm_common.spawn import spawn_poses
 from swarm_common.world import load_world, resolve_world, world_polygons
-from swarm_sim.engine import SimEngine, spawn_poses
+from swarm_sim.engine import SimEngine
 
 
 def measure(n: int, repeats: int) -> tuple[float, float]:

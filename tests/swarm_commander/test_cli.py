@@ -185,9 +185,9 @@ def test_malformed_route_file_exits_2(world, tmp_path, text, expected):
 
 @pytest.mark.parametrize("args, expected", [
     (["3x"], "NS: '3x' is not a valid ROS namespace"),
-    (["S1", "--loops", "-1"], "--loops: must be >= 0"),
-    (["S1", "--loops", "x"], "argument --loops: invalid int value: 'x'"),
-    (["S1", "--seed", "-2"], "--seed: must be a non-negative integer"),
+    (["S1", "--loops", "-1"], "--loops: must be an integer >= 0, got '-1'"),
+    (["S1", "--loops", "x"], "--loops: must be an integer >= 0, got 'x'"),
+    (["S1", "--seed", "-2"], "--seed: must be an integer >= 0, got '-2'"),
     (["S1", "--wait-timeout", "0"], "--wait-timeout: must be a positive number"),
     (["S1", "--world", "no_such_world_xyz"], "--world: unknown world 'no_such_world_xyz'"),
     (["S1", "--ros-args", "-p", "nonsense"], "--ros-args: Couldn't parse parameter override"),

@@ -1,7 +1,7 @@
 """Node tests of the navigator's behaviour (issue 3) against the real simulator.
 
 Every test starts ``swarm-sim --rtf 0`` (headless, simulated time, start gate ``--wait-for N``)
-and one ``python -m swarm_nav.group`` process that runs the navigators of all its robots, and
+and one ``python -m swarm_up.group`` process that runs the navigators of all its robots, and
 drives them from a probe node in this process the way a commander does: goals on
 ``/<ns>/goal_pose`` stamped with the navigator's latest ``nav_status`` time, outcomes from
 ``/<ns>/nav_status``, true poses from ``/<ns>/ground_truth``, collisions from ``/swarm/events``
@@ -127,7 +127,7 @@ class Swarm:
                           "--seed", "3", "--wait-for", n, "--command-timeout", "5",
                           "--summary", str(self.summary_path)],
                          self.dir / "sim.log")
-        self.nav = start(["python", "-m", "swarm_nav.group", "--namespaces",
+        self.nav = start(["python", "-m", "swarm_up.group", "--namespaces",
                           ",".join(self.names), "--params-dir", str(params)],
                          self.dir / "nav.log")
         self.spin_until(lambda: all(self.statuses[ns] for ns in self.names)

@@ -8,12 +8,11 @@ import math
 import numpy as np
 import pytest
 
-from swarm_common.errors import InputError
-from swarm_common.poi import SpawnArea, poi_for_world
+from swarm_common.poi import poi_for_world
 from swarm_common.robot_model import load_robot
+from swarm_common.spawn import spawn_poses
 from swarm_common.world import load_world, world_polygons
-from swarm_sim.engine import EngineConfig, SimEngine, polygon_distances, spawn_poses
-from tests.swarm_sim.test_lidar import SLIM_WALLS, box_clearance
+from swarm_sim.engine import EngineConfig, SimEngine, polygon_distances
 
 # TurtleBot3 waffle footprint: x in [-0.197, 0.069], y in [-0.133, 0.133] about base_footprint.
 REAR, FRONT, HALF_WIDTH = 0.197, 0.069, 0.133
@@ -70,64 +69,6 @@ def ramped_distance(v: float, acc: float, dt: float, steps: int) -> float:
 
 
 # -- spawning ----------------------------------------------------------------------------------
-
-
-@pytest.mark.parametrize("n, first", [
-    (1, [(0, 0)]),
-    (5, [(0, 0), (1, 0), (2, 0), (3, 0), (4, 0)]),
-    (11, [(i, 0) for i in range(10)] + [(-1, 0)]),
-    (13, [(i, 0) for i in range(10)] + [(-1, 0), (-2, 0), (0, 1)]),
-    (100, [(i, 0) for i in range(10)] + [(-1, 0), (-2, 0)] + [(i, 1) for i in range(10)]),
-])
-def test_spawn_gives_exactly_n_free_poses(slim, waffle, n, first):
-    spawn = poi_for_world(slim.source).spawn
-    poses = spawn_poses(spawn, n, waffle.radius, world_polygons(slim))
-    assert poses.shape == (n, 3)
-    np.testing.assert_array_equal(poses[:len(first), :2], np.array(first, dtype=float))
-    np.testing.assert_array_equal(poses[:, 2], np.full(n, 3.14159265))
-    # On the 1 m grid, inside the area, each robot once, clear of every wall.
-    np.testing.assert_array_equal(poses[:, :2], np.rint(poses[:, :2]))
-    assert len({tuple(p) for p in poses[:, :2]}) == n
-    assert np.all((poses[:, 0] >= -2.0) & (poses[:, 0] <= 9.0))
-    assert np.all((poses[:, 1] >= -1.0) & (poses[:, 1] <= 8.0))
-    clearance = [box_clearance(p, SLIM_WALLS) for p in poses[:, :2]]
-    assert min(clearance) >= waffle.radius + 0.05
-    if n > 1:
-        gaps = np.linalg.norm(poses[:, None, :2] - poses[None, :, :2], axis=2)
-        assert gaps[np.triu_indices(n, 1)].min() == pytest.approx(1.0)
-
-
-def test_spawn_the_whole_grid_and_no_more(slim, waffle):
-    spawn = poi_for_world(slim.source).spawn
-    polygons = world_polygons(slim)
-    assert spawn_poses(spawn, 120, waffle.radius, polygons).shape == (120, 3)
-    with pytest.raises(InputError) as err:
-        spawn_poses(spawn, 121, waffle.radius, polygons)
-    assert str(err.value) == (
-        "--swarm-size: 121 robots do not fit in the spawn area; at most 120 fit")
-
-
-@pytest.mark.parametrize("clearance, xs", [
-    (0.05, [8.1, 7.1, 6.1, 5.1]),
-    (0.0, [9.1, 8.1, 7.1, 6.1, 5.1]),
-])
-def test_spawn_keeps_clear_of_walls(slim, waffle, clearance, xs):
-    # A row x = 9.1, 8.1, ... 5.1 at y = 3 starting at x = 9.1, which is 0.275 m from the right
-    # wall's face: more than the waffle's radius 0.238 m, less than radius + 0.05 m.
-    row = SpawnArea(origin=np.array([9.1, 3.0]), spacing=1.0, yaw=0.0,
-                    area=np.array([5.1, 3.0, 9.1, 3.0]))
-    polygons = world_polygons(slim)
-    poses = spawn_poses(row, len(xs), waffle.radius, polygons, clearance=clearance)
-    np.testing.assert_allclose(poses, [(x, 3.0, 0.0) for x in xs], atol=1e-12)
-    with pytest.raises(InputError, match=f"at most {len(xs)} fit"):
-        spawn_poses(row, len(xs) + 1, waffle.radius, polygons, clearance=clearance)
-
-
-def test_spawn_rejects_a_grid_finer_than_the_robot(slim, robots):
-    spawn = poi_for_world(slim.source).spawn
-    big = 0.6  # [m] radius: 2 * 0.6 + 0.05 > 1 m spacing
-    with pytest.raises(InputError, match="spacing 1 m is too small"):
-        spawn_poses(spawn, 1, big, world_polygons(slim))
 
 
 def test_default_five_robots_start_on_the_row_facing_back(slim, waffle, make_engine):

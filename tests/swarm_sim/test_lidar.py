@@ -13,8 +13,8 @@ import pytest
 from swarm_common.geometry import transform_points
 from swarm_common.poi import poi_for_world
 from swarm_common.robot_model import load_robot
+from swarm_common.spawn import spawn_poses
 from swarm_common.world import load_world, world_polygons
-from swarm_sim.engine import spawn_poses
 from swarm_sim.lidar import (
     PlanarLidar,
     ScanPattern,

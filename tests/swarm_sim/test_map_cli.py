@@ -73,7 +73,7 @@ BAD_INPUTS = [
     (["bad.world"], "bad.world: malformed XML"),
     ([], "the following arguments are required: WORLD"),
     (["empty", "--resolution", "-0.05"], "--resolution: must be a positive number"),
-    (["empty", "--resolution", "abc"], "argument --resolution: not a number: 'abc'"),
+    (["empty", "--resolution", "abc"], "--resolution: must be a positive number, got 'abc'"),
     (["empty", "--output", "no/such/dir/m"], "--output: directory 'no/such/dir' does not exist"),
     (["empty", "--z-min", "3", "--z-max", "1"], "--z-max: must be above --z-min"),
     (["empty", "--colour", "red"], "unrecognized arguments: --colour red"),

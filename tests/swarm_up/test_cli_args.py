@@ -77,6 +77,17 @@ def test_metrics_path_that_is_a_directory(tmp_path):
     assert len(res.stderr.strip().splitlines()) == 1 and "--metrics" in res.stderr
 
 
+def test_misspelt_nav_params_key_exits_2_naming_file_and_key(tmp_path):
+    template = tmp_path / "navigator.yaml"
+    template.write_text("navigator:\n  ros__parameters:\n    inflation_raduis: 0.6\n")
+    res = _run(["--nav-params", str(template), "--run-dir", str(tmp_path / "run")], tmp_path)
+    assert res.returncode == 2
+    assert res.stderr.splitlines() == [
+        f"swarm-up: error: --nav-params: {template}: inflation_raduis: unknown navigator "
+        "parameter (did you mean 'inflation_radius'?)"]
+    assert not (tmp_path / "run").exists()
+
+
 def test_help_lists_every_option():
     res = _run(["--help"], None)
     assert res.returncode == 0

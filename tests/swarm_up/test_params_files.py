@@ -8,14 +8,9 @@ import pytest
 import yaml
 
 from swarm_common.errors import InputError
-from swarm_up.cli import (
-    RunConfig,
-    RunError,
-    child_specs,
-    load_nav_template,
-    split_groups,
-    write_params_files,
-)
+from swarm_up.args import RunConfig, split_groups
+from swarm_up.children import child_specs
+from swarm_up.rundir import RunError, load_nav_template, write_params_files
 
 TEMPLATE = """\
 navigator:
@@ -175,7 +170,7 @@ def test_child_commands_grouped(cfg):
     assert [s.name for s in specs] == ["sim", "group_1", "group_2"]
     assert "--gui" in specs[0].argv and "--duration" not in specs[0].argv
     g1 = list(specs[1].argv)
-    assert g1[:3] == [sys.executable, "-m", "swarm_nav.group"]
+    assert g1[:3] == [sys.executable, "-m", "swarm_up.group"]
     assert g1[g1.index("--namespaces") + 1] == "Srobot1,Srobot2"
     assert g1[g1.index("--params-dir") + 1] == str(Path(cfg.run_dir) / "params")
     assert "--commanders" in g1 and g1[g1.index("--seed") + 1] == "4"

@@ -131,7 +131,7 @@ signal.signal(signal.SIGINT, lambda *a: sys.exit(0))
 time.sleep(1000)
 '''
 
-TEMPLATE = "navigator:\n  ros__parameters:\n    control_rate: 10.0  # [Hz]\n"
+TEMPLATE = "navigator:\n  ros__parameters:\n    control_period: 0.1  # [s]\n"
 MAP_YAML = ("image: m.pgm\nresolution: 0.05\norigin: [0.0, 0.0, 0.0]\nnegate: 0\n"
             "occupied_thresh: 0.65\nfree_thresh: 0.25\nmode: trinary\n")
 WORLD = ("<?xml version='1.0'?><sdf version='1.6'><world name='w'><model name='box'>"

@@ -6,16 +6,18 @@ robot keeps its own nodes, parameters and state: grouping shares the process, no
 
 Usage (what ``swarm-up --processes K`` runs)::
 
-    python -m swarm_nav.group --namespaces Srobot1,Srobot2 --params-dir RUN/params \\
+    python -m swarm_up.group --namespaces Srobot1,Srobot2 --params-dir RUN/params \\
         [--commanders --world slim_blockage --seed 0]
 
 The params file of robot ``ns`` is ``<params-dir>/<ns>.yaml``, rooted at ``/<ns>/navigator``.
+
+It lives in ``swarm_up``, beside the orchestrator that starts it, because it hosts both the
+navigators (:mod:`swarm_nav.node`) and their clients, the commanders (:mod:`swarm_commander`):
+the navigator package never imports its own client.
 """
 
 from __future__ import annotations
 
-import argparse
-import re
 import sys
 from pathlib import Path
 
@@ -23,52 +25,41 @@ import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 
+from swarm_common import cli
 from swarm_common.errors import InputError, run_cli
 from swarm_nav.node import NavigatorNode, spin_forever
 
-PROG = "swarm_nav.group"
-_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+PROG = "swarm_up.group"
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser() -> cli.ArgumentParser:
     """The command line of a navigator group."""
-    p = argparse.ArgumentParser(prog=f"python -m {PROG}", description=__doc__.split("\n\n")[0])
-    p.add_argument("--namespaces", required=True,
+    p = cli.ArgumentParser(prog=f"python -m {PROG}", description=__doc__.split("\n\n")[0])
+    p.add_argument("--namespaces", required=True, type=cli.ros_names,
                    help="comma-separated robot namespaces without '/', e.g. Srobot1,Srobot2")
     p.add_argument("--params-dir", required=True, type=Path,
                    help="directory holding <ns>.yaml for every namespace")
     p.add_argument("--commanders", action="store_true",
                    help="also run a commander for every robot (random workstation route)")
     p.add_argument("--world", default="slim_blockage", help="world of the commanders' route")
-    p.add_argument("--seed", type=int, default=0, help="seed of the commanders' routes")
-    p.add_argument("--loops", type=int, default=0, help="commander route loops, 0 = forever")
+    p.add_argument("--seed", type=cli.seed, default=0, help="seed of the commanders' routes")
+    p.add_argument("--loops", type=cli.non_negative_int, default=0,
+                   help="commander route loops, 0 = forever")
     return p
 
 
-def _namespaces(text: str) -> list[str]:
-    names = [n.strip().strip("/") for n in text.split(",") if n.strip()]
-    bad = [n for n in names if not _NAME.match(n)]
-    if not names or bad:
-        raise InputError(f"--namespaces: not a list of ROS names: {text!r}")
-    return names
-
-
 def _run(argv: list[str]) -> int:
-    parser = build_parser()
-    parser.error = lambda message: (_ for _ in ()).throw(InputError(message))
-    opts = parser.parse_args(argv)
-    names = _namespaces(opts.namespaces)
+    opts = build_parser().parse_args(argv)
+    names = opts.namespaces
     files = {ns: opts.params_dir / f"{ns}.yaml" for ns in names}
     missing = [str(f) for f in files.values() if not f.is_file()]
     if missing:
         raise InputError(f"--params-dir: no params file {missing[0]}")
     routes = {}
     if opts.commanders:
-        from swarm_commander.cli import _route
+        from swarm_commander.route import build_route
 
-        for ns in names:
-            routes[ns] = _route(argparse.Namespace(world=opts.world, seed=opts.seed,
-                                                   route="random"), ns)
+        routes = {ns: build_route(opts.world, opts.seed, ns) for ns in names}
 
     rclpy.init(args=[PROG])
     executor = EventsExecutor()
@@ -116,7 +107,7 @@ def _run(argv: list[str]) -> int:
 
 
 def main(args: list[str] | None = None) -> int:
-    """Entry point of ``python -m swarm_nav.group``."""
+    """Entry point of ``python -m swarm_up.group``."""
     return run_cli(PROG, lambda: _run(list(sys.argv[1:] if args is None else args)))
 
 

@@ -1,0 +1,164 @@
+"""The one command-line helper of every command (STYLE.md point 16).
+
+A command builds its flags on :class:`ArgumentParser`, whose usage errors raise
+:class:`~swarm_common.errors.InputError` instead of printing usage and exiting; the command's
+entry point wraps its body in :func:`~swarm_common.errors.run_cli`, which turns that error into
+one line on stderr and exit code 2 (SPEC §2)::
+
+    swarm-up: error: --swarm-size: must be a positive integer, got '0'
+
+The validators below are argparse ``type=`` callables: each returns the typed value or raises
+:class:`argparse.ArgumentTypeError` with a message that argparse prefixes with the flag.
+
+One ROS-name rule for every name a user gives (robot namespace prefixes, namespaces): see
+:func:`is_ros_name`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import re
+
+from swarm_common.errors import InputError, run_cli
+
+__all__ = [
+    "ROS_NAME_RULE",
+    "ArgumentParser",
+    "InputError",
+    "finite_float",
+    "is_ros_name",
+    "is_ros_namespace",
+    "non_negative_float",
+    "non_negative_int",
+    "port",
+    "positive_float",
+    "positive_int",
+    "ros_name",
+    "ros_names",
+    "run_cli",
+    "seed",
+]
+
+# ASCII only: ``[A-Za-z]`` is spelled out, so ``str.isalnum``'s non-ASCII letters do not pass.
+_ROS_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
+ROS_NAME_RULE = "letters, digits and '_', starting with a letter, no '__'"
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """argparse whose usage errors are one :class:`InputError` line, not usage + exit.
+
+    The message drops argparse's ``"argument "`` prefix so it starts with the flag, like every
+    other input error: ``"--rtf: must be a number >= 0, got '-1'"``.
+    """
+
+    def error(self, message: str):  # noqa: D102 - argparse API
+        raise InputError(message.removeprefix("argument "))
+
+
+# ------------------------------------------------------------------------------------ names
+def is_ros_name(text: str) -> bool:
+    """Whether ``text`` is one ROS 2 name token (a node name, a namespace part, a prefix).
+
+    The rule: ASCII letters, digits and ``_``; starts with a letter; no ``__``.  This is the
+    ROS 2 design article "Topic and Service name mapping to DDS"
+    (https://design.ros2.org/articles/topic_and_service_names.html): a token "must not start
+    with a numeric character" and a name "must not contain any number of repeated underscores";
+    ``__`` is reserved for ROS arguments such as ``__ns``.  We also refuse a leading ``_``
+    (ROS allows it), as ``swarm-up`` always has: ``/_x1`` reads as private, not as a robot.
+
+    Args:
+        text: the candidate, without any ``/``.
+
+    Returns:
+        True if it is a valid name.
+    """
+    return bool(_ROS_NAME.fullmatch(text)) and "__" not in text
+
+
+def is_ros_namespace(text: str) -> bool:
+    """Whether ``text`` is a ROS namespace: :func:`is_ros_name` parts joined by ``/``.
+
+    Args:
+        text: the candidate; one leading ``/`` is allowed (``/fleet/Srobot3``).
+
+    Returns:
+        True if every part is a valid name (no empty part, no trailing ``/``).
+    """
+    return all(is_ros_name(part) for part in text.removeprefix("/").split("/"))
+
+
+def ros_name(text: str) -> str:
+    """argparse type: one ROS name (:func:`is_ros_name`), e.g. a namespace prefix ``Srobot``."""
+    if not is_ros_name(text):
+        raise argparse.ArgumentTypeError(f"must be a ROS name ({ROS_NAME_RULE}), got {text!r}")
+    return text
+
+
+def ros_names(text: str) -> tuple[str, ...]:
+    """argparse type: a comma-separated list of ROS names; a leading ``/`` of each is dropped.
+
+    Returns:
+        The names, in order (at least one).
+    """
+    names = tuple(n.strip().strip("/") for n in text.split(",") if n.strip())
+    if not names or not all(map(is_ros_name, names)):
+        raise argparse.ArgumentTypeError(
+            f"must be a comma-separated list of ROS names ({ROS_NAME_RULE}), got {text!r}")
+    return names
+
+
+# ---------------------------------------------------------------------------------- numbers
+def _int(text: str, ok, what: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be {what}, got {text!r}") from None
+    if not ok(value):
+        raise argparse.ArgumentTypeError(f"must be {what}, got {text!r}")
+    return value
+
+
+def _float(text: str, ok, what: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be {what}, got {text!r}") from None
+    if not math.isfinite(value) or not ok(value):
+        raise argparse.ArgumentTypeError(f"must be {what}, got {text!r}")
+    return value
+
+
+def positive_int(text: str) -> int:
+    """argparse type: an integer > 0 (a count)."""
+    return _int(text, lambda v: v > 0, "a positive integer")
+
+
+def non_negative_int(text: str) -> int:
+    """argparse type: an integer >= 0 (a count that may be zero)."""
+    return _int(text, lambda v: v >= 0, "an integer >= 0")
+
+
+def seed(text: str) -> int:
+    """argparse type: a random seed, an integer >= 0 (what ``numpy.random.default_rng`` takes)."""
+    return non_negative_int(text)
+
+
+def port(text: str) -> int:
+    """argparse type: a TCP port, 1..65535."""
+    return _int(text, lambda v: 0 < v < 65536, "a TCP port 1-65535")
+
+
+def finite_float(text: str) -> float:
+    """argparse type: any finite number (not nan, not inf)."""
+    return _float(text, lambda v: True, "a finite number")
+
+
+def non_negative_float(text: str) -> float:
+    """argparse type: a finite number >= 0."""
+    return _float(text, lambda v: v >= 0, "a number >= 0")
+
+
+def positive_float(text: str) -> float:
+    """argparse type: a finite number > 0."""
+    return _float(text, lambda v: v > 0, "a positive number")

@@ -1,0 +1,368 @@
+"""``swarm-up``'s flags and their validation: the parser, :class:`RunConfig` and :func:`validate`.
+
+Every flag is checked here, before anything is started or written: a bad one is an
+:class:`~swarm_common.errors.InputError` naming it (exit 2, one line).  The world, robot, map,
+points of interest and navigator template are loaded with the same strict loaders the simulator
+and the navigators use, and the spawn area is checked to hold ``--swarm-size`` robots.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from swarm_common import cli, paths
+from swarm_common import world as world_io
+from swarm_common.errors import InputError
+from swarm_common.map_io import load_map
+from swarm_common.poi import load_poi, poi_for_world
+from swarm_common.robot_model import load_robot
+from swarm_common.spawn import spawn_poses
+from swarm_up import PROG
+from swarm_up.rundir import check_nav_template, load_nav_template
+
+PER_ROBOT = "per-robot"
+# Default layout: one process per robot (and one per commander) up to this many robots, else
+# one group per core.  Each rclpy process is a DDS participant of ~75 MB whose start costs ~1 s
+# of CPU; 20 robots with commanders as 41 processes took minutes to come up on 2 cores.
+PER_ROBOT_MAX = 8
+DEFAULT_READY_TIMEOUT_S = 120.0
+
+
+# ---------------------------------------------------------------------------------------- parsing
+def _processes(text: str) -> str | int:
+    if text == PER_ROBOT:
+        return PER_ROBOT
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"must be 'per-robot' or a positive number of processes, got {text!r}"
+        ) from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError(
+            f"must be 'per-robot' or a positive number of processes, got {text!r}"
+        )
+    return value
+
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``swarm-up`` argument parser (SPEC §2)."""
+    cores = os.cpu_count() or 1
+    p = cli.ArgumentParser(
+        prog=PROG,
+        allow_abbrev=False,
+        description="Bring up a simulated swarm: the simulator, one navigator per robot "
+        "(and commanders), supervise it, and measure it.",
+        epilog="Exit codes: 0 success, 2 bad input, 1 runtime failure. "
+        "Ctrl-C stops every process within 5 s.",
+    )
+    p.add_argument("--swarm-size", type=cli.positive_int, default=5, metavar="N",
+                   help="number of robots (default: %(default)s)")
+    p.add_argument("--world", default="slim_blockage", metavar="NAME|PATH",
+                   help="a world under worlds/ or a Gazebo .world/.sdf path "
+                   "(default: %(default)s)")
+    p.add_argument("--map", type=Path, default=None, metavar="PATH",
+                   help="map_server map YAML (default: the world's map under maps/, "
+                   "else rasterised from the world)")
+    p.add_argument("--robot", default="turtlebot3_waffle", metavar="NAME|PATH",
+                   help="a robot under robots/ or a .urdf/.xacro path (default: %(default)s)")
+    p.add_argument("--name-prefix", type=cli.ros_name, default="Srobot", metavar="PREFIX",
+                   help="robot namespaces are /<PREFIX><i>, i = 1..N (default: %(default)s)")
+    p.add_argument("--seed", type=cli.seed, default=0, metavar="S",
+                   help="seed of every random choice (default: %(default)s)")
+    p.add_argument("--rtf", type=cli.non_negative_float, default=1.0, metavar="X",
+                   help="real-time factor; 0 = as fast as possible (default: %(default)s)")
+    p.add_argument("--duration", type=cli.positive_float, default=None, metavar="SEC",
+                   help="simulated seconds to run (default: until Ctrl-C)")
+    p.add_argument("--commanders", action="store_true",
+                   help="start a commander for every robot (visits the workstations)")
+    p.add_argument("--coordination", choices=("decentralized", "centralized"),
+                   default="decentralized",
+                   help="decentralized (default) or centralized (not implemented yet: exits 2)")
+    p.add_argument("--metrics", type=Path, default=None, metavar="PATH",
+                   help="write the run's figures as JSON here at exit (always also "
+                   "RUN/metrics.json)")
+    p.add_argument("--record", type=Path, default=None, metavar="PATH.mcap",
+                   help="record the run to MCAP (not implemented yet: exits 2)")
+    p.add_argument("--dashboard", type=cli.port, nargs="?", const=8765, default=None,
+                   metavar="PORT", help="serve a live dashboard (not implemented yet: exits 2)")
+    p.add_argument("--processes", type=_processes, default=None, metavar="per-robot|K",
+                   help="one navigator process per robot, or K processes each hosting a group "
+                   f"of robots (default: per-robot up to {PER_ROBOT_MAX} robots, else "
+                   f"K = number of cores, here {cores})")
+    view = p.add_mutually_exclusive_group()
+    view.add_argument("--headless", dest="gui", action="store_false", default=False,
+                      help="no window (the default)")
+    view.add_argument("--gui", dest="gui", action="store_true",
+                      help="open the PyBullet window")
+    p.add_argument("--run-dir", type=Path, default=None, metavar="DIR",
+                   help="where logs, params files and metrics go (default: runs/<timestamp>/)")
+    p.add_argument("--ready-timeout", type=cli.positive_float, default=DEFAULT_READY_TIMEOUT_S,
+                   metavar="SEC", help="wall seconds to wait for every navigator to be ready "
+                   "(default: %(default)s)")
+    p.add_argument("--nav-params", type=Path, default=None, metavar="PATH",
+                   help="navigator parameter template (default: params/navigator.yaml)")
+    return p
+
+
+
+# ------------------------------------------------------------------------------------- validation
+@dataclass(frozen=True)
+class RunConfig:
+    """Everything a run needs, validated.
+
+    Attributes:
+        robots: namespaces without ``/`` (``Srobot1`` ...).
+        name_prefix: their common prefix (``Srobot``).
+        world_path: the world file.
+        world_name: its stem, for reports.
+        robot: the robot's name, or an absolute path.
+        map_path: map YAML (None: rasterise or let the simulator do it).
+        poi_path: points-of-interest YAML beside the world (None: there is none).
+        seed: seed.
+        rtf: real-time factor (0 = as fast as possible).
+        duration: simulated seconds, or None (until Ctrl-C) [s].
+        commanders: start commanders.
+        coordination: ``decentralized``.
+        metrics_path: ``--metrics`` file or None.
+        groups: None for one process per robot, else the robots of every group process.
+        gui: open the PyBullet window.
+        run_dir: absolute run directory.
+        ready_timeout: [s] wall.
+        nav_template: navigator parameter template.
+    """
+
+    robots: tuple[str, ...]
+    name_prefix: str
+    world_path: Path
+    world_name: str
+    robot: str
+    map_path: Path | None
+    poi_path: Path | None
+    seed: int
+    rtf: float
+    duration: float | None
+    commanders: bool
+    coordination: str
+    metrics_path: Path | None
+    groups: tuple[tuple[str, ...], ...] | None
+    gui: bool
+    run_dir: Path
+    ready_timeout: float
+    nav_template: Path
+
+
+
+def _prefix(flag: str, exc: InputError) -> InputError:
+    msg = str(exc)
+    return InputError(msg if msg.startswith(flag) else f"{flag}: {msg}")
+
+
+def resolve_world(value: str) -> Path:
+    """The world file for ``--world`` (a name under ``worlds/`` or a path).
+
+    Raises:
+        InputError: unknown name or missing file (names ``--world``).
+    """
+    try:
+        return Path(world_io.resolve_world(value)).resolve()
+    except InputError as exc:
+        raise _prefix("--world", exc) from None
+
+
+def resolve_robot(value: str) -> str:
+    """Check ``--robot`` (a name under ``robots/`` or a ``.urdf``/``.xacro`` path) by loading it.
+
+    Returns:
+        The name as given, or the absolute path of a robot given by path.
+
+    Raises:
+        InputError: unknown name, missing or unreadable file (names ``--robot``).
+    """
+    as_path = Path(value)
+    is_path = os.sep in value or value.endswith((".urdf", ".xacro"))
+    try:
+        load_robot(as_path.resolve() if is_path else value)
+    except InputError as exc:
+        raise _prefix("--robot", exc) from None
+    return str(as_path.resolve()) if is_path else value
+
+
+def _check_world_and_fit(world_path: Path, robot: str, n: int) -> None:
+    """Load the world and, when it has a spawn area, check that ``n`` robots fit in it.
+
+    Raises:
+        InputError: a malformed world (names ``--world``), or too many robots (names
+            ``--swarm-size`` and says how many fit).
+    """
+    try:
+        world = world_io.load_world(world_path)
+    except InputError as exc:
+        raise _prefix("--world", exc) from None
+    poi = poi_for_world(world_path)
+    if poi is not None and poi.spawn is not None:
+        spawn_poses(poi.spawn, n, load_robot(robot).radius, world_io.world_polygons(world),
+                    where=f"spawn area of {world.name}")
+
+
+def _check_map(map_path: Path) -> Path:
+    if not map_path.is_file():
+        raise InputError(f"--map: no such file '{map_path}'")
+    try:
+        load_map(map_path)
+    except InputError as exc:
+        raise _prefix("--map", exc) from None
+    return map_path.resolve()
+
+
+def _check_poi(world_path: Path) -> Path | None:
+    poi = world_path.with_suffix(".yaml")
+    if not poi.is_file():
+        return None
+    load_poi(poi)  # InputError names the file
+    return poi
+
+
+def _check_nav_template(path: Path) -> None:
+    """Load the navigator template strictly (:func:`swarm_up.rundir.check_nav_template`).
+
+    Raises:
+        InputError: not a template, or a misspelt or invalid parameter (names ``--nav-params``,
+            the file and the key).
+    """
+    try:
+        check_nav_template(path, load_nav_template(path))
+    except InputError as exc:
+        raise _prefix("--nav-params", exc) from None
+
+
+def split_groups(robots: tuple[str, ...], k: int) -> tuple[tuple[str, ...], ...]:
+    """Split robots into ``k`` contiguous groups whose sizes differ by at most one.
+
+    Args:
+        robots: namespaces.
+        k: number of groups (clamped to 1..len(robots)).
+
+    Returns:
+        The groups, in robot order.
+    """
+    k = max(1, min(k, len(robots)))
+    base, extra = divmod(len(robots), k)
+    out, i = [], 0
+    for g in range(k):
+        size = base + (1 if g < extra else 0)
+        out.append(tuple(robots[i:i + size]))
+        i += size
+    return tuple(out)
+
+
+def validate(args: argparse.Namespace) -> RunConfig:
+    """Turn parsed arguments into a :class:`RunConfig`, checking every flag and file.
+
+    Raises:
+        InputError: the first bad flag or file (the one line shown, naming it).
+    """
+    if args.coordination == "centralized":
+        raise InputError("--coordination: centralized is not implemented yet")
+    if args.record is not None:
+        raise InputError("--record: not implemented yet")
+    if args.dashboard is not None:
+        raise InputError("--dashboard: not implemented yet")
+    if args.metrics is not None:
+        parent = args.metrics.expanduser().resolve().parent
+        if not parent.is_dir():
+            raise InputError(f"--metrics: directory '{parent}' does not exist")
+        if args.metrics.is_dir():
+            raise InputError(f"--metrics: '{args.metrics}' is a directory")
+    if args.run_dir is not None and args.run_dir.exists() and not args.run_dir.is_dir():
+        raise InputError(f"--run-dir: '{args.run_dir}' exists and is not a directory")
+    nav_template = args.nav_params if args.nav_params is not None else (
+        paths.PARAMS_DIR / "navigator.yaml")
+    if args.nav_params is not None and not args.nav_params.is_file():
+        raise InputError(f"--nav-params: no such file '{args.nav_params}'")
+    if nav_template.is_file():  # the default one missing is an installation problem (exit 1)
+        _check_nav_template(nav_template)
+
+    map_path = _check_map(args.map) if args.map is not None else None
+    world_path = resolve_world(args.world)
+    if map_path is None:
+        map_path = paths.default_map_for(world_path)
+    poi_path = _check_poi(world_path)
+    robot = resolve_robot(args.robot)
+
+    n = args.swarm_size
+    _check_world_and_fit(world_path, robot, n)
+    robots = tuple(f"{args.name_prefix}{i}" for i in range(1, n + 1))
+    processes = args.processes
+    if processes is None:
+        processes = PER_ROBOT if n <= PER_ROBOT_MAX else (os.cpu_count() or 1)
+    groups = None if processes == PER_ROBOT else split_groups(robots, int(processes))
+
+    run_dir = args.run_dir if args.run_dir is not None else default_run_dir()
+    return RunConfig(
+        robots=robots,
+        name_prefix=args.name_prefix,
+        world_path=world_path,
+        world_name=world_path.stem,
+        robot=robot,
+        map_path=map_path,
+        poi_path=poi_path,
+        seed=args.seed,
+        rtf=args.rtf,
+        duration=args.duration,
+        commanders=args.commanders,
+        coordination=args.coordination,
+        metrics_path=args.metrics.expanduser().resolve() if args.metrics else None,
+        groups=groups,
+        gui=args.gui,
+        run_dir=run_dir.expanduser().resolve(),
+        ready_timeout=args.ready_timeout,
+        nav_template=nav_template,
+    )
+
+
+def default_run_dir(base: Path | None = None) -> Path:
+    """``runs/<YYYYmmdd-HHMMSS>`` (with ``-2``, ``-3`` ... if taken) under ``base`` (cwd)."""
+    base = Path("runs") if base is None else base
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    candidate, i = base / stamp, 1
+    while candidate.exists():
+        i += 1
+        candidate = base / f"{stamp}-{i}"
+    return candidate
+
+
+
+class _Collect(logging.Handler):
+    """Keeps the log records of the shared loaders while the flags are checked."""
+
+    def __init__(self):
+        super().__init__(logging.WARNING)
+        self.lines: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.lines.append(record.getMessage())
+
+
+def validate_quietly(args: argparse.Namespace) -> tuple[RunConfig, list[str]]:
+    """:func:`validate`, holding back the loaders' warnings (so bad input gives one line).
+
+    Returns:
+        The config and the warnings the loaders logged.
+    """
+    logger = logging.getLogger("swarm_common")
+    handler, propagate = _Collect(), logger.propagate
+    logger.addHandler(handler)
+    logger.propagate = False
+    try:
+        return validate(args), handler.lines
+    finally:
+        logger.removeHandler(handler)
+        logger.propagate = propagate
+

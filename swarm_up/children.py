@@ -1,0 +1,80 @@
+"""The child processes of a run, as :class:`~swarm_up.supervisor.ChildSpec`: the simulator, the
+navigators (one process per robot, or group processes, :mod:`swarm_up.group`) and the
+commanders, with their command lines and log files."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from swarm_up.args import RunConfig
+
+
+def command(script: str, module: str, func: str = "main") -> list[str]:
+    """The argv prefix that runs a console script.
+
+    Looks the script up on ``PATH``, then beside this Python (the venv's ``bin/``), else runs
+    ``module:func`` with this Python.
+    """
+    found = shutil.which(script) or shutil.which(script, path=str(Path(sys.executable).parent))
+    if found:
+        return [found]
+    return [sys.executable, "-c", f"import sys; from {module} import {func}; sys.exit({func}())"]
+
+
+def child_specs(cfg: RunConfig):
+    """The supervised processes of a run, in start order: simulator, navigators, commanders.
+
+    Returns:
+        A list of :class:`swarm_up.supervisor.ChildSpec`.
+    """
+    from swarm_up.supervisor import ChildSpec
+
+    logs = cfg.run_dir / "logs"
+    params = cfg.run_dir / "params"
+    env = dict(os.environ, PYTHONUNBUFFERED="1", RCUTILS_COLORIZED_OUTPUT="0")
+    world = str(cfg.world_path)
+    sim = command("swarm-sim", "swarm_sim.node") + [
+        "--world", world, "--robot", cfg.robot, "--swarm-size", str(len(cfg.robots)),
+        "--name-prefix", cfg.name_prefix,
+        "--seed", str(cfg.seed), "--rtf", repr(cfg.rtf),
+        # Simulated time starts when every navigator answers (SPEC §5's synchronous loop).
+        "--wait-for", str(len(cfg.robots)),
+    ]
+    if cfg.duration is not None:
+        sim += ["--duration", repr(cfg.duration)]
+    if cfg.map_path is not None:
+        sim += ["--map", str(cfg.map_path)]
+    sim += ["--summary", str(cfg.run_dir / "sim_summary.json")]
+    if cfg.gui:
+        sim.append("--gui")
+    specs = [ChildSpec("sim", tuple(sim), logs / "sim.log", kind="sim", restart=False, env=env)]
+
+    if cfg.groups is None:
+        nav = command("swarm-nav", "swarm_nav.node")
+        for ns in cfg.robots:
+            argv = nav + ["--ros-args", "-r", f"__ns:=/{ns}",
+                          "--params-file", str(params / f"{ns}.yaml")]
+            specs.append(ChildSpec(f"nav_{ns}", tuple(argv), logs / f"nav_{ns}.log",
+                                   kind="nav", robots=(ns,), env=env))
+        if cfg.commanders:
+            cmd = command("swarm-commander", "swarm_commander.cli")
+            for ns in cfg.robots:
+                argv = cmd + [ns, "--world", world, "--seed", str(cfg.seed),
+                              "--wait-timeout", repr(cfg.ready_timeout)]
+                specs.append(ChildSpec(f"cmd_{ns}", tuple(argv), logs / f"cmd_{ns}.log",
+                                       kind="cmd", robots=(ns,), env=env))
+    else:
+        for g, group in enumerate(cfg.groups, start=1):
+            argv = [sys.executable, "-m", "swarm_up.group", "--namespaces", ",".join(group),
+                    "--params-dir", str(params)]
+            if cfg.commanders:
+                argv += ["--commanders", "--world", world, "--seed", str(cfg.seed)]
+            specs.append(ChildSpec(f"group_{g}", tuple(argv), logs / f"group_{g}.log",
+                                   kind="group", robots=group, env=env))
+    return specs
+

@@ -1,0 +1,310 @@
+"""The run loop of ``swarm-up``: start the children, supervise them, show progress, stop, report.
+
+Order of work (:func:`run`): read the navigator template → create the run directory
+(``RUN/logs``, ``RUN/params``) → write one navigator params file per robot → start the metrics
+node (in this process) → start the simulator, the navigators (one process per robot or ``K``
+groups) and, with ``--commanders``, the commanders → show progress until every navigator is
+ready → supervise (restart crashed navigators/commanders within 2 s) until the simulator ends
+(``--duration``) or Ctrl-C → stop everything within 5 s → remove stale Fast DDS shared-memory
+files → write ``--metrics`` (and ``RUN/metrics.json``) and print a summary table.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import signal
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from swarm_common.errors import EXIT_BAD_INPUT, EXIT_OK, EXIT_RUNTIME
+from swarm_up import PROG
+from swarm_up.args import PER_ROBOT, RunConfig
+from swarm_up.children import child_specs
+from swarm_up.output import ProgressView, print_summary, say, warn
+from swarm_up.rundir import RunError, load_nav_template, prepare_map, write_params_files
+
+POLL_PERIOD_S = 0.1  # supervision poll [s] (10 Hz; restarts within 2 s need >= 5 Hz)
+SPAWNED_RE = re.compile(r"spawned\s+(\d+)\s+robots?", re.IGNORECASE)
+
+
+class _StopFlag:
+    """Set by SIGINT/SIGTERM; the main loop polls it."""
+
+    def __init__(self):
+        self.signum: int | None = None
+
+    def __call__(self, signum, _frame):
+        if self.signum is None:
+            self.signum = signum
+
+
+class _LogTail:
+    """Reads what a growing log file gained since the last call."""
+
+    def __init__(self, path: Path):
+        self.path = path
+        self._pos = 0
+        self._partial = ""
+
+    def lines(self) -> list[str]:
+        try:
+            with open(self.path, encoding="utf-8", errors="replace") as fh:
+                fh.seek(self._pos)
+                chunk = fh.read()
+                self._pos = fh.tell()
+        except OSError:
+            return []
+        text = self._partial + chunk
+        *done, self._partial = text.split("\n")
+        return done
+
+
+def _last_line(path: Path) -> str:
+    try:
+        lines = [ln.strip() for ln in path.read_text(errors="replace").splitlines() if ln.strip()]
+    except OSError:
+        return ""
+    return lines[-1] if lines else ""
+
+
+@dataclass
+class Outcome:
+    """How a run ended: exit code, the error line (if any) and a short reason for the metrics."""
+
+    code: int = EXIT_OK
+    error: str = ""
+    ended_by: str = "interrupted"
+
+
+class Orchestrator:
+    """One run: starts the children, watches them, and reports (see :func:`run`).
+
+    Args:
+        cfg: the validated run (params files already written).
+    """
+
+    def __init__(self, cfg: RunConfig):
+        from swarm_up.metrics import MetricsListener
+        from swarm_up.supervisor import ResourceSampler, Supervisor
+
+        self.cfg = cfg
+        self.logs = cfg.run_dir / "logs"
+        self.specs = child_specs(cfg)
+        self.n = len(cfg.robots)
+        self.t0 = time.monotonic()
+        self.listener = MetricsListener(cfg.robots, self.t0)
+        self.sup = Supervisor(on_restart=self._on_restart)
+        self.sampler = ResourceSampler(self.sup, robots=self.n)
+        self.view = ProgressView(self.n, tty=sys.stdout.isatty())
+        self.all_ready = False
+        self._last_report = time.monotonic()
+        self._report_mark: tuple[float, float] | None = None  # (wall, sim) of the last line
+        self._sim_tail = _LogTail(self.logs / "sim.log")
+        self._spawned_from_log = 0
+        self._navigators = {s.name for s in self.specs if s.kind in ("nav", "group")}
+        self._dead: dict[str, int] = {}  # exited, not to be restarted -> exit code
+
+    def _log_of(self, name: str) -> Path:
+        return self.logs / f"{name}.log"
+
+    def _on_restart(self, ev) -> None:
+        warn(f"{ev.name} exited with code {ev.code}; restarted "
+              f"(restart {self.sup.children[ev.name].restarts}); logs: {self._log_of(ev.name)}")
+
+    def start(self) -> None:
+        """Start the metrics node, then the simulator, navigators and commanders, in order.
+
+        Raises:
+            RunError: a command could not be started.
+        """
+        self.listener.start()
+        for spec in self.specs:
+            try:
+                self.sup.start(spec)
+            except OSError as exc:
+                raise RunError(f"cannot start {spec.argv[0]}: {exc.strerror}") from None
+
+    def step(self) -> Outcome | None:
+        """One supervision cycle (restarts, progress, readiness); an :class:`Outcome` at the end.
+
+        Returns:
+            None while the run goes on.
+        """
+        sim_code = None
+        for ev in self.sup.poll():
+            if ev.name == "sim":
+                sim_code = ev.code
+                continue
+            if not ev.restarted:
+                self._dead[ev.name] = ev.code
+                what = "keeps crashing, last exit code" if ev.gave_up else "exited with code"
+                warn(f"{ev.name} {what} {ev.code}; not restarted; logs: {self._log_of(ev.name)}")
+        if sim_code is not None:
+            return self._sim_ended(sim_code)
+        if not self.all_ready:
+            return self._progress()
+        self.sampler.maybe_sample()
+        self._report_progress()
+        return None
+
+    def _report_progress(self, every_s: float = 10.0) -> None:
+        """One line every ``every_s`` wall seconds: simulated time, RTF, goals, collisions."""
+        now = time.monotonic()
+        if now - self._last_report < every_s:
+            return
+        with self.listener.lock:
+            rec = self.listener.recorder
+            sim_s = rec.last_sim_time_s
+            reached, aborted = rec.goal_totals()
+            hits = sum(rec.collision_events.values())
+        if sim_s is None:
+            return
+        if self._report_mark is not None:
+            wall0, sim0 = self._report_mark
+            rtf = (sim_s - sim0) / max(now - wall0, 1e-9)
+            of = "" if self.cfg.duration is None else f" / {self.cfg.duration:g}"
+            say(f"t = {sim_s:.0f}{of} s simulated, RTF {rtf:.2f}, goals reached {reached}, "
+                 f"aborted {aborted}, collisions {hits}")
+        self._report_mark = (now, sim_s)
+        self._last_report = now
+
+    def _sim_ended(self, code: int) -> Outcome:
+        sim_log = self._log_of("sim")
+        if code == 0:
+            return Outcome(ended_by="duration")
+        if code == EXIT_BAD_INPUT:
+            line = re.sub(r"^swarm-sim: (error: )?", "", _last_line(sim_log))
+            return Outcome(EXIT_BAD_INPUT, f"{line} (logs: {sim_log})",
+                           "simulator rejected its input")
+        return Outcome(EXIT_RUNTIME, f"simulator exited with code {code}; logs: {sim_log}",
+                       "simulator crashed")
+
+    def _progress(self) -> Outcome | None:
+        for line in self._sim_tail.lines():
+            m = SPAWNED_RE.search(line)
+            if m:
+                self._spawned_from_log = max(self._spawned_from_log, int(m.group(1)))
+        spawned, ready = self.listener.snapshot()
+        self.view.update(min(self.n, max(spawned, self._spawned_from_log)), ready)
+        self.sampler.maybe_sample()
+        elapsed = time.monotonic() - self.t0
+        if ready >= self.n:
+            self.all_ready = True
+            self.view.close()
+            say(f"all {self.n} navigators ready in {elapsed:.1f} s; "
+                 + ("running until Ctrl-C" if self.cfg.duration is None else
+                    f"running {self.cfg.duration:g} simulated s (Ctrl-C stops)"))
+            return None
+        if self._navigators and self._navigators <= self._dead.keys():
+            first = sorted(self._navigators)[0]
+            return Outcome(EXIT_RUNTIME, f"every navigator process exited ({first}: code "
+                           f"{self._dead[first]}); logs: {self.logs}", "navigators failed")
+        if elapsed > self.cfg.ready_timeout:
+            with self.listener.lock:
+                missing = self.listener.recorder.not_ready()
+            shown = ", ".join(missing[:5]) + (" ..." if len(missing) > 5 else "")
+            return Outcome(EXIT_RUNTIME, f"{len(missing)} of {self.n} navigators not ready after "
+                           f"{self.cfg.ready_timeout:g} s ({shown}); logs: {self.logs}",
+                           "ready timeout")
+        return None
+
+    def shutdown(self, ended_by: str) -> float:
+        """Stop every child (within 5 s) and the metrics node.
+
+        Returns:
+            The run's wall time, start to the children's end [s].
+        """
+        self.view.close()
+        if self.sup.children:
+            say(f"stopping ({ended_by}) ...")
+        self.sampler.maybe_sample(force=True)
+        self.sup.stop()
+        wall = time.monotonic() - self.t0
+        self.listener.stop()
+        return wall
+
+    def report(self, outcome: Outcome, wall_s: float) -> dict:
+        """Merge the simulator's summary, write the metrics files, print the summary table."""
+        from swarm_up.aggregate import aggregate, load_sim_summary
+
+        cfg = self.cfg
+        summary, warnings = load_sim_summary(cfg.run_dir / "sim_summary.json")
+        if outcome.code == EXIT_OK:
+            for w in warnings:
+                warn(w)
+        with self.listener.lock:
+            metrics = aggregate(
+                self.listener.recorder, summary, world=cfg.world_name, seed=cfg.seed,
+                coordination=cfg.coordination, wall_time_s=wall_s,
+                resources=self.sampler.result(), restarts=self.sup.restarts,
+                extra={"ended_by": outcome.ended_by, "run_dir": str(cfg.run_dir),
+                       "processes": PER_ROBOT if cfg.groups is None else len(cfg.groups),
+                       "commanders": cfg.commanders, "rtf_requested": cfg.rtf},
+            )
+        files = [cfg.run_dir / "metrics.json"]
+        if cfg.metrics_path:
+            files.append(cfg.metrics_path)
+        for path in files:
+            path.write_text(json.dumps(metrics, indent=2) + "\n")
+        if outcome.code == EXIT_OK or self.all_ready:
+            print_summary(metrics, files)
+        return metrics
+
+
+def run(cfg: RunConfig) -> int:
+    """Run the swarm described by ``cfg`` until it ends.
+
+    Returns:
+        The exit code: 0 (ended by ``--duration`` or Ctrl-C), 1 (runtime failure), 2 (the
+        simulator rejected its input).
+
+    Raises:
+        RunError: the navigator template is missing.
+        InputError: the navigator template or the world is malformed.
+    """
+    from swarm_up import shm
+
+    template = load_nav_template(cfg.nav_template)
+    (cfg.run_dir / "logs").mkdir(parents=True, exist_ok=True)
+    (cfg.run_dir / "params").mkdir(parents=True, exist_ok=True)
+    cfg = prepare_map(cfg)
+    write_params_files(cfg, template)
+    layout = (f"{PER_ROBOT} processes" if cfg.groups is None
+              else f"{len(cfg.groups)} group processes")
+    say(f"{len(cfg.robots)} robots in {cfg.world_name}, seed {cfg.seed}, rtf {cfg.rtf:g}, "
+         f"{layout}; logs in {cfg.run_dir / 'logs'}")
+
+    shm_before = shm.snapshot()
+    orch = Orchestrator(cfg)
+    stop = _StopFlag()
+    old_handlers = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
+    outcome = None
+    try:
+        orch.start()
+        while True:
+            if stop.signum is not None:
+                outcome = Outcome(ended_by="interrupted")
+                break
+            outcome = orch.step()
+            if outcome is not None:
+                break
+            time.sleep(POLL_PERIOD_S)
+    except RunError as exc:
+        outcome = Outcome(EXIT_RUNTIME, str(exc), "failed to start")
+    finally:
+        wall_s = orch.shutdown(outcome.ended_by if outcome else "error")
+        # Our metrics node still maps the segments of peers that died; that use does not count.
+        removed = shm.clean_stale(shm_before, ignore_pids=frozenset({os.getpid()}))
+        for sig, handler in old_handlers.items():
+            signal.signal(sig, handler)
+    if removed:
+        say(f"removed {len(removed)} stale shared-memory files from /dev/shm")
+    orch.report(outcome, wall_s)
+    if outcome.error:
+        print(f"{PROG}: error: {outcome.error}", file=sys.stderr, flush=True)
+    return outcome.code
+

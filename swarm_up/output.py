@@ -1,0 +1,124 @@
+"""What ``swarm-up`` shows on the terminal: status lines, the spawn/readiness progress and the
+summary table of the run's figures."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from swarm_up import PROG
+
+
+def say(text: str) -> None:
+    """One status line on stdout, ``swarm-up: <text>``."""
+    print(f"{PROG}: {text}", flush=True)
+
+
+def warn(text: str) -> None:
+    """One warning line on stderr, ``swarm-up: warning: <text>``."""
+    print(f"{PROG}: warning: {text}", file=sys.stderr, flush=True)
+
+
+class ProgressView:
+    """Spawn and readiness progress: a rich progress bar on a terminal, else plain lines.
+
+    Args:
+        total: number of robots.
+        tty: draw bars (True) or print a line on every change (False).
+    """
+
+    def __init__(self, total: int, tty: bool):
+        self.total = total
+        self._last = (-1, -1)
+        self._progress = None
+        if tty:
+            from rich.progress import (
+                BarColumn,
+                MofNCompleteColumn,
+                Progress,
+                TextColumn,
+                TimeElapsedColumn,
+            )
+
+            self._progress = Progress(
+                TextColumn("{task.description:<18}"), BarColumn(), MofNCompleteColumn(),
+                TimeElapsedColumn(), transient=False,
+            )
+            self._spawn = self._progress.add_task("robots spawned", total=total)
+            self._ready = self._progress.add_task("navigators ready", total=total)
+            self._progress.start()
+
+    def update(self, spawned: int, ready: int) -> None:
+        """Show ``spawned``/``ready`` of ``total`` (spawned is at least ready)."""
+        spawned = max(spawned, ready)
+        if (spawned, ready) == self._last:
+            return
+        if self._progress is not None:
+            self._progress.update(self._spawn, completed=spawned)
+            self._progress.update(self._ready, completed=ready)
+        else:
+            if spawned != self._last[0]:
+                print(f"robots spawned: {spawned}/{self.total}", flush=True)
+            if ready != self._last[1]:
+                print(f"navigators ready: {ready}/{self.total}", flush=True)
+        self._last = (spawned, ready)
+
+    def close(self) -> None:
+        """Stop drawing (idempotent)."""
+        if self._progress is not None:
+            self._progress.stop()
+            self._progress = None
+
+
+def _fmt(value, unit: str = "", digits: int = 2) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, float):
+        text = f"{value:.{digits}f}"
+    else:
+        text = str(value)
+    return f"{text} {unit}".rstrip()
+
+
+def print_summary(metrics: dict, metrics_files: list[Path]) -> None:
+    """Print the run's figures as a table (rich; plain text when not a terminal)."""
+    from rich.console import Console
+    from rich.table import Table
+
+    col = metrics.get("collisions") or {}
+    rows = [
+        ("robots", _fmt(metrics.get("robots"))),
+        ("world / seed", f"{metrics.get('world')} / {metrics.get('seed')}"),
+        ("coordination", _fmt(metrics.get("coordination"))),
+        ("simulated time", _fmt(metrics.get("sim_time_s"), "s", 1)),
+        ("wall time", _fmt(metrics.get("wall_time_s"), "s", 1)),
+        ("real-time factor", _fmt(metrics.get("rtf"))),
+        ("robot-ticks per wall second", _fmt(metrics.get("robot_ticks_per_s"), "", 0)),
+        ("spawn to all ready", _fmt(metrics.get("spawn_to_ready_s"), "s")),
+        ("tasks completed", _fmt(metrics.get("tasks_completed"))),
+        ("throughput", _fmt(metrics.get("throughput_per_hour"), "tasks/h", 1)),
+        ("goals reached / aborted",
+         f"{_fmt(metrics.get('goals_reached'))} / {_fmt(metrics.get('goals_aborted'))}"),
+        ("collisions robot-robot / wall",
+         f"{_fmt(col.get('robot_robot'))} / {_fmt(col.get('robot_wall'))}"),
+        ("min separation", _fmt(metrics.get("min_separation_m"), "m")),
+        ("mean time to goal", _fmt(metrics.get("mean_time_to_goal_s"), "s", 1)),
+        ("time holding", _fmt(metrics.get("holding_time_s"), "s", 1)),
+        ("late ticks", _fmt(metrics.get("late_ticks"))),
+        ("goal-wait timeouts", _fmt(metrics.get("goal_wait_timeouts"))),
+        ("reproducible (seed alone decides)", {True: "yes", False: "no", None: "unknown"}.get(
+            metrics.get("reproducible"), "unknown")),
+        ("CPU (100 % = one core)", _fmt(metrics.get("cpu_percent"), "%", 0)),
+        ("peak RSS per robot", _fmt(metrics.get("peak_rss_mb_per_robot"), "MB", 1)),
+        ("restarts", _fmt(metrics.get("restarts"))),
+    ]
+    table = Table(title="swarm-up summary", show_header=False)
+    table.add_column("figure")
+    table.add_column("value", justify="right")
+    for name, value in rows:
+        table.add_row(name, value)
+    console = Console()
+    console.print(table)
+    for path in metrics_files:
+        print(f"metrics: {path}", flush=True)
+

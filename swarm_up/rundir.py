@@ -1,0 +1,141 @@
+"""The run directory: ``RUN/logs``, ``RUN/params/<ns>.yaml`` (one navigator params file per
+robot, from the template) and, when the world has no map, ``RUN/map.yaml`` rasterised from it."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import yaml
+
+from swarm_common.errors import InputError
+from swarm_common.map_io import save_map
+from swarm_common.rasterize import rasterize_world
+from swarm_common.world import load_world
+
+if TYPE_CHECKING:
+    from swarm_up.args import RunConfig
+
+# [s] wall: the navigators' goal_wait_timeout with --commanders; below the simulator's
+# command_timeout (3 s), so a commander slower than this is a goal-wait timeout, not a late tick.
+COMMANDER_GOAL_WAIT_S = 2.5
+
+
+# Template keys that are not navigator algorithm parameters (swarm_nav.config): ROS's own
+# use_sim_time and the node's context parameters (swarm_nav.node), which swarm-up sets per robot
+# in navigator_params.  tests/swarm_up/test_validate.py holds this list to the node's.
+CONTEXT_KEYS = frozenset({"use_sim_time", "robot", "poi_file", "map_yaml_path", "robot_name",
+                          "wait_for_commander", "goal_wait_timeout"})
+
+
+class RunError(Exception):
+    """A runtime failure (exit 1); the message is the one line shown, naming the logs."""
+
+
+def load_nav_template(path: Path) -> dict:
+    """The ``ros__parameters`` of the navigator template (``navigator: ros__parameters: ...``).
+
+    Raises:
+        RunError: the default template is missing (an installation problem).
+        InputError: the file is not such a template (names the file).
+    """
+    if not path.is_file():
+        raise RunError(f"{path}: navigator parameter template missing")
+    try:
+        data = yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError) as exc:
+        raise InputError(f"{path}: not readable YAML ({exc})".splitlines()[0]) from None
+    if not isinstance(data, dict) or len(data) != 1:
+        raise InputError(f"{path}: expected one top-level key 'navigator'")
+    (root, body), = data.items()
+    if root not in ("navigator", "/navigator", "/**", "**"):
+        raise InputError(f"{path}: top-level key must be 'navigator', got {root!r}")
+    if not isinstance(body, dict) or not isinstance(body.get("ros__parameters", {}), dict):
+        raise InputError(f"{path}: expected 'navigator: ros__parameters: {{...}}'")
+    return dict(body.get("ros__parameters") or {})
+
+
+def check_nav_template(path: Path, params: dict) -> None:
+    """Check a template's parameters with the navigator's own strict loader.
+
+    Every key but :data:`CONTEXT_KEYS` goes through
+    :meth:`swarm_nav.config.NavigatorConfig.from_flat`, as the node's parameters do: an unknown
+    key is an error with a did-you-mean, a value of the wrong type or out of range too.
+
+    Args:
+        path: the template file, for the message.
+        params: its ``ros__parameters`` (:func:`load_nav_template`).
+
+    Raises:
+        InputError: ``"<path>: <key>: unknown navigator parameter (did you mean '...'?)"`` and
+            the like.
+    """
+    from swarm_nav.config import NavigatorConfig
+
+    try:
+        NavigatorConfig.from_flat({k: v for k, v in params.items() if k not in CONTEXT_KEYS})
+    except InputError as exc:
+        raise InputError(f"{path}: {exc}") from None
+
+
+def navigator_params(template: dict, ns: str, index: int, cfg: RunConfig) -> dict:
+    """One robot's params file content, rooted at ``/<ns>/navigator``.
+
+    Args:
+        template: the template's ``ros__parameters``.
+        ns: namespace without ``/``.
+        index: the robot's number i (1..N).
+        cfg: the run.
+
+    Returns:
+        ``{"/<ns>/navigator": {"ros__parameters": {...template, use_sim_time, robot_name,
+        robot_index, poi_file, map_yaml_path (""), robot}}}`` (paths absolute, "" if none).
+    """
+    params = dict(template)
+    params.update(
+        use_sim_time=True,
+        robot_name=ns,
+        robot_index=index,
+        poi_file=str(cfg.poi_path) if cfg.poi_path else "",
+        # The map is distributed centrally on /map, as in the thesis; a navigator that should
+        # read a file of its own gets map_yaml_path set by hand.
+        map_yaml_path="",
+        robot=cfg.robot,
+        # With commanders, simulated time starts once each robot's commander is connected, and
+        # each goal takes effect at a fixed tick: the same seed gives the same run.
+        wait_for_commander=bool(cfg.commanders),
+        # Our commanders answer every ended goal at once; a loaded machine may delay that answer
+        # by seconds of wall time, and a wait that times out would make the run irreproducible.
+        goal_wait_timeout=COMMANDER_GOAL_WAIT_S if cfg.commanders else 0.5,
+    )
+    return {f"/{ns}/navigator": {"ros__parameters": params}}
+
+
+def write_params_files(cfg: RunConfig, template: dict) -> list[Path]:
+    """Write ``RUN/params/<ns>.yaml`` for every robot.
+
+    Returns:
+        The files, in robot order.
+    """
+    out_dir = cfg.run_dir / "params"
+    out_dir.mkdir(parents=True, exist_ok=True)
+    files = []
+    for i, ns in enumerate(cfg.robots, start=1):
+        path = out_dir / f"{ns}.yaml"
+        path.write_text(yaml.safe_dump(navigator_params(template, ns, i, cfg), sort_keys=False))
+        files.append(path)
+    return files
+
+
+def prepare_map(cfg: RunConfig) -> RunConfig:
+    """If there is no map, rasterise the world into ``RUN/map.yaml``.
+
+    Returns:
+        ``cfg`` with ``map_path`` set (unchanged when it had one).
+    """
+    if cfg.map_path is not None:
+        return cfg
+    yaml_path, _ = save_map(rasterize_world(load_world(cfg.world_path)), cfg.run_dir / "map")
+    return replace(cfg, map_path=Path(yaml_path).resolve())
+

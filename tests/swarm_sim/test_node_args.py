@@ -1,0 +1,49 @@
+"""``swarm-sim``'s flags: the shared parser and the one ROS-name rule of ``swarm-up``."""
+
+import subprocess
+import sys
+
+import pytest
+
+from swarm_common.errors import InputError
+from swarm_sim.node import parse_settings
+
+
+def test_defaults_are_typed():
+    s = parse_settings([])
+    assert (s.swarm_size, s.name_prefix, s.seed, s.rtf, s.duration) == (5, "Srobot", 0, 1.0, None)
+    assert (s.control_rate, s.command_timeout, s.wait_for) == (10.0, 3.0, 0)
+    assert type(s.swarm_size) is int and type(s.rtf) is float
+
+
+# swarm-up has always refused these; the simulator used to take "_x" and non-ASCII letters.
+@pytest.mark.parametrize("prefix", ["_x", "Sröbot", "робот", "3robot", "my-robot", "a__b"])
+def test_simulator_rejects_what_swarm_up_rejects(prefix):
+    from swarm_up.args import build_parser
+
+    with pytest.raises(InputError, match="^--name-prefix: must be a ROS name"):
+        build_parser().parse_args(["--name-prefix", prefix])
+    with pytest.raises(InputError, match="^--name-prefix: must be a ROS name"):
+        parse_settings(["--name-prefix", prefix])
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["--swarm-size", "0"], "--swarm-size: must be a positive integer, got '0'"),
+    (["--rtf", "nan"], "--rtf: must be a number >= 0, got 'nan'"),
+    (["--duration", "0"], "--duration: must be a positive number, got '0'"),
+    (["--wait-for", "-1"], "--wait-for: must be an integer >= 0, got '-1'"),
+    (["--control-rate", "fast"], "--control-rate: must be a positive number, got 'fast'"),
+])
+def test_bad_numbers(args, message):
+    with pytest.raises(InputError) as err:
+        parse_settings(args)
+    assert str(err.value) == message
+
+
+def test_bad_prefix_exits_2_with_one_line_as_a_process():
+    res = subprocess.run([sys.executable, "-m", "swarm_sim.node", "--name-prefix", "_x"],
+                         capture_output=True, text=True, timeout=60)
+    assert res.returncode == 2
+    assert res.stderr.splitlines() == [
+        "swarm-sim: error: --name-prefix: must be a ROS name (letters, digits and '_', starting "
+        "with a letter, no '__'), got '_x'"]

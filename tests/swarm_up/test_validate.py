@@ -1,0 +1,71 @@
+"""``swarm-up``'s validation in process: default map and the navigator template's strict check."""
+
+import shutil
+
+import pytest
+import yaml
+
+from swarm_common import paths
+from swarm_common.errors import InputError
+from swarm_up.args import build_parser, validate
+from swarm_up.rundir import CONTEXT_KEYS, check_nav_template, load_nav_template
+
+
+def _validate(tmp_path, *args):
+    return validate(build_parser().parse_args([*args, "--run-dir", str(tmp_path / "run")]))
+
+
+def test_bundled_world_takes_its_bundled_map(tmp_path):
+    cfg = _validate(tmp_path, "--world", "slim_blockage", "--swarm-size", "2")
+    assert cfg.map_path == paths.MAPS_DIR / "slim_blockage.yaml"
+
+
+def test_world_by_path_is_rasterised_not_given_the_bundled_map_of_its_name(tmp_path):
+    """A user's edited copy of slim_blockage must not be driven on the original's map."""
+    for suffix in (".world", ".yaml"):
+        name = f"slim_blockage{suffix}"
+        shutil.copy(paths.WORLDS_DIR / name, tmp_path / name)
+    cfg = _validate(tmp_path, "--world", str(tmp_path / "slim_blockage.world"),
+                    "--swarm-size", "2")
+    assert cfg.world_path == tmp_path / "slim_blockage.world"
+    assert cfg.map_path is None  # prepare_map rasterises RUN/map.yaml from the world itself
+    assert not (tmp_path / "run").exists()
+
+
+def _template(tmp_path, params: dict):
+    path = tmp_path / "navigator.yaml"
+    path.write_text(yaml.safe_dump({"navigator": {"ros__parameters": params}}))
+    return path
+
+
+def test_the_bundled_template_passes(tmp_path):
+    path = paths.PARAMS_DIR / "navigator.yaml"
+    check_nav_template(path, load_nav_template(path))
+
+
+def test_context_keys_pass_and_misspelt_keys_do_not(tmp_path):
+    params = {"use_sim_time": True, "robot": "turtlebot3_burger", "inflation_radius": 0.6}
+    path = _template(tmp_path, params)
+    check_nav_template(path, load_nav_template(path))
+    path = _template(tmp_path, {**params, "inflation_raduis": 0.6})
+    with pytest.raises(InputError) as err:
+        check_nav_template(path, load_nav_template(path))
+    assert str(err.value) == (f"{path}: inflation_raduis: unknown navigator parameter "
+                              "(did you mean 'inflation_radius'?)")
+
+
+def test_nav_params_misspelt_key_names_flag_file_and_key(tmp_path):
+    path = _template(tmp_path, {"max_vel_x": 0.26, "max_vle_theta": 1.0})
+    with pytest.raises(InputError) as err:
+        _validate(tmp_path, "--nav-params", str(path))
+    assert str(err.value) == (f"--nav-params: {path}: max_vle_theta: unknown navigator "
+                              "parameter (did you mean 'max_vel_theta'?)")
+    path = _template(tmp_path, {"max_vel_x": -0.1})
+    with pytest.raises(InputError, match=r"^--nav-params: .*navigator.yaml: max_vel_x: must be"):
+        _validate(tmp_path, "--nav-params", str(path))
+
+
+def test_context_keys_are_the_nodes():
+    from swarm_nav.node import _CONTEXT_PARAMS
+
+    assert CONTEXT_KEYS == {*_CONTEXT_PARAMS, "use_sim_time"}
