@@ -15,14 +15,12 @@ from __future__ import annotations
 import argparse
 import array
 import contextlib
-import json
 import logging
 import math
 import signal
 import sys
 import time
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import rclpy
@@ -422,9 +420,6 @@ class SimulatorNode(Node):
             per_robot=per_robot,
         )
 
-    def summary(self, wall_s: float) -> dict:
-        """:meth:`summary_record` as the JSON object the file holds (``SimSummary.to_dict``)."""
-        return self.summary_record(wall_s).to_dict()
 
 
 # -- command line ------------------------------------------------------------------------------
@@ -590,13 +585,13 @@ def main(args=None) -> int:
             pass
         finally:
             wall_s = time.monotonic() - wall0
-            summary = node.summary(wall_s)
+            summary = node.summary_record(wall_s)
             if settings.summary:
-                Path(settings.summary).write_text(json.dumps(summary, indent=2) + "\n")
-            c = summary["collisions"]
-            print(f"simulated {summary['sim_time_s']:.1f} s in {wall_s:.1f} s wall "
-                  f"(RTF {summary['rtf']}), collisions robot-robot {c['robot_robot']} "
-                  f"robot-wall {c['robot_wall']}, late ticks {summary['late_ticks']}",
+                summary.write(settings.summary)
+            c = summary.collisions
+            print(f"simulated {summary.sim_time_s:.1f} s in {wall_s:.1f} s wall "
+                  f"(RTF {summary.rtf}), collisions robot-robot {c.robot_robot} "
+                  f"robot-wall {c.robot_wall}, late ticks {summary.late_ticks}",
                   flush=True)
             executor.shutdown()
             node.destroy_node()
