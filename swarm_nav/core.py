@@ -177,7 +177,6 @@ class NavigatorCore:
         self._centres = np.zeros((0, 2))
         self._history: list[tuple[float, np.ndarray]] = []
         self._scan_time = -math.inf
-        self._last_cmd = (0.0, 0.0)
 
     # ------------------------------------------------------------------ inputs
     def set_map(self, occ: OccupancyMap) -> None:
@@ -730,5 +729,4 @@ class NavigatorCore:
         return float(np.hypot(*(self._goal[:2] - self._pose[:2])))
 
     def _out(self, v: float, w: float) -> tuple[float, float]:
-        self._last_cmd = (float(v), float(w))
-        return self._last_cmd
+        return float(v), float(w)
