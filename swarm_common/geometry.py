@@ -6,6 +6,11 @@
 - ``Points2D``: ``numpy.ndarray`` of shape (M, 2), ``x, y [m]``.
 
 Flat vectors, never (3, 1) columns.  Shapes are checked at public entry points only.
+
+Also the rotation and outline maths that the world and robot loaders share: rotation matrices of
+fixed-axis roll, pitch, yaw (SDF's and URDF's ``rpy``: R = Rz(yaw) Ry(pitch) Rx(roll)) and of
+quaternions, (4, 4) homogeneous transforms of 6-DoF poses, and the 2D convex hull (Andrew's
+monotone chain). Tests: tests/swarm_common/test_geometry.py.
 """
 
 from __future__ import annotations
@@ -47,3 +52,105 @@ def transform_points(pose: Pose2D, points: Points2D) -> Points2D:
     return np.column_stack(
         (pose[0] + c * pts[:, 0] - s * pts[:, 1], pose[1] + s * pts[:, 0] + c * pts[:, 1])
     )
+
+
+def rpy_to_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """Rotation matrix (3, 3) of fixed-axis roll, pitch, yaw [rad]: Rz(yaw) Ry(pitch) Rx(roll).
+
+    This is SDF's (and URDF's) ``rpy`` convention.
+    """
+    cr, sr = math.cos(roll), math.sin(roll)
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    return np.array([
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ])
+
+
+def matrix_to_rpy(rot: np.ndarray) -> tuple[float, float, float]:
+    """Fixed-axis roll, pitch, yaw [rad] of a (3, 3) rotation matrix (inverse of rpy_to_matrix).
+
+    At gimbal lock (pitch = ±pi/2) roll is set to 0 and the rotation is put into yaw.
+    """
+    pitch = math.asin(max(-1.0, min(1.0, -rot[2, 0])))
+    if abs(rot[2, 0]) < 1.0 - 1e-12:
+        roll = math.atan2(rot[2, 1], rot[2, 2])
+        yaw = math.atan2(rot[1, 0], rot[0, 0])
+    else:
+        roll = 0.0
+        yaw = math.atan2(-rot[0, 1], rot[1, 1])
+    return roll, pitch, yaw
+
+
+def pose_to_matrix(pose) -> np.ndarray:
+    """Homogeneous (4, 4) transform of a (6,) pose x, y, z [m], roll, pitch, yaw [rad]."""
+    x, y, z, roll, pitch, yaw = (float(v) for v in pose)
+    tf = np.eye(4)
+    tf[:3, :3] = rpy_to_matrix(roll, pitch, yaw)
+    tf[:3, 3] = (x, y, z)
+    return tf
+
+
+def matrix_to_pose(tf: np.ndarray) -> np.ndarray:
+    """The (6,) pose x, y, z [m], roll, pitch, yaw [rad] of a homogeneous (4, 4) transform."""
+    return np.array([*tf[:3, 3], *matrix_to_rpy(tf[:3, :3])], dtype=float) + 0.0  # no -0.0
+
+
+def quaternion_to_matrix(qx: float, qy: float, qz: float, qw: float) -> np.ndarray:
+    """Rotation matrix (3, 3) of a quaternion ``(x, y, z, w)`` (normalised; zero: identity)."""
+    n = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw) or 1.0
+    x, y, z, w = qx / n, qy / n, qz / n, qw / n
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+def convex_hull_2d(points: np.ndarray) -> np.ndarray | None:
+    """Counter-clockwise convex hull of 2D points (Andrew's monotone chain).
+
+    Args:
+        points: (P, 2) x, y [m]; coordinates are rounded to 1e-12 m first (so that copies of a
+            point that differ by rounding noise are one).
+
+    Returns:
+        (K, 2) the hull's vertices x, y [m], counter-clockwise, without collinear vertices,
+        starting at the lowest x (then lowest y); ``None`` when it has no area (fewer than three
+        distinct points, all on a line, or an area of at most 1e-12 m^2). More than 2000
+        distinct points are handed to Qhull (``scipy.spatial.ConvexHull``: same vertices,
+        counter-clockwise, but starting where Qhull starts).
+    """
+    pts = np.unique(np.round(np.asarray(points, dtype=float), 12), axis=0)
+    if len(pts) < 3:
+        return None
+    pts = pts[np.lexsort((pts[:, 1], pts[:, 0]))]
+
+    def half(seq):
+        chain: list[np.ndarray] = []
+        for p in seq:
+            while len(chain) >= 2:
+                a, b = chain[-2], chain[-1]
+                if (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0]) > 1e-15:
+                    break
+                chain.pop()
+            chain.append(p)
+        return chain
+
+    if len(pts) > 2000:  # big meshes: let Qhull do it
+        from scipy.spatial import ConvexHull, QhullError
+
+        try:
+            hull = ConvexHull(pts)
+        except QhullError:
+            return None
+        return pts[hull.vertices]
+    lower, upper = half(pts), half(pts[::-1])
+    hull = np.array(lower[:-1] + upper[:-1])
+    if len(hull) < 3:
+        return None
+    x, y = hull[:, 0], hull[:, 1]
+    area = 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+    return hull if area > 1e-12 else None

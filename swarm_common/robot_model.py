@@ -38,6 +38,7 @@ import numpy as np
 import yaml
 
 from swarm_common.errors import InputError, did_you_mean
+from swarm_common.geometry import convex_hull_2d, pose_to_matrix
 from swarm_common.paths import ROBOT_PARAMS_DIR, ROBOTS_DIR, ROOT
 
 _log = logging.getLogger(__name__)
@@ -205,7 +206,8 @@ def resolve_robot(name_or_path: str | Path) -> Path:
 
 
 def load_robot(
-    name_or_path: str | Path, *, xacro_args: Mapping[str, str] | None = None
+    name_or_path: str | Path, *, xacro_args: Mapping[str, str] | None = None,
+    need_meshes: bool = False,
 ) -> RobotModel:
     """Load a robot model from its URDF/xacro and its limits file.
 
@@ -218,6 +220,10 @@ def load_robot(
             ``.urdf.xacro`` file (see :func:`resolve_robot`).
         xacro_args: ``xacro:arg`` values, e.g. ``{"prefix": "Srobot1/"}``; unset args take their
             defaults.
+        need_meshes: whether the caller would draw the robot's meshes (a GUI). Mesh files that
+            cannot be found (the bundled robots name ``package://turtlebot3_description``
+            meshes, absent without that ROS package) are said once per file: as a warning when
+            they are needed, else at debug level (the model itself never needs them).
 
     Returns:
         The robot model.  Limits come from ``params/robots/<name>.yaml``; for a robot given by
@@ -232,14 +238,18 @@ def load_robot(
     source = resolve_robot(name_or_path)
     limits_path = _limits_path(source, by_name=source.parent == ROBOTS_DIR.resolve())
     args = tuple(sorted((str(k), str(v)) for k, v in (xacro_args or {}).items()))
-    return _load_cached(
+    model, missing = _load_cached(
         source, _mtime(source), args, limits_path, _mtime(limits_path) if limits_path else 0
     )
+    if missing:
+        _say_missing_meshes(source, missing, need_meshes)
+    return model
 
 
 def clear_robot_cache() -> None:
     """Forget the robots :func:`load_robot` has cached (e.g. after editing a file in a test)."""
     _load_cached.cache_clear()
+    _meshes_said.clear()
 
 
 def load_limits(path: str | Path) -> RobotLimits:
@@ -269,12 +279,13 @@ def _load_cached(
     args: tuple[tuple[str, str], ...],
     limits_path: Path | None,
     _limits_mtime: int,
-) -> RobotModel:
+) -> tuple[RobotModel, tuple[str, ...]]:
+    """The model of ``source`` and the mesh files it names that cannot be found."""
     disp = _display(source)
     text = _process(source, dict(args))
     root = _parse_xml(text, disp)
     urdf = _parse_urdf(text, disp)
-    _warn_unresolved_meshes(urdf, source, disp)
+    missing = _unresolved_meshes(urdf, source)
     tree = _Tree(urdf, disp)
 
     wheels_y, wheel_radius, floor_z = _wheels(urdf, tree, disp)
@@ -294,7 +305,7 @@ def _load_cached(
 
     footprint.setflags(write=False)
     radius = float(np.max(np.hypot(footprint[:, 0], footprint[:, 1])))
-    return RobotModel(
+    model = RobotModel(
         name=_stem(source),
         source=source,
         footprint=footprint,
@@ -305,6 +316,7 @@ def _load_cached(
         lidar=lidar,
         limits=limits,
     )
+    return model, missing
 
 
 def _process(source: Path, args: dict[str, str]) -> str:
@@ -366,20 +378,31 @@ def _parse_urdf(text: str, disp: str):
     return urdf
 
 
-def _warn_unresolved_meshes(urdf, source: Path, disp: str) -> None:
-    """Log one warning naming the mesh files that cannot be found (they are not needed)."""
+def _unresolved_meshes(urdf, source: Path) -> tuple[str, ...]:
+    """The mesh file names of the URDF's visuals and collisions that cannot be found, once each."""
     missing: list[str] = []
     for link in urdf.robot.links:
         for element in (*link.visuals, *link.collisions):
             mesh = element.geometry.mesh if element.geometry is not None else None
             if mesh is not None and mesh.filename and _resolve_mesh(mesh.filename, source) is None:
                 missing.append(mesh.filename)
-    if missing:
-        unique = list(dict.fromkeys(missing))
-        _log.warning(
-            "%s: %d mesh file(s) not found (e.g. %s); meshes are only drawn, not needed "
-            "headless: going on without them", disp, len(unique), unique[0],
-        )
+    return tuple(dict.fromkeys(missing))
+
+
+_meshes_said: set[tuple[Path, bool]] = set()  # (source, as a warning) already logged
+
+
+def _say_missing_meshes(source: Path, missing: tuple[str, ...], need_meshes: bool) -> None:
+    """Log once per file that its meshes are missing: a warning if they would be drawn."""
+    if (source, need_meshes) in _meshes_said:
+        return
+    _meshes_said.add((source, need_meshes))
+    if need_meshes:
+        _log.warning("%s: %d mesh file(s) not found (e.g. %s); the robot is drawn without them",
+                     _display(source), len(missing), missing[0])
+    else:
+        _log.debug("%s: %d mesh file(s) not found (e.g. %s); meshes are only drawn, not needed "
+                   "headless: going on without them", _display(source), len(missing), missing[0])
 
 
 def _resolve_mesh(filename: str, source: Path) -> Path | None:
@@ -502,31 +525,6 @@ def _shape_volume(geometry) -> float:
     return 0.0
 
 
-def _convex_hull(points: np.ndarray) -> np.ndarray:
-    """Counter-clockwise convex hull (K, 2) of (N, 2) points, no collinear vertices.
-
-    Andrew's monotone chain; starts at the lowest-x (then lowest-y) point.
-    """
-    pts = sorted({(round(float(x), 12), round(float(y), 12)) for x, y in points})
-    if len(pts) < 3:
-        return np.array(pts, dtype=float)
-
-    def cross(o, a, b):
-        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-
-    lower: list = []
-    for p in pts:
-        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 1e-15:
-            lower.pop()
-        lower.append(p)
-    upper: list = []
-    for p in reversed(pts):
-        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 1e-15:
-            upper.pop()
-        upper.append(p)
-    return np.array(lower[:-1] + upper[:-1], dtype=float)
-
-
 def _base_link(tree: _Tree) -> str:
     named = _find_link(tree.links, "base_link")
     if named is not None:
@@ -556,8 +554,8 @@ def _base_outline(tree: _Tree, floor_z: float, disp: str) -> tuple[np.ndarray, f
             "or sphere (the footprint comes from the base collision geometry)"
         )
     allpts = np.vstack(points)
-    footprint = _convex_hull(allpts[:, :2])
-    if len(footprint) < 3:
+    footprint = convex_hull_2d(allpts[:, :2])
+    if footprint is None:
         raise InputError(f"{disp}: no base collision: link '{base}' has a flat collision shape")
     return footprint, float(np.max(allpts[:, 2]) - floor_z)
 
@@ -714,7 +712,7 @@ def _read_sensor(sensor: ET.Element, link: str, disp: str):
         except ValueError:
             raise InputError(f"{where}: <pose> must be 'x y z roll pitch yaw', got "
                              f"{pose_text.strip()!r}") from None
-        pose = _pose_matrix(x, y, z, roll, pitch, yaw)
+        pose = pose_to_matrix((x, y, z, roll, pitch, yaw))
     return values, pose, missing
 
 
@@ -761,21 +759,6 @@ def _check_lidar(values: Mapping[str, float], disp: str, link: str) -> None:
         raise InputError(f"{where}: rate_hz must be > 0, got {values['rate_hz']:g}")
     if values["noise_stddev"] < 0.0:
         raise InputError(f"{where}: noise_stddev must be >= 0, got {values['noise_stddev']:g}")
-
-
-def _pose_matrix(x, y, z, roll, pitch, yaw) -> np.ndarray:
-    """4x4 transform of a URDF/SDF pose (fixed-axis roll, pitch, yaw: R = Rz Ry Rx)."""
-    cr, sr = math.cos(roll), math.sin(roll)
-    cp, sp = math.cos(pitch), math.sin(pitch)
-    cy, sy = math.cos(yaw), math.sin(yaw)
-    matrix = np.eye(4)
-    matrix[:3, :3] = [
-        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-        [-sp, cp * sr, cp * cr],
-    ]
-    matrix[:3, 3] = (x, y, z)
-    return matrix
 
 
 # --------------------------------------------------------------------------------------------

@@ -37,6 +37,13 @@ from pathlib import Path
 import numpy as np
 
 from swarm_common.errors import InputError, did_you_mean
+from swarm_common.geometry import (
+    convex_hull_2d,
+    matrix_to_pose,
+    pose_to_matrix,
+    quaternion_to_matrix,
+    rpy_to_matrix,
+)
 from swarm_common.paths import WORLDS_DIR
 
 WORLD_SUFFIXES = (".world", ".sdf")
@@ -136,63 +143,6 @@ def resolve_world(name_or_path: str | Path) -> Path:
     )
 
 
-# ------------------------------------------------------------------------------------ pose maths
-
-
-def rpy_to_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    """Rotation matrix (3, 3) of fixed-axis roll, pitch, yaw [rad]: Rz(yaw) Ry(pitch) Rx(roll).
-
-    This is SDF's (and URDF's) ``rpy`` convention.
-    """
-    cr, sr = math.cos(roll), math.sin(roll)
-    cp, sp = math.cos(pitch), math.sin(pitch)
-    cy, sy = math.cos(yaw), math.sin(yaw)
-    return np.array([
-        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-        [-sp, cp * sr, cp * cr],
-    ])
-
-
-def matrix_to_rpy(rot: np.ndarray) -> tuple[float, float, float]:
-    """Fixed-axis roll, pitch, yaw [rad] of a (3, 3) rotation matrix (inverse of rpy_to_matrix).
-
-    At gimbal lock (pitch = ±pi/2) roll is set to 0 and the rotation is put into yaw.
-    """
-    pitch = math.asin(max(-1.0, min(1.0, -rot[2, 0])))
-    if abs(rot[2, 0]) < 1.0 - 1e-12:
-        roll = math.atan2(rot[2, 1], rot[2, 2])
-        yaw = math.atan2(rot[1, 0], rot[0, 0])
-    else:
-        roll = 0.0
-        yaw = math.atan2(-rot[0, 1], rot[1, 1])
-    return roll, pitch, yaw
-
-
-def pose_to_matrix(pose) -> np.ndarray:
-    """Homogeneous (4, 4) transform of a (6,) pose x, y, z [m], roll, pitch, yaw [rad]."""
-    x, y, z, roll, pitch, yaw = (float(v) for v in pose)
-    tf = np.eye(4)
-    tf[:3, :3] = rpy_to_matrix(roll, pitch, yaw)
-    tf[:3, 3] = (x, y, z)
-    return tf
-
-
-def matrix_to_pose(tf: np.ndarray) -> np.ndarray:
-    """The (6,) pose x, y, z [m], roll, pitch, yaw [rad] of a homogeneous (4, 4) transform."""
-    return np.array([*tf[:3, 3], *matrix_to_rpy(tf[:3, :3])], dtype=float) + 0.0  # no -0.0
-
-
-def _quat_matrix(qx: float, qy: float, qz: float, qw: float) -> np.ndarray:
-    n = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw) or 1.0
-    x, y, z, w = qx / n, qy / n, qz / n, qw / n
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ])
-
-
 # --------------------------------------------------------------------------------------- parsing
 
 
@@ -243,7 +193,7 @@ class _Loader:
         tf = np.eye(4)
         tf[:3, 3] = values[:3]
         if fmt == "quat_xyzw":
-            tf[:3, :3] = _quat_matrix(*values[3:])
+            tf[:3, :3] = quaternion_to_matrix(*values[3:])
         elif fmt == "euler_rpy":
             angles = values[3:]
             if el.get("degrees", "false").strip().lower() in ("true", "1"):
@@ -625,41 +575,6 @@ def _shape_points(shape: CollisionShape) -> np.ndarray:
     else:
         raise ValueError(f"unknown shape kind {shape.kind!r}")
     return local @ tf[:3, :3].T + tf[:3, 3]
-
-
-def convex_hull_2d(points: np.ndarray) -> np.ndarray | None:
-    """Counter-clockwise convex hull (K, 2) of (P, 2) points; None if it has no area."""
-    pts = np.unique(np.round(np.asarray(points, dtype=float), 12), axis=0)
-    if len(pts) < 3:
-        return None
-    pts = pts[np.lexsort((pts[:, 1], pts[:, 0]))]
-
-    def half(seq):
-        chain: list[np.ndarray] = []
-        for p in seq:
-            while len(chain) >= 2:
-                a, b = chain[-2], chain[-1]
-                if (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0]) > 1e-15:
-                    break
-                chain.pop()
-            chain.append(p)
-        return chain
-
-    if len(pts) > 2000:  # big meshes: let Qhull do it
-        from scipy.spatial import ConvexHull, QhullError
-
-        try:
-            hull = ConvexHull(pts)
-        except QhullError:
-            return None
-        return pts[hull.vertices]
-    lower, upper = half(pts), half(pts[::-1])
-    hull = np.array(lower[:-1] + upper[:-1])
-    if len(hull) < 3:
-        return None
-    x, y = hull[:, 0], hull[:, 1]
-    area = 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
-    return hull if area > 1e-12 else None
 
 
 def world_polygons(world: World, z_min: float = 0.0, z_max: float = 2.0) -> list[np.ndarray]:

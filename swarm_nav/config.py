@@ -131,6 +131,26 @@ class GoalConfig:
     yaw_goal_tolerance: float = _p(0.25, "rad", "goal reached within this yaw error", check=">0")
     rotate_to_heading_angular_vel: float = _p(1.0, "rad/s", "rotational speed of the final "
                                               "in-place rotation (RPP's name)", check=">0")
+    min_rotate_to_heading_angular_vel: float = _p(0.15, "rad/s", "... never slower than this (it "
+                                                  "slows down to stop at the goal yaw)",
+                                                  check=">0")
+    rotate_to_heading_check_angle: float = _p(0.3, "rad", "each tick of the final rotation checks "
+                                              "this much turn (or what is left) against the scan",
+                                              check=">0")
+
+
+@dataclass(frozen=True)
+class PerceptionConfig:
+    """The other robots seen in the scan: which points are theirs, and their velocities."""
+
+    static_point_tolerance: float = _p(0.15, "m", "a scan point this close to a static obstacle "
+                                       "belongs to the map, not to a robot", check=">=0")
+    velocity_baseline: float = _p(1.0, "s", "velocities of the robots seen come from the centres "
+                                  "seen about this long ago", check=">0")
+    velocity_min_baseline: float = _p(0.35, "s", "... but at least this long ago (shorter "
+                                      "baselines amplify the lidar's noise)", check=">0")
+    velocity_history: float = _p(1.5, "s", "centres seen up to this long ago are kept for that",
+                                 check=">0")
 
 
 @dataclass(frozen=True)
@@ -141,8 +161,6 @@ class HoldingConfig:
                                      "goal mean it is taken", check=">0")
     goal_occupied_min_points: int = _p(3, "-", "that many such points make the goal occupied",
                                        check=">0")
-    static_point_tolerance: float = _p(0.15, "m", "a scan point this close to a static obstacle "
-                                       "belongs to the map, not to a robot", check=">=0")
     goal_detection_range: float = _p(2.5, "m", "the goal is judged only from this close, in line "
                                      "of sight", check=">0")
     yield_radius: float = _p(1.0, "m", "another robot within this of our goal, nearer to it and "
@@ -156,6 +174,10 @@ class HoldingConfig:
                                  "along its path", check=">0")
     holding_arrive_tolerance: float = _p(0.35, "m", "a holding point counts as reached within "
                                          "this", check=">0")
+    holding_target_check_range: float = _p(2.5, "m", "a holding target this close is checked for "
+                                           "another robot standing on it (a taken loop point is "
+                                           "skipped, a taken spot replaced by a staging point)",
+                                           check=">=0")
     holding_retry_period: float = _p(5.0, "s", "time between retries while holding", check=">0")
     free_confirm_time: float = _p(1.0, "s", "the goal must be seen free this long before retrying",
                                   check=">=0")
@@ -179,7 +201,7 @@ class HoldingConfig:
 
 @dataclass(frozen=True)
 class RecoveryConfig:
-    """Progress checking, recoveries and the deadlock rule.
+    """Progress checking and recoveries.
 
     The nav2 sequence is clear costmaps, spin 1.57 rad, wait 5 s, back up 0.30 m at 0.05 m/s.  The
     back-up runs at 0.10 m/s and the wait is 2 s here: in a swarm a slow recovery keeps the other
@@ -191,12 +213,27 @@ class RecoveryConfig:
     movement_time_allowance: float = _p(10.0, "s", "... within this time (nav2)", check=">0")
     stuck_time: float = _p(2.0, "s", "the local planner finding no safe motion this long means "
                            "stuck", check=">0")
+    still_vel_x: float = _p(0.02, "m/s", "a command slower than this ...", check=">=0")
+    still_vel_theta: float = _p(0.1, "rad/s", "... and turning slower than this is no motion "
+                                "(counts toward stuck_time)", check=">=0")
     backup_dist: float = _p(0.30, "m", "back-up distance (nav2 BackUp)", check=">0")
     backup_speed: float = _p(0.10, "m/s", "back-up speed (nav2: 0.05)", check=">0")
     spin_dist: float = _p(1.57, "rad", "spin angle (nav2 Spin)", check=">0")
     wait_duration: float = _p(2.0, "s", "wait time (nav2 Wait: 5 s), stretched by robot_index % 3",
                               check=">=0")
     time_allowance: float = _p(10.0, "s", "a recovery behaviour gives up after this", check=">0")
+
+
+@dataclass(frozen=True)
+class TrafficConfig:
+    """The traffic rules between robots that do not talk: keep right, and who yields.
+
+    Keep right: a robot shifts its local path to its right while a robot comes toward it on it.
+    Yield: in a face-to-face deadlock the robot the rule picks retreats off the other's way (a
+    place at least ``yield_clearance`` off the other's line, reached by a short detour) and waits
+    until its path is clear.
+    """
+
     keep_right_offset: float = _p(0.35, "m", "shift of the path to the right when a robot is "
                                   "ahead (traffic rule, no communication)", check=">=0")
     keep_right_distance: float = _p(2.5, "m", "a robot nearer than this ahead triggers the shift",
@@ -211,6 +248,22 @@ class RecoveryConfig:
                                     "retreat to", check=">0")
     yield_timeout: float = _p(20.0, "s", "a yielding robot resumes after this at the latest",
                               check=">0")
+    yield_retreat_spacing: float = _p(0.75, "m", "retreat places tried are at least this far "
+                                      "apart", check=">=0")
+    yield_retreat_tries: int = _p(4, "-", "at most this many retreat places are planned to",
+                                  check=">0")
+    yield_detour_factor: float = _p(3.0, "-", "a retreat path may be at most this times the "
+                                    "straight distance ...", check=">0")
+    yield_detour_slack: float = _p(1.0, "m", "... plus this", check=">=0")
+    yield_arrive_tolerance: float = _p(0.3, "m", "a retreat place counts as reached within this "
+                                       "(the drive there also ends after half of yield_timeout, "
+                                       "or when stuck for stuck_time)", check=">0")
+    yield_clear_distance: float = _p(2.5, "m", "a waiting robot resumes when no robot is seen on "
+                                     "this much of its path ahead ...", check=">0")
+    yield_clear_margin: float = _p(0.1, "m", "... within robot_radius plus this of it ...",
+                                   check=">=0")
+    yield_clear_time: float = _p(1.5, "s", "... for this long ...", check=">=0")
+    yield_min_wait: float = _p(1.0, "s", "... and it has waited at least this", check=">=0")
 
 
 @dataclass(frozen=True)
@@ -221,8 +274,10 @@ class NavigatorConfig:
     planner: PlannerConfig = field(default_factory=PlannerConfig)
     dwa: DwaConfig = field(default_factory=DwaConfig)
     goal: GoalConfig = field(default_factory=GoalConfig)
+    perception: PerceptionConfig = field(default_factory=PerceptionConfig)
     holding: HoldingConfig = field(default_factory=HoldingConfig)
     recovery: RecoveryConfig = field(default_factory=RecoveryConfig)
+    traffic: TrafficConfig = field(default_factory=TrafficConfig)
     control_period: float = _p(0.1, "s", "period of step() calls (the simulator's control tick)",
                                check=">0")
     robot_index: int = _p(0, "-", "index i of the namespace /<prefix><i>; staggers recovery waits",
@@ -236,6 +291,15 @@ class NavigatorConfig:
                                        check=">0")
     blocked_check_distance: float = _p(2.0, "m", "how far ahead along the path blockage is "
                                        "checked", check=">0")
+    scan_max_age: float = _p(1.0, "s", "the robots seen in a scan older than this judge neither "
+                             "the goal nor the path ahead", check=">0")
+    obstacle_window: float = _p(1.2, "m", "the static map's obstacle boundary within this (per "
+                                "axis) of the robot joins the scan as the DWA's obstacles",
+                                check=">0")
+    prediction_step: float = _p(0.3, "s", "robots seen moving are also put where they will be "
+                                "this and twice this after the scan (plus the scan's age) ...",
+                                check=">=0")
+    prediction_max: float = _p(1.0, "s", "... but at most this far ahead", check=">=0")
 
     @classmethod
     def from_flat(cls, flat: dict[str, Any]) -> NavigatorConfig:
@@ -280,8 +344,10 @@ _SUBCONFIGS = {
     "planner": PlannerConfig,
     "dwa": DwaConfig,
     "goal": GoalConfig,
+    "perception": PerceptionConfig,
     "holding": HoldingConfig,
     "recovery": RecoveryConfig,
+    "traffic": TrafficConfig,
 }
 
 

@@ -14,11 +14,12 @@ rotation to the goal yaw) -> holding pattern update (:mod:`swarm_nav.holding`) -
 robot left its path by more than ``max_path_deviation``, or something blocks the path ahead (a
 robot standing on it for ``stationary_replan_time``, anything else for ``blocked_replan_time``;
 the replan then plans around the robots seen) -> DWA on the local stretch of the path, shifted to
-the right while a robot comes toward us on it (:func:`~swarm_nav.recovery.keep_right`) ->
+the right while a robot comes toward us on it (:func:`~swarm_nav.traffic.keep_right`) ->
 recovery when the DWA finds no motion for ``stuck_time`` or the progress checker fails: the
-face-to-face rule (:func:`~swarm_nav.recovery.must_yield`) makes one of two robots retreat off the
-other's way and wait until its path is clear; otherwise nav2's set (replan around the robots seen,
-back up, wait, spin), cycled, never giving up on a reachable goal.
+face-to-face rule (:func:`~swarm_nav.traffic.must_yield`) makes one of two robots retreat off the
+other's way and wait until its path is clear (:class:`~swarm_nav.traffic.Yield`); otherwise
+nav2's set (replan around the robots seen, back up, wait, spin), cycled, never giving up on a
+reachable goal. The other robots are known only from the scan (:mod:`swarm_nav.perception`).
 
 Paths are planned on the static costmap plus keep-out discs about the workstations and holding
 points (robots stop there, so paths to elsewhere keep to the lanes).  Plans are made only on a new
@@ -29,7 +30,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -43,42 +44,33 @@ from swarm_nav.holding import (
     HoldingPattern,
     HoldingPhase,
     HoldingSite,
-    SeenRobot,
-    dynamic_points,
     goal_occupied,
     goal_visible,
     holding_points_for,
-    perceive_robots,
     someone_came_first,
     staging_point,
 )
-from swarm_nav.planner import PlanResult, path_length, plan_path
-from swarm_nav.recovery import (
-    SEQUENCE,
-    ProgressChecker,
-    Recovery,
-    RecoveryKind,
+from swarm_nav.perception import RobotTracker, SeenRobot, dynamic_points, robot_centres
+from swarm_nav.planner import PlanResult, plan_path
+from swarm_nav.recovery import SEQUENCE, ProgressChecker, Recovery, RecoveryKind
+from swarm_nav.traffic import (
+    Yield,
+    YieldStep,
     keep_right,
     must_yield,
-    retreat_candidates,
+    oncoming,
+    plan_retreat,
     robots_ahead,
 )
 
 _LOCAL_WINDOW = 3.0  # [m] of path handed to the DWA
 _SEARCH_AHEAD = 40   # path points searched ahead of the progress index
+_SPIN_LOOKAHEAD = 5  # path points ahead of the progress index that choose a spin's direction
+_NEAR_PATH_SLACK = 0.5  # [m] robots centred farther than the checked distance plus this are
+#                         not looked at for the path ahead (a cheap pre-filter)
+_EPS = 1e-6  # [m] a goal shift below this is no shift
 
 
-@dataclass
-class _Yield:
-    """A running yield: drive off the other robot's way, then wait until it has passed."""
-
-    target: np.ndarray
-    t0: float
-    phase: str = "drive"  # "drive" | "wait"
-    t_phase: float = 0.0
-    still_since: float | None = None
-    clear_since: float | None = None
-    other: np.ndarray = field(default_factory=lambda: np.zeros(2))
 
 
 @dataclass(frozen=True)
@@ -149,7 +141,7 @@ class NavigatorCore:
         self._rotating = False
         self._holding: HoldingPattern | None = None
         self._recovery: Recovery | None = None
-        self._yield: _Yield | None = None
+        self._yield: Yield | None = None
         self._recovery_next = 0
         self._progress = ProgressChecker(cfg.recovery)
         self._stuck_since: float | None = None
@@ -159,9 +151,8 @@ class NavigatorCore:
         self._dyn = np.zeros((0, 2))
         self._robots: list[SeenRobot] = []
         self._centres = np.zeros((0, 2))
-        self._history: list[tuple[float, np.ndarray]] = []
+        self._tracker = RobotTracker(cfg.perception)
         self._scan_time = -math.inf
-        self._last_cmd = (0.0, 0.0)
 
     # ------------------------------------------------------------------ inputs
     def set_map(self, occ: OccupancyMap) -> None:
@@ -228,19 +219,11 @@ class NavigatorCore:
         if self.costmap is None:
             self._dyn = pts
         else:
-            self._dyn = dynamic_points(pts, self.costmap, self.cfg.holding.static_point_tolerance)
+            self._dyn = dynamic_points(pts, self.costmap,
+                                       self.cfg.perception.static_point_tolerance)
         viewer = self._pose[:2] if self._pose is not None else np.zeros(2)
-        # velocities from the centres seen about a second ago
-        self._history = [(t, c) for t, c in self._history if now - t <= 1.5 and t < now]
-        old = [(t, c) for t, c in self._history if now - t >= 0.35]
-        earlier, dt = (None, 0.0)
-        if old:
-            t_old, earlier = min(old, key=lambda tc: abs(now - tc[0] - 1.0))
-            dt = now - t_old
-        self._robots = perceive_robots(self._dyn, viewer, earlier, dt)
-        self._centres = (np.array([r.centre for r in self._robots]) if self._robots
-                         else np.zeros((0, 2)))
-        self._history.append((now, self._centres))
+        self._robots = self._tracker.update(self._dyn, viewer, now)
+        self._centres = robot_centres(self._robots)
 
     # ------------------------------------------------------------------ outputs
     @property
@@ -337,8 +320,9 @@ class NavigatorCore:
         if self._state in TERMINAL or self._path is None:
             return self._out(0.0, 0.0)
 
-        local = keep_right(self._local_path(), pose, self._oncoming(pose), self.costmap,
-                           self.cfg.recovery)
+        local = keep_right(self._local_path(), pose,
+                           oncoming(self._robots, pose[:2], self.cfg.holding.moving_speed),
+                           self.costmap, self.cfg.traffic)
         obstacles = self._obstacles(pose)
         cmd = dwa_command(state, local, obstacles, self.cfg.dwa, footprint=self.footprint,
                           dt=self.cfg.control_period)
@@ -358,7 +342,7 @@ class NavigatorCore:
         if res.path is None:
             self._end(NavState.ABORTED, now, res.reason)
             return
-        self._adjusted_goal = res.path[-1].copy() if res.goal_shift > 1e-6 else None
+        self._adjusted_goal = res.path[-1].copy() if res.goal_shift > _EPS else None
         self._set_path(res.path, to_goal=True)
         points, loop = holding_points_for(self._goal, self.holding_sites, res.path,
                                           self.cfg.holding)
@@ -430,10 +414,11 @@ class NavigatorCore:
         decel = abs(self.cfg.dwa.decel_lim_theta)
         speed = min(self.cfg.goal.rotate_to_heading_angular_vel, self.cfg.dwa.max_vel_theta,
                     math.sqrt(2.0 * decel * abs(err)))
-        speed = max(speed, 0.15)
+        speed = max(speed, self.cfg.goal.min_rotate_to_heading_angular_vel)
         obstacles = self._obstacles(pose)
+        check = self.cfg.goal.rotate_to_heading_check_angle
         for sign in (math.copysign(1.0, err), -math.copysign(1.0, err)):
-            if rotation_is_safe(pose, sign * min(0.3, abs(err)), obstacles, self.footprint,
+            if rotation_is_safe(pose, sign * min(check, abs(err)), obstacles, self.footprint,
                                 self.cfg.dwa.footprint_padding):
                 return 0.0, sign * speed
         return 0.0, 0.0
@@ -455,7 +440,7 @@ class NavigatorCore:
         occupied = None
         first = False
         goal = self._goal[:2]
-        fresh = now - self._scan_time <= 1.0
+        fresh = now - self._scan_time <= self.cfg.scan_max_age
         if fresh and goal_visible(self.costmap, pose[:2], goal, self.cfg.holding):
             occupied = goal_occupied(self._robots, goal, self.cfg.holding)
             first = someone_came_first(self._robots, pose[:2], goal, self.cfg.holding)
@@ -464,7 +449,7 @@ class NavigatorCore:
         # replaced by a staging point well away from the busy workstation
         tgt = hp.target
         if (hp.phase == HoldingPhase.TO_HOLD and fresh
-                and np.hypot(*(tgt - pose[:2])) < 2.5):
+                and np.hypot(*(tgt - pose[:2])) < self.cfg.holding.holding_target_check_range):
             if goal_occupied(self._robots, tgt, self.cfg.holding):
                 if hp.loop:
                     hp.advance()
@@ -539,27 +524,17 @@ class NavigatorCore:
         wait = self.cfg.stationary_replan_time if standing else self.cfg.blocked_replan_time
         return now - self._blocked_since >= wait
 
-    def _oncoming(self, pose: np.ndarray) -> np.ndarray:
-        """(K, 2) centres of the robots seen driving toward us (the keep-right rule's robots)."""
-        out = []
-        for r in self._robots:
-            d = pose[:2] - r.centre
-            n = float(np.hypot(*d))
-            if n > 1e-6 and np.all(np.isfinite(r.velocity)):
-                if r.velocity @ d / n > self.cfg.holding.moving_speed:
-                    out.append(r.centre)
-        return np.array(out) if out else np.zeros((0, 2))
-
     def _robots_on_path(self, distance: float, radius: float, now: float) -> list[SeenRobot]:
         """The robots seen with a point within ``radius`` of the next ``distance`` of path."""
-        if self._path is None or not self._robots or now - self._scan_time > 1.0:
+        if (self._path is None or not self._robots
+                or now - self._scan_time > self.cfg.scan_max_age):
             return []
         s0 = self._path_s[self._idx]
         hi = int(np.searchsorted(self._path_s, s0 + distance))
         ahead = self._path[self._idx:max(hi, self._idx + 1)]
         out = []
         for r in self._robots:
-            if np.hypot(*(r.centre - self._pose[:2])) > distance + 0.5:
+            if np.hypot(*(r.centre - self._pose[:2])) > distance + _NEAR_PATH_SLACK:
                 continue
             d = np.hypot(r.points[:, None, 0] - ahead[None, :, 0],
                          r.points[:, None, 1] - ahead[None, :, 1])
@@ -573,7 +548,7 @@ class NavigatorCore:
 
     def _obstacles(self, pose: np.ndarray) -> np.ndarray:
         """Scan points plus the static map's obstacle boundary near the robot."""
-        r = 1.2
+        r = self.cfg.obstacle_window
         stat = self.costmap.boundary_points() if self.costmap is not None else np.zeros((0, 2))
         if len(stat):
             m = (np.abs(stat[:, 0] - pose[0]) < r) & (np.abs(stat[:, 1] - pose[1]) < r)
@@ -589,39 +564,41 @@ class NavigatorCore:
             speed = float(np.hypot(*r.velocity)) if np.all(np.isfinite(r.velocity)) else 0.0
             if speed > self.cfg.holding.moving_speed:
                 lag = max(0.0, self._now - self._scan_time)
-                for tau in (lag + 0.3, lag + 0.6):
-                    ahead = r.points + r.velocity * min(tau, 1.0)
+                step = self.cfg.prediction_step
+                for tau in (lag + step, lag + 2.0 * step):
+                    ahead = r.points + r.velocity * min(tau, self.cfg.prediction_max)
                     parts.append(ahead[point_gaps(pose, ahead, self.footprint) >= pad])
         parts = [p for p in parts if len(p)]
         return np.vstack(parts) if parts else np.zeros((0, 2))
 
     # ------------------------------------------------------------------ recovery
     def _needs_recovery(self, pose, ok: bool, v: float, w: float, now: float) -> bool:
-        still = not ok or (abs(v) < 0.02 and abs(w) < 0.1)
+        rc = self.cfg.recovery
+        still = not ok or (abs(v) < rc.still_vel_x and abs(w) < rc.still_vel_theta)
         if still:
             if self._stuck_since is None:
                 self._stuck_since = now
         else:
             self._stuck_since = None
-        stuck = self._stuck_since is not None and now - self._stuck_since >= (
-            self.cfg.recovery.stuck_time)
+        stuck = self._stuck_since is not None and now - self._stuck_since >= rc.stuck_time
         progressing = self._progress.check(pose, now)
         return stuck or not progressing
 
     def _start_recovery(self, pose: np.ndarray, now: float) -> None:
         rc = self.cfg.recovery
+        tc = self.cfg.traffic
         kind = SEQUENCE[self._recovery_next % len(SEQUENCE)]
         self._recovery_next += 1
         # a face-to-face deadlock: the robot the rule picks gets out of the way and waits
-        ahead = robots_ahead(pose, self._centres, rc.deadlock_distance)
+        ahead = robots_ahead(pose, self._centres, tc.deadlock_distance)
         if len(ahead):
             other = self._centres[ahead[0]]
-            if must_yield(pose[:2], other, rc.yield_axis_angle) and self._begin_yield(
+            if must_yield(pose[:2], other, tc.yield_axis_angle) and self._begin_yield(
                     pose, other, now):
                 return
         spin_sign = 1.0
         if self._path is not None:
-            tgt = self._path[min(self._idx + 5, len(self._path) - 1)] - pose[:2]
+            tgt = self._path[min(self._idx + _SPIN_LOOKAHEAD, len(self._path) - 1)] - pose[:2]
             spin_sign = 1.0 if wrap_angle(math.atan2(tgt[1], tgt[0]) - pose[2]) >= 0 else -1.0
         self._recovery = Recovery(kind, pose, now, rc, self.footprint,
                                   self.cfg.dwa.footprint_padding, self.cfg.robot_index, spin_sign)
@@ -636,53 +613,41 @@ class NavigatorCore:
         cm = self.costmap
         if len(self._dyn):
             cm = overlay_obstacles(cm, self._dyn, self.cfg.costmap)
-        tried: list[np.ndarray] = []
-        for xy in retreat_candidates(cm, pose[:2], other, self.cfg.recovery):
-            if any(np.hypot(*(xy - t)) < 0.75 for t in tried):
-                continue
-            tried.append(xy)
-            res = plan_path(cm, pose[:2], xy, self.cfg.planner)
-            if res.path is not None and path_length(res.path) <= 3.0 * np.hypot(
-                    *(xy - pose[:2])) + 1.0:
-                self._yield = _Yield(res.path[-1].copy(), now, t_phase=now, other=other.copy())
-                self._set_path(res.path, to_goal=False)
-                self._recoveries += 1
-                self._state = NavState.RECOVERING
-                self._stuck_since = None
-                return True
-            if len(tried) >= 4:
-                break
-        return False
+        path = plan_retreat(cm, pose[:2], other, self.cfg.traffic, self.cfg.planner)
+        if path is None:
+            return False
+        self._yield = Yield(path[-1].copy(), now, t_phase=now, other=other.copy())
+        self._set_path(path, to_goal=False)
+        self._recoveries += 1
+        self._state = NavState.RECOVERING
+        self._stuck_since = None
+        return True
 
     def _step_yield(self, pose: np.ndarray, state: RobotState, now: float
                     ) -> tuple[float, float]:
         y = self._yield
-        rc = self.cfg.recovery
-        if y.phase == "drive":
-            arrived = np.hypot(*(pose[:2] - y.target)) <= 0.3
-            if not arrived and now - y.t_phase < rc.yield_timeout / 2:
-                self._advance_progress(pose)
-                cmd = dwa_command(state, self._local_path(), self._obstacles(pose),
-                                  self.cfg.dwa, footprint=self.footprint,
-                                  dt=self.cfg.control_period)
-                if cmd.ok and (abs(cmd.v) >= 0.02 or abs(cmd.w) >= 0.1):
-                    y.still_since = None
-                elif y.still_since is None:
-                    y.still_since = now
-                if y.still_since is None or now - y.still_since < rc.stuck_time:
-                    return cmd.v, cmd.w
-            y.phase, y.t_phase = "wait", now
+        rc, tc = self.cfg.recovery, self.cfg.traffic
+
+        def drive() -> tuple[float, float, bool]:
+            self._advance_progress(pose)
+            cmd = dwa_command(state, self._local_path(), self._obstacles(pose), self.cfg.dwa,
+                              footprint=self.footprint, dt=self.cfg.control_period)
+            moving = cmd.ok and (abs(cmd.v) >= rc.still_vel_x or abs(cmd.w) >= rc.still_vel_theta)
+            return cmd.v, cmd.w, moving
+
+        def blocked() -> bool:
+            return self._dynamic_on_path(tc.yield_clear_distance,
+                                         self.cfg.costmap.robot_radius + tc.yield_clear_margin,
+                                         now)
+
+        step, v, w = y.step(pose[:2], now, tc, rc.stuck_time, drive, blocked)
+        if step == YieldStep.DRIVE:
+            return v, w
+        if step == YieldStep.ARRIVED:
             self._yield = None  # plan the way back to the target, then keep waiting
             self._replan(pose, overlay=False)
             self._yield = y
-            return 0.0, 0.0
-        blocked = self._dynamic_on_path(2.5, self.cfg.costmap.robot_radius + 0.1, now)
-        if blocked:
-            y.clear_since = None
-        elif y.clear_since is None:
-            y.clear_since = now
-        clear = y.clear_since is not None and now - y.clear_since >= 1.5
-        if (clear and now - y.t_phase >= 1.0) or now - y.t0 >= rc.yield_timeout:
+        elif step == YieldStep.DONE:
             self._yield = None
             holding = self._holding is not None and self._holding.phase != HoldingPhase.APPROACH
             self._state = NavState.HOLDING if holding else NavState.DRIVING
@@ -714,5 +679,4 @@ class NavigatorCore:
         return float(np.hypot(*(self._goal[:2] - self._pose[:2])))
 
     def _out(self, v: float, w: float) -> tuple[float, float]:
-        self._last_cmd = (float(v), float(w))
-        return self._last_cmd
+        return float(v), float(w)

@@ -1,9 +1,8 @@
 """Goal-occupied detection from the robot's own scan, and the holding pattern.
 
-No communication: a robot judges its goal from its own scan points. Points that the static map does
-not explain (farther than ``static_point_tolerance`` from every lethal cell) are *dynamic*;
-clusters of them are other robots (:func:`perceive_robots`), whose velocities come from matching
-the clusters of successive scans. The goal is occupied when a robot has enough points in the disc
+No communication: a robot judges its goal from the other robots it sees in its own scan
+(:func:`swarm_nav.perception.perceive_robots`: clusters of the points the static map does not
+explain, with their velocities). The goal is occupied when a robot has enough points in the disc
 of ``goal_occupied_radius`` about it and is not seen leaving. First come, first served among robots
 that see each other: a robot yields when it sees another robot within ``yield_radius`` of its goal,
 nearer to it by ``yield_margin`` and driving toward it (that one came first). A robot that merely
@@ -30,17 +29,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
 from enum import StrEnum
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
-from scipy.spatial import cKDTree
 
-from swarm_common.geometry import Path2D, Points2D
+from swarm_common.geometry import Path2D
 from swarm_nav.config import HoldingConfig
 from swarm_nav.costmap import LETHAL, Costmap, segment_max_cost
+from swarm_nav.perception import SeenRobot
 
 HoldingSite = tuple[np.ndarray, np.ndarray]
 """(workstation pose (3,) x, y [m], yaw [rad] in ``map``, holding points (K, 2) x, y [m])."""
@@ -63,150 +59,6 @@ def holding_sites_from_poi(poi) -> list[HoldingSite]:
             for w in poi.workstations]
 
 
-def dynamic_points(points: Points2D, costmap: Costmap, tolerance: float) -> Points2D:
-    """The scan points the static map does not explain (other robots, people, new objects).
-
-    Args:
-        points: (M, 2) scan end points x, y [m] in ``map``.
-        costmap: the static costmap (its obstacle distance field).
-        tolerance: a point nearer than this [m] to a lethal cell belongs to the map.
-
-    Returns:
-        (K, 2) the points farther than ``tolerance`` from every lethal cell (points outside the map
-        count as static).
-    """
-    pts = np.asarray(points, dtype=float).reshape(-1, 2)
-    if len(pts) == 0:
-        return pts
-    return pts[costmap.distance_at(pts) > tolerance]
-
-
-@dataclass(frozen=True)
-class SeenRobot:
-    """Another robot as one scan shows it.
-
-    Attributes:
-        centre: (2,) estimated centre x, y [m] in ``map``.
-        points: (n, 2) its scan points x, y [m] in ``map``.
-        velocity: (2,) estimated velocity [m/s] in ``map`` from earlier scans; NaN when unknown.
-    """
-
-    centre: np.ndarray
-    points: np.ndarray
-    velocity: np.ndarray
-
-
-def cluster_points(points: Points2D, link: float = 0.2) -> tuple[np.ndarray, int]:
-    """Group points closer than ``link`` [m] (single linkage).
-
-    Args:
-        points: (M, 2) x, y [m].
-        link: the linking distance [m].
-
-    Returns:
-        ``(labels, n)``: (M,) cluster index of each point, and the number of clusters.
-    """
-    pts = np.asarray(points, dtype=float).reshape(-1, 2)
-    m = len(pts)
-    if m <= 1:
-        return np.zeros(m, dtype=int), m
-    if m > 400:  # sparse for big clouds
-        pairs = cKDTree(pts).query_pairs(link, output_type="ndarray")
-        graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
-        n, labels = connected_components(graph, directed=False)
-        return labels, int(n)
-    d2 = (pts[:, None, 0] - pts[None, :, 0]) ** 2 + (pts[:, None, 1] - pts[None, :, 1]) ** 2
-    adj = d2 <= link * link
-    labels = np.arange(m)
-    while True:  # min-label propagation with pointer jumping
-        new = np.where(adj, labels[None, :], m).min(axis=1)
-        new = new[new]
-        if np.array_equal(new, labels):
-            break
-        labels = new
-    _, labels = np.unique(labels, return_inverse=True)
-    return labels.reshape(-1), int(labels.max()) + 1
-
-
-def cluster_centres(points: Points2D, viewer_xy, link: float = 0.2,
-                    depth: float = 0.1) -> np.ndarray:
-    """Estimated centres of the objects (robots) behind clusters of dynamic points.
-
-    A lidar sees an object's near side, so each cluster's centroid is pushed ``depth`` [m] away
-    from the viewer.
-
-    Args:
-        points: (M, 2) dynamic points x, y [m] in ``map``.
-        viewer_xy: (2,) x, y [m] of the lidar (or robot) in ``map``.
-        link: the clustering distance [m] (:func:`cluster_points`).
-        depth: how far behind its visible side an object's centre lies [m].
-
-    Returns:
-        (K, 2) x, y [m] of the estimated centres, one per cluster.
-    """
-    pts = np.asarray(points, dtype=float).reshape(-1, 2)
-    labels, n = cluster_points(pts, link)
-    if n == 0:
-        return np.zeros((0, 2))
-    sums = np.zeros((n, 2))
-    np.add.at(sums, labels, pts)
-    centroids = sums / np.bincount(labels, minlength=n)[:, None]
-    away = centroids - np.asarray(viewer_xy, dtype=float)
-    norm = np.hypot(away[:, 0], away[:, 1])[:, None]
-    return centroids + depth * away / np.maximum(norm, 1e-9)
-
-
-def estimate_velocities(centres: np.ndarray, earlier: np.ndarray, dt: float,
-                        gate: float = 0.3, max_speed: float = 0.5) -> np.ndarray:
-    """Velocities of clusters by matching each centre to the nearest centre of an earlier scan.
-
-    Args:
-        centres: (K, 2) centres x, y [m] now.
-        earlier: (J, 2) centres [m] ``dt`` seconds earlier.
-        dt: time [s] between the two (> 0).
-        gate: a match may be at most ``gate + max_speed * dt`` [m] away.
-        max_speed: the fastest a robot moves [m/s].
-
-    Returns:
-        (K, 2) velocities [m/s]; NaN where no earlier centre matched.
-    """
-    c = np.asarray(centres, dtype=float).reshape(-1, 2)
-    e = np.asarray(earlier, dtype=float).reshape(-1, 2)
-    out = np.full(c.shape, np.nan)
-    if len(c) == 0 or len(e) == 0 or dt <= 0:
-        return out
-    d = np.hypot(c[:, None, 0] - e[None, :, 0], c[:, None, 1] - e[None, :, 1])
-    j = np.argmin(d, axis=1)
-    ok = d[np.arange(len(c)), j] <= gate + max_speed * dt
-    out[ok] = (c[ok] - e[j[ok]]) / dt
-    return out
-
-
-def perceive_robots(dyn_points: Points2D, viewer_xy, earlier: np.ndarray | None = None,
-                    dt: float = 0.0) -> list[SeenRobot]:
-    """The other robots in a scan: clusters of dynamic points, their centres and velocities.
-
-    Args:
-        dyn_points: (M, 2) dynamic scan points x, y [m] in ``map`` (:func:`dynamic_points`).
-        viewer_xy: (2,) the lidar's (or robot's) x, y [m].
-        earlier: (J, 2) the centres [m] seen ``dt`` seconds earlier, or ``None``.
-        dt: the time [s] since ``earlier``.
-
-    Returns:
-        One :class:`SeenRobot` per cluster.
-    """
-    pts = np.asarray(dyn_points, dtype=float).reshape(-1, 2)
-    labels, n = cluster_points(pts)
-    if n == 0:
-        return []
-    centres = cluster_centres(pts, viewer_xy)
-    if earlier is None:
-        vel = np.full((n, 2), np.nan)
-    else:
-        vel = estimate_velocities(centres, earlier, dt)
-    return [SeenRobot(centres[k], pts[labels == k], vel[k]) for k in range(n)]
-
-
 def _toward(robot: SeenRobot, goal_xy: np.ndarray) -> float:
     """Speed [m/s] of a robot toward the goal (negative: away); NaN if unknown."""
     d = goal_xy - robot.centre
@@ -220,7 +72,7 @@ def goal_occupied(robots: Sequence[SeenRobot], goal_xy, cfg: HoldingConfig) -> b
     """Whether another robot stands on the goal (or is driving onto it, and not off it).
 
     Args:
-        robots: the robots seen (:func:`perceive_robots`).
+        robots: the robots seen (:func:`~swarm_nav.perception.perceive_robots`).
         goal_xy: (2,) the goal x, y [m].
         cfg: ``goal_occupied_radius`` [m], ``goal_occupied_min_points``, ``moving_speed`` [m/s].
 
@@ -244,7 +96,7 @@ def someone_came_first(robots: Sequence[SeenRobot], robot_xy, goal_xy,
     """First come, first served: another robot heading for our goal and nearer to it than we are.
 
     Args:
-        robots: the robots seen (:func:`perceive_robots`).
+        robots: the robots seen (:func:`~swarm_nav.perception.perceive_robots`).
         robot_xy: (2,) our position x, y [m].
         goal_xy: (2,) the goal x, y [m].
         cfg: ``yield_radius`` [m], ``yield_margin`` [m] and ``moving_speed`` [m/s].

@@ -33,12 +33,13 @@ from sensor_msgs.msg import LaserScan
 from std_srvs.srv import Trigger
 
 from swarm_common.errors import InputError
-from swarm_common.geometry import quaternion_to_yaw, yaw_to_quaternion
+from swarm_common.geometry import quaternion_to_yaw, transform_points, yaw_to_quaternion
 from swarm_common.nav_status import TERMINAL, NavState, NavStatusRecord, encode, level_of
 from swarm_common.occupancy import OccupancyMap
 from swarm_common.stamps import NS_PER_S, format_stamp
 from swarm_nav.config import NavigatorConfig, flat_defaults
 from swarm_nav.core import NavigatorCore
+from swarm_nav.holding import holding_sites_from_poi
 
 STATUS_PERIOD_NS = NS_PER_S // 2  # nav_status at 2 Hz simulated, and on every change of state
 # Parameters that describe the robot and its world rather than an algorithm.
@@ -190,10 +191,7 @@ class NavigatorNode(Node):
 
         robot = load_robot(self.get_parameter("robot").value)
         poi_file = self.get_parameter("poi_file").value
-        sites = []
-        if poi_file:
-            poi = load_poi(poi_file)
-            sites = [(ws.pose, ws.holding) for ws in poi.workstations]
+        sites = holding_sites_from_poi(load_poi(poi_file)) if poi_file else []
         return robot, sites
 
     # -- helpers -------------------------------------------------------------------------------
@@ -389,8 +387,7 @@ class NavigatorNode(Node):
         r = r[ok]
         mount = self.lidar.pose
         lx, ly = r * np.cos(a + mount[2]) + mount[0], r * np.sin(a + mount[2]) + mount[1]
-        c, s = math.cos(pose[2]), math.sin(pose[2])
-        return np.column_stack((pose[0] + c * lx - s * ly, pose[1] + s * lx + c * ly))
+        return transform_points(pose, np.column_stack((lx, ly)))
 
     # -- outputs -------------------------------------------------------------------------------
 

@@ -35,7 +35,6 @@ from swarm_common.geometry import Path2D
 from swarm_nav.config import PlannerConfig
 from swarm_nav.costmap import INSCRIBED, LETHAL, UNKNOWN, Costmap, segment_profile
 
-_SQRT2 = math.sqrt(2.0)
 _UNKNOWN_AS = 126
 _MOVES = ((0, 1), (0, -1), (1, 0), (-1, 0), (1, 1), (1, -1), (-1, 1), (-1, -1))
 

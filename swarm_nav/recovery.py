@@ -1,15 +1,11 @@
-"""Progress checking, recovery behaviours, and the rules that break deadlocks between robots.
+"""Progress checking and recovery behaviours (nav2's progress checker and recovery set).
 
 - :class:`ProgressChecker` is nav2's SimpleProgressChecker: the robot must move
   ``required_movement_radius`` (0.5 m) from where it was within ``movement_time_allowance`` (10 s).
 - :class:`Recovery` runs one behaviour of nav2's recovery set (replan with the robots seen, back
   up, wait, spin) and checks each motion against the scan before commanding it.
-- :func:`keep_right` is the traffic rule that lets two robots meeting head-on pass without any
-  communication: each shifts its local path to its own right when a robot is ahead on it.
-- :func:`must_yield` breaks what is left of a face-to-face deadlock with a rule both robots
-  evaluate to opposite answers from what each sees: the robot whose bearing to the other points
-  along the yield axis yields (it retreats to a place off the other's way, found by
-  :func:`retreat_candidates`, and waits until its path is clear); the other keeps going.
+- The rules between robots (keep right, and who yields in a face-to-face deadlock) live in
+  :mod:`swarm_nav.traffic`.
 - The robot's namespace index only staggers the wait time, so that several robots that are stuck
   together do not retry in lockstep.
 """
@@ -21,9 +17,8 @@ from enum import StrEnum
 
 import numpy as np
 
-from swarm_common.geometry import Path2D, Points2D, wrap_angle
+from swarm_common.geometry import Points2D, wrap_angle
 from swarm_nav.config import RecoveryConfig
-from swarm_nav.costmap import INSCRIBED, Costmap
 from swarm_nav.dwa import Footprint, footprint_gaps, rotation_is_safe
 
 
@@ -174,142 +169,3 @@ def backup_is_safe(pose, speed: float, obstacles: Points2D, footprint: Footprint
     gaps = footprint_gaps(x, y, np.full(6, pose[2]), pts[near], footprint)
     dip = 0.5 * speed * horizon / 5  # what the steps may skip over
     return bool(gaps[1:].min() - dip >= min(padding, gaps[0]))
-
-
-def robots_ahead(pose, centres: np.ndarray, distance: float, half_angle: float = math.pi / 3
-                 ) -> np.ndarray:
-    """Indices of the robot centres within ``distance`` [m] in front of the robot.
-
-    Args:
-        pose: (3,) the robot's pose [m, rad] in ``map``.
-        centres: (K, 2) other robots' estimated centres x, y [m] in ``map``.
-        distance: how far ahead [m].
-        half_angle: half the opening [rad] of the cone in front.
-
-    Returns:
-        (J,) indices into ``centres``, nearest first.
-    """
-    c = np.asarray(centres, dtype=float).reshape(-1, 2)
-    if len(c) == 0:
-        return np.zeros(0, dtype=int)
-    d = c - np.asarray(pose, dtype=float)[:2]
-    rng = np.hypot(d[:, 0], d[:, 1])
-    bearing = np.abs(wrap_angle(np.arctan2(d[:, 1], d[:, 0]) - pose[2]))
-    idx = np.flatnonzero((rng <= distance) & (bearing <= half_angle))
-    return idx[np.argsort(rng[idx])]
-
-
-def must_yield(robot_xy, other_xy, axis_angle: float) -> bool:
-    """The deadlock rule: the robot whose bearing to the other points along the axis yields.
-
-    Both robots evaluate it from their own position and their estimate of the other's; the
-    bearings are opposite, so exactly one yields (the axis is tilted off the map axes so that the
-    corridors of a factory floor, which run along x or y, are never ambiguous).
-
-    Args:
-        robot_xy: (2,) our position [m] in ``map``.
-        other_xy: (2,) the other robot's estimated centre [m].
-        axis_angle: direction [rad] of the yield axis in ``map``.
-
-    Returns:
-        True if we yield.
-    """
-    d = np.asarray(other_xy, dtype=float) - np.asarray(robot_xy, dtype=float)
-    return bool(d[0] * math.cos(axis_angle) + d[1] * math.sin(axis_angle) > 0.0)
-
-
-def keep_right(path: Path2D, pose, centres: np.ndarray, costmap: Costmap,
-               cfg: RecoveryConfig, lateral: float = 0.7, max_cost: int = 200) -> Path2D:
-    """Shift the local path to the robot's right while another robot is ahead on it.
-
-    Every robot applies the same rule to its own path, so two robots meeting head-on move apart
-    before they meet, like traffic.  The shift grows in over the first 0.5 m of the local path and
-    shrinks where the costmap has no room for it: a shifted point may cost at most ``max_cost``
-    (or what the unshifted point costs, if more); the largest of 1, 2/3, 1/3 and 0 times the
-    offset that satisfies this is used.
-
-    Args:
-        path: (N, 2) local path x, y [m] in ``map`` from near the robot onward.
-        pose: (3,) the robot's pose [m, rad].
-        centres: (K, 2) other robots' estimated centres [m].
-        costmap: the static costmap.
-        cfg: ``keep_right_offset`` [m] and ``keep_right_distance`` [m].
-        lateral: a robot counts as "on the path" within this distance [m] of it.
-        max_cost: the costmap cost a shifted point may reach (200: about 0.3 m from walls with
-            nav2's default inflation).
-
-    Returns:
-        (N, 2) the shifted path (the input when no robot is ahead on it).
-    """
-    path = np.asarray(path, dtype=float).reshape(-1, 2)
-    c = np.asarray(centres, dtype=float).reshape(-1, 2)
-    if len(path) < 2 or len(c) == 0 or cfg.keep_right_offset <= 0.0:
-        return path
-    ahead = robots_ahead(pose, c, cfg.keep_right_distance, math.pi / 2)
-    if len(ahead) == 0:
-        return path
-    d = np.hypot(c[ahead, None, 0] - path[None, :, 0], c[ahead, None, 1] - path[None, :, 1])
-    if d.min() > lateral:
-        return path
-    seg = np.diff(path, axis=0)
-    tang = np.vstack((seg, seg[-1:]))
-    tang /= np.maximum(np.hypot(tang[:, 0], tang[:, 1]), 1e-9)[:, None]
-    right = np.column_stack((tang[:, 1], -tang[:, 0]))
-    s = np.concatenate(([0.0], np.cumsum(np.hypot(seg[:, 0], seg[:, 1]))))
-    ramp = np.clip(s / 0.5, 0.0, 1.0)
-    best = np.zeros(len(path))
-    limit = np.maximum(costmap.cost_at(path).astype(int), max_cost)
-    for frac in (1.0 / 3.0, 2.0 / 3.0, 1.0):
-        cand = path + (frac * cfg.keep_right_offset * ramp)[:, None] * right
-        c = costmap.cost_at(cand).astype(int)
-        best = np.where((c <= limit) & (c < INSCRIBED), frac, best)
-    return path + (best * cfg.keep_right_offset * ramp)[:, None] * right
-
-
-def retreat_candidates(costmap: Costmap, robot_xy, other_xy, cfg: RecoveryConfig,
-                       max_cost: int = 128) -> np.ndarray:
-    """Places a robot that yields may retreat to, nearest first.
-
-    The other robot is taken to come along the line from itself through us.  A candidate is the
-    centre of a cell within ``yield_search_radius`` of us, cheaper than ``max_cost`` (well clear of
-    walls), in our connected component, at least ``yield_clearance`` off that line, and not beyond
-    the other robot.
-
-    Args:
-        costmap: the costmap (static, or with the robots seen overlaid).
-        robot_xy: (2,) our position x, y [m] in ``map``.
-        other_xy: (2,) the other robot's estimated centre [m].
-        cfg: ``yield_search_radius`` [m] and ``yield_clearance`` [m].
-        max_cost: the highest cost a candidate cell may have.
-
-    Returns:
-        (K, 2) candidate x, y [m], sorted by straight-line distance from us.
-    """
-    robot_xy = np.asarray(robot_xy, dtype=float)[:2]
-    other_xy = np.asarray(other_xy, dtype=float)[:2]
-    axis = robot_xy - other_xy
-    norm = float(np.hypot(*axis))
-    axis = axis / norm if norm > 1e-6 else np.array([1.0, 0.0])
-    res = costmap.resolution
-    n = int(math.ceil(cfg.yield_search_radius / res))
-    rc = costmap.world_to_cell(robot_xy)
-    r0, r1 = max(rc[0] - n, 0), min(rc[0] + n + 1, costmap.height)
-    c0, c1 = max(rc[1] - n, 0), min(rc[1] + n + 1, costmap.width)
-    if r0 >= r1 or c0 >= c1 or not costmap.in_bounds(rc):
-        return np.zeros((0, 2))
-    labels = costmap.components(False)
-    mine = labels[rc[0], rc[1]]
-    win = (costmap.costs[r0:r1, c0:c1] < max_cost)
-    if mine:
-        win &= labels[r0:r1, c0:c1] == mine
-    cells = np.argwhere(win) + (r0, c0)
-    if len(cells) == 0:
-        return np.zeros((0, 2))
-    xy = costmap.cell_to_world(cells)
-    rel = xy - other_xy
-    along = rel @ axis
-    lateral = np.abs(rel[:, 0] * axis[1] - rel[:, 1] * axis[0])
-    dist = np.hypot(*(xy - robot_xy).T)
-    ok = (lateral >= cfg.yield_clearance) & (along >= -0.3) & (dist <= cfg.yield_search_radius)
-    xy, dist = xy[ok], dist[ok]
-    return xy[np.argsort(dist, kind="stable")]

@@ -137,13 +137,37 @@ def test_waffle_limits_are_the_robot_not_the_navigator_limits():
 
 
 def test_unresolvable_package_meshes_warn_once_and_go_on(caplog):
+    # a caller that would draw the meshes (a GUI) is warned, once
     with caplog.at_level(logging.WARNING, logger=LOGGER):
-        robot = load_robot("turtlebot3_waffle")
+        robot = load_robot("turtlebot3_waffle", need_meshes=True)
+        again = load_robot("turtlebot3_waffle", need_meshes=True)
     mesh = _warnings(caplog, "mesh")
     assert len(mesh) == 1
     assert "robots/turtlebot3_waffle.urdf.xacro" in mesh[0]
     assert "package://turtlebot3_description" in mesh[0]
+    assert "5 mesh file(s)" in mesh[0]
     assert robot.wheel_separation == pytest.approx(0.287)
+    assert again is robot
+
+
+@pytest.mark.parametrize("name", sorted(SEED))
+def test_headless_load_says_nothing_about_meshes_above_debug(name, caplog):
+    """Item 6 of issue 7: a newcomer's headless run shows no warning about meshes."""
+    with caplog.at_level(logging.DEBUG, logger=LOGGER):
+        first = load_robot(name)
+        load_robot(name)
+        load_robot(name, need_meshes=False)
+    assert [r for r in caplog.records if r.name == LOGGER and r.levelno > logging.DEBUG] == []
+    debug = [r.getMessage() for r in caplog.records
+             if r.name == LOGGER and r.levelno == logging.DEBUG and "mesh" in r.getMessage()]
+    assert len(debug) == (1 if name.startswith("turtlebot3") else 0)  # once, when there are any
+    # the model is the same whether or not the meshes are needed
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger=LOGGER):
+        gui = load_robot(name, need_meshes=True)
+        load_robot(name, need_meshes=True)
+    assert gui is first
+    assert len(_warnings(caplog, "mesh")) == (1 if name.startswith("turtlebot3") else 0)
 
 
 def test_robot_by_path_equals_robot_by_name(repo_root, caplog):
@@ -228,7 +252,7 @@ def test_sensor_pose_is_composed_with_the_link_pose():
 
 def test_no_sensor_block_falls_back_to_params_lidar_block_with_one_warning(caplog):
     with caplog.at_level(logging.WARNING, logger=LOGGER):
-        robot = load_robot(DATA / "robot_no_sensor.urdf")
+        robot = load_robot(DATA / "robot_no_sensor.urdf", need_meshes=True)
     lidar_warnings = _warnings(caplog, "lidar")
     assert len(lidar_warnings) == 1
     assert "tests/data/robot_no_sensor.urdf" in lidar_warnings[0]

@@ -10,15 +10,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from swarm_common.errors import InputError
-from swarm_common.world import (
-    World,
-    load_world,
-    matrix_to_rpy,
-    pose_to_matrix,
-    resolve_world,
-    rpy_to_matrix,
-    world_polygons,
-)
+from swarm_common.geometry import pose_to_matrix
+from swarm_common.world import World, load_world, resolve_world, world_polygons
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 
@@ -147,14 +140,6 @@ def test_stl_mesh_outline_is_the_projected_hull(composition):
 def test_composition_fixture_skips_ground_plane_sun_light_silently(composition):
     assert composition.skipped == ()
     assert len(composition.shapes) == 6
-
-
-@pytest.mark.parametrize("rpy", [(0.3, -0.4, 0.5), (-2.9, 1.2, 3.0), (0.0, 0.0, -math.pi),
-                                 (1.0, math.pi / 2, 0.2)])
-def test_rpy_matrix_round_trip(rpy):
-    rot = rpy_to_matrix(*rpy)
-    np.testing.assert_allclose(rot, Rotation.from_euler("xyz", rpy).as_matrix(), atol=1e-12)
-    np.testing.assert_allclose(rpy_to_matrix(*matrix_to_rpy(rot)), rot, atol=1e-9)
 
 
 # --------------------------------------------------------------------------- skipping

@@ -1,4 +1,4 @@
-"""Goal-occupied detection from the scan, first come first served, and the holding pattern."""
+"""Goal-occupied detection from the robots seen, first come first served, the holding pattern."""
 
 import math
 
@@ -10,26 +10,17 @@ from swarm_nav.costmap import build_costmap
 from swarm_nav.holding import (
     HoldingPattern,
     HoldingPhase,
-    SeenRobot,
-    cluster_points,
-    dynamic_points,
-    estimate_velocities,
     goal_occupied,
     goal_visible,
     holding_points_for,
     holding_sites_from_poi,
-    perceive_robots,
     someone_came_first,
     staging_point,
 )
+from swarm_nav.perception import SeenRobot
 from tests.swarm_nav.helpers import (
     SLIM_BLOCKAGE_LOOP,
-    SLIM_BLOCKAGE_WALLS,
-    Lidar,
-    box_segments,
-    footprint_polygon,
     grid_map,
-    polygon_segments,
     slim_blockage_map,
 )
 
@@ -45,39 +36,6 @@ def robot_at(x, y, vx=0.0, vy=0.0, n=12):
     """A robot seen as points on its near side (a 0.27 m segment facing -x)."""
     pts = np.column_stack((np.full(n, x - 0.13), np.linspace(y - 0.13, y + 0.13, n)))
     return SeenRobot(np.array([x, y]), pts, np.array([vx, vy]))
-
-
-def test_dynamic_points_keep_only_what_the_map_does_not_explain(costmap):
-    rng = np.random.default_rng(0)
-    viewer = np.array([-6.5, -3.9, 0.0])
-    other = np.array([-5.5, -3.9, math.pi])
-    segs = np.vstack([box_segments(SLIM_BLOCKAGE_WALLS),
-                      polygon_segments(footprint_polygon(other))])
-    pts = Lidar().scan_points(viewer, segs, rng)
-    dyn = dynamic_points(pts, costmap, CFG.static_point_tolerance)
-    assert 5 <= len(dyn) < len(pts)
-    assert np.all(np.hypot(*(dyn - other[:2]).T) < 0.3)   # all of them are on the other robot
-    robots = perceive_robots(dyn, viewer[:2])
-    assert len(robots) == 1
-    assert np.hypot(*(robots[0].centre - (other[:2] + [-0.064, 0]))) < 0.12
-    assert np.all(np.isnan(robots[0].velocity))
-
-
-def test_cluster_points_separates_robots():
-    a = np.column_stack((np.linspace(0, 0.25, 10), np.zeros(10)))
-    b = a + [1.0, 0.5]
-    labels, n = cluster_points(np.vstack((a, b)))
-    assert n == 2 and len(set(labels[:10])) == 1 and len(set(labels[10:])) == 1
-    assert labels[0] != labels[10]
-    assert cluster_points(np.zeros((0, 2)))[1] == 0
-
-
-def test_estimate_velocities():
-    now = np.array([[1.0, 0.0], [5.0, 5.0]])
-    before = np.array([[0.8, 0.0], [9.0, 9.0]])
-    v = estimate_velocities(now, before, 1.0)
-    assert v[0] == pytest.approx([0.2, 0.0])
-    assert np.all(np.isnan(v[1]))
 
 
 @pytest.mark.parametrize("robot, occupied", [

@@ -13,12 +13,15 @@ from swarm_nav.config import (
     GoalConfig,
     HoldingConfig,
     NavigatorConfig,
+    PerceptionConfig,
     PlannerConfig,
     RecoveryConfig,
+    TrafficConfig,
     flat_defaults,
 )
 
-SUBCONFIGS = (CostmapConfig, PlannerConfig, DwaConfig, GoalConfig, HoldingConfig, RecoveryConfig)
+SUBCONFIGS = (CostmapConfig, PlannerConfig, DwaConfig, GoalConfig, PerceptionConfig,
+              HoldingConfig, RecoveryConfig, TrafficConfig)
 
 
 def _flatten(d, prefix=""):
@@ -66,7 +69,8 @@ def test_template_has_a_unit_comment_on_every_key(template):
 def test_every_field_has_unit_and_description():
     for cls in (*SUBCONFIGS, NavigatorConfig):
         for f in dataclasses.fields(cls):
-            if f.name in ("costmap", "planner", "dwa", "goal", "holding", "recovery"):
+            if f.name in ("costmap", "planner", "dwa", "goal", "perception", "holding",
+                          "recovery", "traffic"):
                 continue
             assert f.metadata["unit"], f"{cls.__name__}.{f.name} has no unit"
             assert f.metadata["description"], f"{cls.__name__}.{f.name} has no description"

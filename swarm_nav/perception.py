@@ -1,0 +1,215 @@
+"""What a robot sees of the other robots in its own scan: clusters, centres and velocities.
+
+No communication: every robot knows the others only through its lidar. The scan points that the
+static map does not explain (farther than ``static_point_tolerance`` from every lethal cell,
+:func:`dynamic_points`) are grouped by single linkage (:func:`cluster_points`); each cluster is
+one robot (:class:`SeenRobot`) whose centre lies a little behind its visible side
+(:func:`cluster_centres`) and whose velocity comes from matching the centres to those of a scan
+about ``velocity_baseline`` earlier (:func:`estimate_velocities`; :class:`RobotTracker` keeps
+that short history). The holding pattern (:mod:`swarm_nav.holding`), the traffic rules
+(:mod:`swarm_nav.traffic`) and the navigator (:mod:`swarm_nav.core`) use what is seen here.
+
+Pure: numpy arrays in ``map`` and dataclasses, no ROS. Tests: tests/swarm_nav/test_perception.py.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from swarm_common.geometry import Points2D
+from swarm_nav.config import PerceptionConfig
+from swarm_nav.costmap import Costmap
+
+
+def dynamic_points(points: Points2D, costmap: Costmap, tolerance: float) -> Points2D:
+    """The scan points the static map does not explain (other robots, people, new objects).
+
+    Args:
+        points: (M, 2) scan end points x, y [m] in ``map``.
+        costmap: the static costmap (its obstacle distance field).
+        tolerance: a point nearer than this [m] to a lethal cell belongs to the map.
+
+    Returns:
+        (K, 2) the points farther than ``tolerance`` from every lethal cell (points outside the map
+        count as static).
+    """
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    if len(pts) == 0:
+        return pts
+    return pts[costmap.distance_at(pts) > tolerance]
+
+
+@dataclass(frozen=True)
+class SeenRobot:
+    """Another robot as one scan shows it.
+
+    Attributes:
+        centre: (2,) estimated centre x, y [m] in ``map``.
+        points: (n, 2) its scan points x, y [m] in ``map``.
+        velocity: (2,) estimated velocity [m/s] in ``map`` from earlier scans; NaN when unknown.
+    """
+
+    centre: np.ndarray
+    points: np.ndarray
+    velocity: np.ndarray
+
+
+def cluster_points(points: Points2D, link: float = 0.2) -> tuple[np.ndarray, int]:
+    """Group points closer than ``link`` [m] (single linkage).
+
+    Args:
+        points: (M, 2) x, y [m].
+        link: the linking distance [m].
+
+    Returns:
+        ``(labels, n)``: (M,) cluster index of each point, and the number of clusters.
+    """
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    m = len(pts)
+    if m <= 1:
+        return np.zeros(m, dtype=int), m
+    if m > 400:  # sparse for big clouds
+        pairs = cKDTree(pts).query_pairs(link, output_type="ndarray")
+        graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
+        n, labels = connected_components(graph, directed=False)
+        return labels, int(n)
+    d2 = (pts[:, None, 0] - pts[None, :, 0]) ** 2 + (pts[:, None, 1] - pts[None, :, 1]) ** 2
+    adj = d2 <= link * link
+    labels = np.arange(m)
+    while True:  # min-label propagation with pointer jumping
+        new = np.where(adj, labels[None, :], m).min(axis=1)
+        new = new[new]
+        if np.array_equal(new, labels):
+            break
+        labels = new
+    _, labels = np.unique(labels, return_inverse=True)
+    return labels.reshape(-1), int(labels.max()) + 1
+
+
+def cluster_centres(points: Points2D, viewer_xy, link: float = 0.2,
+                    depth: float = 0.1) -> np.ndarray:
+    """Estimated centres of the objects (robots) behind clusters of dynamic points.
+
+    A lidar sees an object's near side, so each cluster's centroid is pushed ``depth`` [m] away
+    from the viewer.
+
+    Args:
+        points: (M, 2) dynamic points x, y [m] in ``map``.
+        viewer_xy: (2,) x, y [m] of the lidar (or robot) in ``map``.
+        link: the clustering distance [m] (:func:`cluster_points`).
+        depth: how far behind its visible side an object's centre lies [m].
+
+    Returns:
+        (K, 2) x, y [m] of the estimated centres, one per cluster.
+    """
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    labels, n = cluster_points(pts, link)
+    if n == 0:
+        return np.zeros((0, 2))
+    sums = np.zeros((n, 2))
+    np.add.at(sums, labels, pts)
+    centroids = sums / np.bincount(labels, minlength=n)[:, None]
+    away = centroids - np.asarray(viewer_xy, dtype=float)
+    norm = np.hypot(away[:, 0], away[:, 1])[:, None]
+    return centroids + depth * away / np.maximum(norm, 1e-9)
+
+
+def estimate_velocities(centres: np.ndarray, earlier: np.ndarray, dt: float,
+                        gate: float = 0.3, max_speed: float = 0.5) -> np.ndarray:
+    """Velocities of clusters by matching each centre to the nearest centre of an earlier scan.
+
+    Args:
+        centres: (K, 2) centres x, y [m] now.
+        earlier: (J, 2) centres [m] ``dt`` seconds earlier.
+        dt: time [s] between the two (> 0).
+        gate: a match may be at most ``gate + max_speed * dt`` [m] away.
+        max_speed: the fastest a robot moves [m/s].
+
+    Returns:
+        (K, 2) velocities [m/s]; NaN where no earlier centre matched.
+    """
+    c = np.asarray(centres, dtype=float).reshape(-1, 2)
+    e = np.asarray(earlier, dtype=float).reshape(-1, 2)
+    out = np.full(c.shape, np.nan)
+    if len(c) == 0 or len(e) == 0 or dt <= 0:
+        return out
+    d = np.hypot(c[:, None, 0] - e[None, :, 0], c[:, None, 1] - e[None, :, 1])
+    j = np.argmin(d, axis=1)
+    ok = d[np.arange(len(c)), j] <= gate + max_speed * dt
+    out[ok] = (c[ok] - e[j[ok]]) / dt
+    return out
+
+
+def perceive_robots(dyn_points: Points2D, viewer_xy, earlier: np.ndarray | None = None,
+                    dt: float = 0.0) -> list[SeenRobot]:
+    """The other robots in a scan: clusters of dynamic points, their centres and velocities.
+
+    Args:
+        dyn_points: (M, 2) dynamic scan points x, y [m] in ``map`` (:func:`dynamic_points`).
+        viewer_xy: (2,) the lidar's (or robot's) x, y [m].
+        earlier: (J, 2) the centres [m] seen ``dt`` seconds earlier, or ``None``.
+        dt: the time [s] since ``earlier``.
+
+    Returns:
+        One :class:`SeenRobot` per cluster.
+    """
+    pts = np.asarray(dyn_points, dtype=float).reshape(-1, 2)
+    labels, n = cluster_points(pts)
+    if n == 0:
+        return []
+    centres = cluster_centres(pts, viewer_xy)
+    if earlier is None:
+        vel = np.full((n, 2), np.nan)
+    else:
+        vel = estimate_velocities(centres, earlier, dt)
+    return [SeenRobot(centres[k], pts[labels == k], vel[k]) for k in range(n)]
+
+
+class RobotTracker:
+    """The robots seen in successive scans, with velocities from the centres seen earlier.
+
+    Keeps the centres of the scans of the last ``velocity_history`` [s]; each new scan's clusters
+    are matched to the centres of the kept scan whose age is nearest ``velocity_baseline`` (at
+    least ``velocity_min_baseline`` old), so a velocity is averaged over about that long.
+
+    Args:
+        cfg: ``velocity_history``, ``velocity_min_baseline`` and ``velocity_baseline`` [s].
+    """
+
+    def __init__(self, cfg: PerceptionConfig):
+        self.cfg = cfg
+        self._history: list[tuple[float, np.ndarray]] = []
+
+    def update(self, dyn_points: Points2D, viewer_xy, now: float) -> list[SeenRobot]:
+        """The robots of a new scan (:func:`perceive_robots`); remembers their centres.
+
+        Args:
+            dyn_points: (M, 2) dynamic scan points x, y [m] in ``map`` (:func:`dynamic_points`).
+            viewer_xy: (2,) the lidar's (or robot's) x, y [m].
+            now: the scan's time [s].
+
+        Returns:
+            One :class:`SeenRobot` per cluster; velocities NaN until a scan at least
+            ``velocity_min_baseline`` older is known (or where no earlier centre matched).
+        """
+        cfg = self.cfg
+        self._history = [(t, c) for t, c in self._history
+                         if now - t <= cfg.velocity_history and t < now]
+        old = [(t, c) for t, c in self._history if now - t >= cfg.velocity_min_baseline]
+        earlier, dt = (None, 0.0)
+        if old:
+            t_old, earlier = min(old, key=lambda tc: abs(now - tc[0] - cfg.velocity_baseline))
+            dt = now - t_old
+        robots = perceive_robots(dyn_points, viewer_xy, earlier, dt)
+        self._history.append((now, robot_centres(robots)))
+        return robots
+
+
+def robot_centres(robots: list[SeenRobot]) -> np.ndarray:
+    """(K, 2) the centres x, y [m] of ``robots`` ((0, 2) when there are none)."""
+    return np.array([r.centre for r in robots]) if robots else np.zeros((0, 2))
