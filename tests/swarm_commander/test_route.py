@@ -16,6 +16,7 @@ from swarm_commander.route import (
     FixedRoute,
     RandomRoute,
     RouteStop,
+    build_route,
     load_route,
     route_rng,
     stops_from_workstations,
@@ -184,3 +185,35 @@ def test_load_route_names_without_workstations(tmp_path):
 def test_load_route_missing_file(tmp_path):
     with pytest.raises(InputError, match="no such route file"):
         load_route(tmp_path / "nope.yaml")
+
+
+def _names(route, loops=3):
+    return [stop.name for _, stop in visits(route, loops)]
+
+
+def test_build_route_random_is_seeded_per_robot_over_the_bundled_workstations():
+    route = build_route("slim_blockage", 0, "Srobot3")
+    assert isinstance(route, RandomRoute)
+    names = _names(route)
+    assert len(names) == 18  # six loaders, every one once per loop
+    for loop in range(3):
+        assert sorted(names[6 * loop:6 * loop + 6]) == [f"loader{i}" for i in range(1, 7)]
+    assert _names(build_route("slim_blockage", 0, "Srobot3")) == names  # same seed, same order
+    others = [_names(build_route("slim_blockage", 0, f"Srobot{i}")) for i in range(4, 9)]
+    assert any(o != names for o in others)  # the namespace is mixed into the seed
+
+
+def test_build_route_reads_a_route_file(tmp_path):
+    path = tmp_path / "route.yaml"
+    path.write_text("waypoints:\n  - loader2\n  - {x: 1.0, y: 2.0, yaw: 0.5}\n")
+    route = build_route("slim_blockage", 0, "Srobot1", route=path)
+    assert isinstance(route, FixedRoute)
+    assert [s.name for s in route.stops][0] == "loader2"
+    assert route.stops[1].pose[:2].tolist() == [1.0, 2.0]
+
+
+def test_build_route_errors_name_the_flag():
+    with pytest.raises(InputError, match=r"^--world: "):
+        build_route("no_such_world", 0, "Srobot1")
+    with pytest.raises(InputError, match=r"^--world: world empty has no workstations"):
+        build_route("empty", 0, "Srobot1")
