@@ -243,23 +243,23 @@ def _check_nav_template(path: Path) -> None:
 
 
 def split_groups(robots: tuple[str, ...], k: int) -> tuple[tuple[str, ...], ...]:
-    """Split robots into ``k`` contiguous groups whose sizes differ by at most one.
+    """Deal robots round-robin into ``k`` groups whose sizes differ by at most one.
+
+    Robot ``i`` (0-based) goes to group ``i % k``. Dealt, not cut into contiguous runs: robots
+    with neighbouring numbers spawn side by side and tend to meet the same crowds, and the
+    lockstep tick waits for the slowest group, so contiguous groups (Srobot1-50, Srobot51-100)
+    ran one process at 100 % CPU and the other at 47 % in a 100-robot profile
+    (shared/reference/profile_100.md).
 
     Args:
         robots: namespaces.
         k: number of groups (clamped to 1..len(robots)).
 
     Returns:
-        The groups, in robot order.
+        The groups; each keeps the robots' order.
     """
     k = max(1, min(k, len(robots)))
-    base, extra = divmod(len(robots), k)
-    out, i = [], 0
-    for g in range(k):
-        size = base + (1 if g < extra else 0)
-        out.append(tuple(robots[i:i + size]))
-        i += size
-    return tuple(out)
+    return tuple(tuple(robots[g::k]) for g in range(k))
 
 
 def validate(args: argparse.Namespace) -> RunConfig:

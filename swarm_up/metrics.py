@@ -5,6 +5,13 @@ reliable + transient local, depth 1), ``/swarm/events`` (``diagnostic_msgs/Diagn
 reliable, depth 100) and ``/clock``, converts each message to plain values and hands them to the
 pure recorder (``swarm_up.aggregate``).  It spins in a background thread with its own executor
 and context, so the orchestrator's main thread keeps supervising.
+
+The executor is rclpy's ``EventsExecutor``, looped on ``spin_once`` as the group processes do
+(``docs/ARCHITECTURE.md``, Executors).  ``SingleThreadedExecutor`` rebuilds its wait set in Python
+on every ``spin_once`` from every subscription and its QoS event handlers: with 100 robots'
+``nav_status`` that cost about half a core in the orchestrator (shared/reference/profile_100.md).
+The node only subscribes, so the known deadlock of these wheels (publishing from another thread
+while the EventsExecutor spins) cannot arise.
 """
 
 from __future__ import annotations
@@ -14,7 +21,7 @@ import time
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from rclpy.executors import SingleThreadedExecutor
+from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
@@ -98,7 +105,7 @@ class MetricsListener:
         self._t0 = t0
         self._context = rclpy.Context()
         self._node: MetricsNode | None = None
-        self._executor: SingleThreadedExecutor | None = None
+        self._executor: EventsExecutor | None = None
         self._thread: threading.Thread | None = None
         self._running = threading.Event()
 
@@ -106,7 +113,7 @@ class MetricsListener:
         """Create the node and start spinning it."""
         rclpy.init(context=self._context, signal_handler_options=SignalHandlerOptions.NO)
         self._node = MetricsNode(self.recorder, self.lock, self._t0, context=self._context)
-        self._executor = SingleThreadedExecutor(context=self._context)
+        self._executor = EventsExecutor(context=self._context)
         self._executor.add_node(self._node)
         self._running.set()
         self._thread = threading.Thread(target=self._spin, name="swarm_up_metrics", daemon=True)

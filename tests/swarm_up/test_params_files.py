@@ -136,7 +136,11 @@ def test_split_groups(n, k, sizes):
     robots = tuple(f"R{i}" for i in range(1, n + 1))
     groups = split_groups(robots, k)
     assert [len(g) for g in groups] == sizes
-    assert sum(groups, ()) == robots
+    assert sorted(sum(groups, ()), key=lambda r: int(r[1:])) == list(robots)
+    for g, group in enumerate(groups):  # dealt round-robin: robot i goes to group i % k
+        assert group == robots[g::len(groups)]
+    if n >= 4 and k == 2:
+        assert groups[0][:2] == ("R1", "R3") and groups[1][:2] == ("R2", "R4")
 
 
 def test_child_commands_per_robot(cfg):
@@ -171,7 +175,7 @@ def test_child_commands_grouped(cfg):
     assert "--gui" in specs[0].argv and "--duration" not in specs[0].argv
     g1 = list(specs[1].argv)
     assert g1[:3] == [sys.executable, "-m", "swarm_up.group"]
-    assert g1[g1.index("--namespaces") + 1] == "Srobot1,Srobot2"
+    assert g1[g1.index("--namespaces") + 1] == "Srobot1,Srobot3"
     assert g1[g1.index("--params-dir") + 1] == str(Path(cfg.run_dir) / "params")
     assert "--commanders" in g1 and g1[g1.index("--seed") + 1] == "4"
-    assert specs[2].robots == ("Srobot3",)
+    assert specs[2].robots == ("Srobot2",)
