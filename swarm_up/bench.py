@@ -305,11 +305,12 @@ class BenchView:
         elif self._progress is None:
             self.say(f"{self._label}: t = {sim_s:.0f} s simulated, RTF {text}")
 
-    def finish(self, line: str, sim_s: float | None = None) -> None:
-        """End the current run with a line."""
+    def finish(self, line: str, sim_s: float | None = None, rtf: float | None = None) -> None:
+        """End the current run with a line (and its final simulated time and RTF)."""
         if self._progress is not None and self._task is not None:
             if sim_s is not None:
-                self._progress.update(self._task, completed=sim_s)
+                self._progress.update(self._task, completed=sim_s,
+                                      rtf="-" if rtf is None else f"{rtf:.2f}")
             self._progress.stop_task(self._task)
             self._task = None
         self.say(line)
@@ -459,7 +460,7 @@ def run_swarm_up(cfg: BenchConfig, n: int, r: int, stop: StopFlag, view: BenchVi
     if code == EXIT_OK and metrics is not None:
         view.finish(f"size {n}, run {r + 1}/{cfg.runs}: RTF {_fmt(metrics.get('rtf'))}, "
                     f"{_fmt(metrics.get('robot_ticks_per_s'), 0)} robot-ticks/s, "
-                    f"goals reached {metrics.get('goals_reached')}", sim_s)
+                    f"goals reached {metrics.get('goals_reached')}", sim_s, _num(metrics, "rtf"))
     else:
         why = "" if interrupted else f" ({record['error']})"
         view.finish(f"size {n}, run {r + 1}/{cfg.runs}: swarm-up exited with code {code}{why}; "
@@ -490,7 +491,7 @@ def run_floor_size(cfg: BenchConfig, base, n: int, processes: str | int, stop: S
     view.finish(f"floor, size {n}: RTF {_fmt(figures.get('rtf'))}, "
                 f"{_fmt(figures.get('robot_ticks_per_s'), 0)} robot-ticks/s" if ok else
                 f"floor, size {n}: ended with code {figures['exit_code']}; logs: "
-                f"{figures['logs']}", figures.get("sim_time_s"))
+                f"{figures['logs']}", figures.get("sim_time_s"), figures.get("rtf"))
     return {"kind": "floor", "size": n, "command": command, "exit_code": figures["exit_code"],
             "interrupted": bool(stop), "floor": figures}
 
@@ -572,16 +573,19 @@ def _fmt(value, digits: int = 2, scale: float = 1.0) -> str:
 
 def print_table(summary: list[dict], with_floor: bool, title: str) -> None:
     """The bench table (rich; plain text when not a terminal)."""
+    from rich import box
     from rich.console import Console
+    from rich.markup import escape
     from rich.table import Table
 
-    table = Table(title=title)
-    heads = ["size", "runs", "RTF", "robot-ticks/s", "tasks/h", "goals reached/aborted",
-             "collisions robot/wall", "min sep [m]", "CPU/robot [ms/sim s]", "RSS/robot [MB]"]
+    table = Table(title=title, box=box.SIMPLE_HEAD, pad_edge=False)
+    heads = ["size", "runs", "RTF", "robot-\nticks/s", "tasks/h", "goals\nok/abort",
+             "collisions\nrobot/wall", "min sep\n[m]", "CPU/robot\n[ms/sim s]",
+             "RSS/robot\n[MB]"]
     if with_floor:
-        heads += ["floor RTF", "% of floor"]
+        heads += ["floor\nRTF", "% of\nfloor"]
     for h in heads:
-        table.add_column(h, justify="right")
+        table.add_column(escape(h), justify="right", overflow="fold")
     for s in summary:
         d = 0 if s["runs_ok"] <= 1 else 1
         rtf = _fmt(s["rtf_mean"])
@@ -597,8 +601,8 @@ def print_table(summary: list[dict], with_floor: bool, title: str) -> None:
         if with_floor:
             row += [_fmt(s["floor_rtf"]), _fmt(s["rtf_pct_of_floor"], 0)]
         table.add_row(*row)
-    # Off a terminal rich would wrap the table into 80 columns: give it room instead.
-    Console(width=None if sys.stdout.isatty() else 200).print(table)
+    # Off a terminal rich would fold the table into 80 columns: give it room instead.
+    Console(width=None if sys.stdout.isatty() else 160).print(table)
 
 
 def write_plot(path: Path, summary: list[dict], title: str) -> None:
