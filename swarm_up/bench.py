@@ -11,7 +11,17 @@ the end, and, with ``--floor``, then runs the bare messaging floor (:mod:`swarm_
 robots in the process layout that run reported.  After every finished run the JSON is written
 again, so an interrupted bench keeps the rows it finished.
 
-Figures the bench adds to swarm-up's (``records[i]``):
+The JSON (``--output``): ``command`` (the bench's argv), ``started``/``finished``, ``git``
+(``commit``, ``dirty``), ``machine`` (``cores``, ``python``, ``rclpy``, ``platform``, ``rmw``,
+``load_average_start``/``_end``), ``settings`` (the flags), ``run_dir``, ``interrupted``,
+``exit_code``, ``records`` and ``summary``.  A swarm record: ``kind`` ``"swarm"``, ``size``,
+``run``, ``seed``, ``command`` (swarm-up's argv), ``exit_code``, ``log``, ``error`` (the last
+error line when the exit code is not 0), ``cpu_s``, ``cpu_per_robot``, ``rss_mb_per_robot`` and
+``metrics`` (swarm-up's ``--metrics`` file as it wrote it, None if it wrote none).  A floor record:
+``kind`` ``"floor"``, ``size``, ``command`` (the equivalent ``python -m swarm_up.floor run``),
+``exit_code`` and ``floor`` (its figures, :func:`swarm_up.floor.run_floor`).
+
+Figures the bench adds to swarm-up's:
 
 - ``cpu_per_robot`` [CPU s per robot per simulated s]: CPU time (user + system) of swarm-up and
   every process it started (simulator, navigators, commanders, groups; swarm-up's own metrics

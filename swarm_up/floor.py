@@ -53,8 +53,11 @@ supervision and resource sampling.
 (control ticks stepped, the silent tick 0 included, so a complete run has ``duration * 10``),
 ``sim_time_s``, ``wall_time_s`` (from the start gate's opening to the end, as the simulator's
 summary), ``rtf`` = sim / wall, ``robot_ticks_per_s`` = robots x ticks / wall, ``late_ticks``,
-and ``cpu_per_robot`` (CPU seconds of every floor process from the gate's opening to the end, per
-robot per simulated second; see :mod:`swarm_up.bench`).
+``cpu_s`` and ``cpu_per_robot`` = cpu_s / (robots x simulated seconds) [CPU s per robot per
+simulated s, as :mod:`swarm_up.bench`'s]: the CPU time of every floor process while it relayed
+traffic (the simulator from the gate's opening to the end; each other process from its first
+tick, status or clock message until it was stopped, printed by itself as ``floor: cpu_s X``;
+None if a process had to be killed).
 
 Usage: ``python -m swarm_up.floor run --swarm-size 20 --duration 60 [--processes per-robot|K]``
 runs the floor once and prints its figures as JSON; ``swarm-bench --floor`` calls
@@ -86,6 +89,7 @@ PER_ROBOT_MAX = 8
 DEFAULT_GOAL_PERIOD_S = 180.0  # [s] simulated
 STOP_WAIT_S = 5.0  # [s] wall: SIGINT, then SIGKILL after this long
 PROGRESS_RE = re.compile(r"t = ([\d.]+)(?: / [\d.]+)? s simulated, RTF ([\d.]+)")
+CPU_RE = re.compile(r"^floor: cpu_s ([\d.]+)$", re.MULTILINE)
 
 
 @dataclass(frozen=True)
@@ -299,7 +303,6 @@ def run_floor(cfg: FloorConfig, processes: str | int, run_dir: Path, *,
         ``cpu_per_robot``, ``interrupted`` and ``logs``.
     """
     from swarm_up import shm
-    from swarm_up.proc_cpu import TreeCpu
 
     logs = run_dir / "logs"
     logs.mkdir(parents=True, exist_ok=True)
@@ -311,7 +314,6 @@ def run_floor(cfg: FloorConfig, processes: str | int, run_dir: Path, *,
     layout = floor_layout(cfg, config_path, processes)
     shm_before = shm.snapshot()
     procs: dict[str, subprocess.Popen] = {}
-    cpu = TreeCpu()
     interrupted = False
     try:
         for p in layout:
@@ -319,10 +321,8 @@ def run_floor(cfg: FloorConfig, processes: str | int, run_dir: Path, *,
                 procs[p.name] = subprocess.Popen(
                     [sys.executable, "-m", PROG, *p.args], stdout=log,
                     stderr=subprocess.STDOUT, env=env, start_new_session=True)
-            if p.name != "sim":  # the simulator reports its own CPU time
-                cpu.add_root(procs[p.name].pid)
         sim = procs["sim"]
-        sim_log, pos, partial, last_sample = logs / "sim.log", 0, "", 0.0
+        sim_log, pos, partial = logs / "sim.log", 0, ""
         while sim.poll() is None:
             if should_stop() and not interrupted:
                 interrupted = True
@@ -334,21 +334,13 @@ def run_floor(cfg: FloorConfig, processes: str | int, run_dir: Path, *,
                 pos = fh.tell()
             *lines, partial = text.split("\n")
             for line in lines:
-                if line.startswith("floor: all ") and not cpu.marked:
-                    cpu.mark()
                 m = PROGRESS_RE.search(line)
                 if m and on_progress is not None:
                     on_progress(float(m.group(1)), float(m.group(2)))
-            if time.monotonic() - last_sample > 1.0:
-                last_sample = time.monotonic()
-                if cpu.marked:
-                    cpu.sample()
             others_dead = [n for n, p in procs.items() if n != "sim" and p.poll() is not None]
             if others_dead and not interrupted:
                 interrupted = True  # a robot process died: the run cannot complete
                 sim.send_signal(signal.SIGINT)
-        if cpu.marked:
-            cpu.sample()
     finally:
         codes = _stop(procs, list(procs))
         shm.clean_stale(shm_before)
@@ -359,10 +351,12 @@ def run_floor(cfg: FloorConfig, processes: str | int, run_dir: Path, *,
                    "wall_time_s": None, "rtf": None, "robot_ticks_per_s": None,
                    "late_ticks": None, "sim_cpu_s": None}
     n = len(cfg.robots)
-    groups_cpu = cpu.since_mark()
+    # Every other process printed its CPU time since its traffic began as its last line.
+    reported = [CPU_RE.findall((logs / f"{p.name}.log").read_text(errors="replace"))
+                for p in layout if p.name != "sim"]
     cpu_s = None
-    if groups_cpu is not None and summary.get("sim_cpu_s") is not None:
-        cpu_s = groups_cpu + summary["sim_cpu_s"]
+    if summary.get("sim_cpu_s") is not None and all(reported):
+        cpu_s = summary["sim_cpu_s"] + sum(float(r[-1]) for r in reported)
     sim_s = summary.get("sim_time_s")
     summary.update(
         processes=processes,

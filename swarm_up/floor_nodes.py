@@ -76,6 +76,24 @@ LISTENER_CLOCK_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                                 reliability=ReliabilityPolicy.BEST_EFFORT)
 
 
+class _Cpu:
+    """This process's CPU time since its traffic began (its first tick, status or clock)."""
+
+    start_s: float | None = None
+
+    @classmethod
+    def begin(cls) -> None:
+        """Note the start (only the first call counts)."""
+        if cls.start_s is None:
+            cls.start_s = time.process_time()
+
+    @classmethod
+    def line(cls) -> str:
+        """``floor: cpu_s X`` (0 if the traffic never began), parsed by ``run_floor``."""
+        used = 0.0 if cls.start_s is None else time.process_time() - cls.start_s
+        return f"floor: cpu_s {used:.3f}"
+
+
 def _time_msg(t_ns: int) -> Time:
     return Time(sec=t_ns // NS_PER_S, nanosec=t_ns % NS_PER_S)
 
@@ -451,6 +469,7 @@ class FloorNavigatorNode(Node):
             self._goal_timer = None
 
     def _tick(self, odom: Odometry) -> None:
+        _Cpu.begin()
         t = _stamp_ns(odom.header.stamp)
         self._now_ns = t
         self.answered = True
@@ -533,6 +552,7 @@ class FloorCommanderNode(Node):
         pass  # the runner's poll: nothing to retry here
 
     def _on_nav_status(self, msg: DiagnosticStatus) -> None:
+        _Cpu.begin()
         values = {kv.key: kv.value for kv in msg.values}
         state = values.get("state") or msg.message
         if self._sent is not None and values.get("goal_id") != self._sent:
@@ -577,7 +597,7 @@ class FloorListenerNode(Node):
             {kv.key: kv.value for kv in status.values}  # noqa: B018
 
     def _on_clock(self, msg: Clock) -> None:
-        pass
+        _Cpu.begin()
 
 
 # ------------------------------------------------------------------------------------ processes
@@ -596,6 +616,7 @@ def _spin(nodes: list[Node]) -> None:
             if isinstance(node, FloorNavigatorNode):
                 print(f"floor: {node.ns} took {node.goals_taken} goals, "
                       f"{node.goal_wait_timeouts} goal-wait timeouts", flush=True)
+        print(_Cpu.line(), flush=True)
         for node in nodes:
             node.destroy_node()
         rclpy.try_shutdown()
