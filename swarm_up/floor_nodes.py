@@ -40,7 +40,6 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import (
     DurabilityPolicy,
-    HistoryPolicy,
     QoSProfile,
     ReliabilityPolicy,
     qos_profile_sensor_data,
@@ -50,30 +49,27 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 from std_srvs.srv import Trigger
 
+from swarm_commander.robot_navigator import NAV_STATUS_QOS
+from swarm_common.nav_status import TERMINAL
+from swarm_common.stamps import NS_PER_S
 from swarm_up.floor import FloorConfig
+from swarm_up.metrics import CLOCK_QOS as LISTENER_CLOCK_QOS
+from swarm_up.metrics import EVENTS_QOS as LISTENER_EVENTS_QOS
+from swarm_up.metrics import STATUS_QOS as LISTENER_STATUS_QOS
 
-NS_PER_S = 1_000_000_000
 STATUS_PERIOD_NS = NS_PER_S // 2  # nav_status at 2 Hz simulated and on every change (as nav)
 GOAL_WAIT_POLL_S = 0.05  # [s] wall, as swarm_nav.node
 PROGRESS_EVERY_S = 5.0  # [s] wall between the floor simulator's progress lines
-TERMINAL = ("IDLE", "SUCCEEDED", "ABORTED", "CANCELED")
 
+# The publishers' side, as swarm_nav.node and swarm_sim.node declare them.
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
 EVENTS_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
-# The subscribers' side, as swarm_commander.robot_navigator and swarm_up.metrics declare them.
-COMMANDER_STATUS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
-                                  reliability=ReliabilityPolicy.RELIABLE,
-                                  durability=DurabilityPolicy.TRANSIENT_LOCAL)
-LISTENER_STATUS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                                 reliability=ReliabilityPolicy.RELIABLE,
-                                 durability=DurabilityPolicy.TRANSIENT_LOCAL)
-LISTENER_EVENTS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
-                                 reliability=ReliabilityPolicy.RELIABLE)
-LISTENER_CLOCK_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                                reliability=ReliabilityPolicy.BEST_EFFORT)
+# The subscribers' side is imported from the real nodes: the commander's NAV_STATUS_QOS and the
+# metrics node's STATUS_QOS / EVENTS_QOS / CLOCK_QOS.
+COMMANDER_STATUS_QOS = NAV_STATUS_QOS
 
 
 class _Cpu:

@@ -31,7 +31,10 @@ from swarm_up.aggregate import RunRecorder
 
 STATUS_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
-    depth=1,
+    # The navigators publish with depth 1 (latched); the reader keeps 100 per robot, 50
+    # simulated seconds of statuses at 2 Hz, so a listener thread that falls behind under load
+    # still sees every SUCCEEDED before the next goal's status (tests/swarm_up/test_metrics.py).
+    depth=100,
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
