@@ -34,21 +34,23 @@ DEFAULT_READY_TIMEOUT_S = 120.0
 
 
 # ---------------------------------------------------------------------------------------- parsing
-def _processes(text: str) -> str | int:
+def processes_arg(text: str) -> str | int:
+    """argparse type of ``--processes``: ``per-robot`` or a positive number of group processes."""
     if text == PER_ROBOT:
         return PER_ROBOT
     try:
         value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"must be 'per-robot' or a positive number of processes, got {text!r}"
-        ) from None
+        value = 0
     if value <= 0:
         raise argparse.ArgumentTypeError(
-            f"must be 'per-robot' or a positive number of processes, got {text!r}"
-        )
+            f"must be 'per-robot' or a positive number of processes, got {text!r}")
     return value
 
+
+def default_processes(n: int) -> str | int:
+    """The process layout for ``n`` robots without ``--processes``: see :data:`PER_ROBOT_MAX`."""
+    return PER_ROBOT if n <= PER_ROBOT_MAX else (os.cpu_count() or 1)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -92,7 +94,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="record the run to MCAP (not implemented yet: exits 2)")
     p.add_argument("--dashboard", type=cli.port, nargs="?", const=8765, default=None,
                    metavar="PORT", help="serve a live dashboard (not implemented yet: exits 2)")
-    p.add_argument("--processes", type=_processes, default=None, metavar="per-robot|K",
+    p.add_argument("--processes", type=processes_arg, default=None, metavar="per-robot|K",
                    help="one navigator process per robot, or K processes each hosting a group "
                    f"of robots (default: per-robot up to {PER_ROBOT_MAX} robots, else "
                    f"K = number of cores, here {cores})")
@@ -301,7 +303,7 @@ def validate(args: argparse.Namespace) -> RunConfig:
     robots = tuple(f"{args.name_prefix}{i}" for i in range(1, n + 1))
     processes = args.processes
     if processes is None:
-        processes = PER_ROBOT if n <= PER_ROBOT_MAX else (os.cpu_count() or 1)
+        processes = default_processes(n)
     groups = None if processes == PER_ROBOT else split_groups(robots, int(processes))
 
     run_dir = args.run_dir if args.run_dir is not None else default_run_dir()

@@ -60,8 +60,9 @@ import time
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
+from swarm_common import cli
 from swarm_common.errors import EXIT_OK, EXIT_RUNTIME, InputError, run_cli
-from swarm_up.floor import PER_ROBOT, default_processes, processes_arg
+from swarm_up.args import PER_ROBOT, default_processes, processes_arg
 
 PROG = "swarm-bench"
 SCHEMA_VERSION = 1
@@ -74,13 +75,6 @@ STOPPING_RE = re.compile(r"^swarm-up: stopping \(")
 
 
 # ---------------------------------------------------------------------------------------- flags
-class _Parser(argparse.ArgumentParser):
-    """argparse whose errors are one line, exit 2 (to become the shared CLI helper's parser)."""
-
-    def error(self, message: str):  # noqa: D102 - argparse API
-        raise InputError(message.removeprefix("argument "))
-
-
 def _sizes(text: str) -> tuple[int, ...]:
     what = f"must be a comma-separated list of positive integers, got {text!r}"
     parts = [p.strip() for p in text.split(",")]
@@ -92,39 +86,9 @@ def _sizes(text: str) -> tuple[int, ...]:
     return sizes
 
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}")
-    return value
-
-
-def _seed(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        value = -1
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 0, got {text!r}")
-    return value
-
-
-def _seconds(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = -1.0
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"must be a positive number of seconds, got {text!r}")
-    return value
-
-
 def build_parser() -> argparse.ArgumentParser:
     """The ``swarm-bench`` argument parser."""
-    p = _Parser(
+    p = cli.ArgumentParser(
         prog=PROG, allow_abbrev=False,
         description="Benchmark the swarm: run swarm-up unpaced with commanders for every size "
         "(and run), then print a table and write JSON and a PNG plot; --floor also measures "
@@ -133,13 +97,13 @@ def build_parser() -> argparse.ArgumentParser:
         "130 interrupted (the finished rows are kept).")
     p.add_argument("--sizes", type=_sizes, default=(5, 20, 50, 100), metavar="N,N,...",
                    help="swarm sizes (default: 5,20,50,100)")
-    p.add_argument("--duration", type=_seconds, default=300.0, metavar="SEC",
+    p.add_argument("--duration", type=cli.positive_float, default=300.0, metavar="SEC",
                    help="simulated seconds per run (default: %(default)g)")
-    p.add_argument("--runs", type=_positive_int, default=1, metavar="R",
+    p.add_argument("--runs", type=cli.positive_int, default=1, metavar="R",
                    help="runs per size; run r uses seed S+r (default: %(default)s)")
     p.add_argument("--world", default="slim_blockage", metavar="NAME|PATH",
                    help="world (default: %(default)s)")
-    p.add_argument("--seed", type=_seed, default=0, metavar="S",
+    p.add_argument("--seed", type=cli.seed, default=0, metavar="S",
                    help="seed of the first run (default: %(default)s)")
     p.add_argument("--coordination", choices=("decentralized", "centralized"),
                    default="decentralized", help="passed to swarm-up (default: %(default)s)")

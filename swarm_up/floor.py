@@ -40,7 +40,7 @@ process layout; its real-time factor is the ceiling that the messaging sets, and
 - process layout: one simulator process, one listener, and the robots' nodes as ``swarm-up``
   lays them out: ``per-robot`` is one navigator process and one commander process per robot,
   ``K`` is K group processes each holding a contiguous group of robots' navigators and commanders
-  (sizes differing by at most one, as ``swarm_up.cli.split_groups``).  ``swarm-bench`` passes the
+  (sizes differing by at most one, as ``swarm_up.args.split_groups``).  ``swarm-bench`` passes the
   layout the swarm-up run of that size reported (its metrics' ``processes``).
 
 **Left out**: physics and collision checks, lidar ray casting and noise (the ranges are fixed),
@@ -79,13 +79,11 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+from swarm_common import cli
 from swarm_common.errors import InputError, run_cli
+from swarm_up.args import PER_ROBOT, default_processes, processes_arg, split_groups
 
 PROG = "swarm_up.floor"
-PER_ROBOT = "per-robot"
-# swarm-up's default layout (swarm_up.cli): one process per robot up to this many robots, else
-# one group per core.  Used only when the bench has no swarm-up run to take the layout from.
-PER_ROBOT_MAX = 8
 DEFAULT_GOAL_PERIOD_S = 180.0  # [s] simulated
 STOP_WAIT_S = 5.0  # [s] wall: SIGINT, then SIGKILL after this long
 PROGRESS_RE = re.compile(r"t = ([\d.]+)(?: / [\d.]+)? s simulated, RTF ([\d.]+)")
@@ -156,23 +154,6 @@ class FloorConfig:
             return cls(**data)
         except (ValueError, KeyError, TypeError) as exc:
             raise InputError(f"--config: not a floor config ({exc})") from None
-
-
-def default_processes(n: int) -> str | int:
-    """The layout ``swarm-up`` picks for ``n`` robots without ``--processes``."""
-    return PER_ROBOT if n <= PER_ROBOT_MAX else (os.cpu_count() or 1)
-
-
-def split_groups(robots: tuple[str, ...], k: int) -> tuple[tuple[str, ...], ...]:
-    """``k`` contiguous groups whose sizes differ by at most one (as ``swarm-up``'s)."""
-    k = max(1, min(k, len(robots)))
-    base, extra = divmod(len(robots), k)
-    out, i = [], 0
-    for g in range(k):
-        size = base + (1 if g < extra else 0)
-        out.append(tuple(robots[i:i + size]))
-        i += size
-    return tuple(out)
 
 
 @dataclass(frozen=True)
@@ -371,52 +352,21 @@ def run_floor(cfg: FloorConfig, processes: str | int, run_dir: Path, *,
 
 
 # ----------------------------------------------------------------------------------- commands
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str):  # noqa: D102 - argparse API: one line, exit 2 (run_cli)
-        raise InputError(message.removeprefix("argument "))
-
-
-def _positive(kind):
-    def parse(text: str):
-        try:
-            value = kind(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"must be a positive number, got {text!r}") from None
-        if not (math.isfinite(value) and value > 0):
-            raise argparse.ArgumentTypeError(f"must be a positive number, got {text!r}")
-        return value
-    return parse
-
-
-def processes_arg(text: str) -> str | int:
-    """``--processes``: ``per-robot`` or a positive integer."""
-    if text == PER_ROBOT:
-        return PER_ROBOT
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if value <= 0:
-        raise argparse.ArgumentTypeError(
-            f"must be 'per-robot' or a positive number of processes, got {text!r}")
-    return value
-
-
 def build_parser() -> argparse.ArgumentParser:
     """``python -m swarm_up.floor {run,sim,group,listener}``."""
-    p = _Parser(prog=f"python -m {PROG}", allow_abbrev=False,
+    p = cli.ArgumentParser(prog=f"python -m {PROG}", allow_abbrev=False,
                 description="The bare messaging floor of swarm-bench (see the module's doc).")
     sub = p.add_subparsers(dest="role", required=True)
     run = sub.add_parser("run", help="run the floor once and print its figures as JSON")
-    run.add_argument("--swarm-size", type=_positive(int), default=5, metavar="N")
-    run.add_argument("--duration", type=_positive(float), default=10.0, metavar="SEC",
+    run.add_argument("--swarm-size", type=cli.positive_int, default=5, metavar="N")
+    run.add_argument("--duration", type=cli.positive_float, default=10.0, metavar="SEC",
                      help="simulated seconds (default: %(default)s)")
     run.add_argument("--processes", type=processes_arg, default=None, metavar="per-robot|K",
                      help="layout (default: swarm-up's for N)")
     run.add_argument("--world", default="slim_blockage")
     run.add_argument("--robot", default="turtlebot3_waffle")
     run.add_argument("--no-commanders", dest="commanders", action="store_false")
-    run.add_argument("--goal-period", type=_positive(float), default=DEFAULT_GOAL_PERIOD_S,
+    run.add_argument("--goal-period", type=cli.positive_float, default=DEFAULT_GOAL_PERIOD_S,
                      metavar="SEC", help="simulated seconds a goal takes (default: %(default)s)")
     run.add_argument("--run-dir", type=Path, default=None, metavar="DIR",
                      help="config and logs (default: runs/floor-<timestamp>)")

@@ -10,15 +10,8 @@ import psutil
 import pytest
 
 from swarm_common.errors import InputError
-from swarm_up.floor import (
-    PER_ROBOT,
-    FloorConfig,
-    default_processes,
-    floor_layout,
-    make_config,
-    run_floor,
-    split_groups,
-)
+from swarm_up.args import PER_ROBOT, default_processes, split_groups
+from swarm_up.floor import FloorConfig, floor_layout, make_config, run_floor
 
 
 def _cfg(n: int, commanders: bool = True) -> FloorConfig:
@@ -39,13 +32,12 @@ def test_config_decode_rejects_other_json(text):
         FloorConfig.decode(text)
 
 
-@pytest.mark.parametrize(("n", "k", "sizes"), [(7, 2, [4, 3]), (100, 2, [50, 50]),
-                                               (5, 3, [2, 2, 1]), (2, 4, [1, 1])])
-def test_split_groups_contiguous_and_balanced(n, k, sizes):
-    robots = tuple(f"r{i}" for i in range(n))
-    groups = split_groups(robots, k)
-    assert [len(g) for g in groups] == sizes
-    assert sum(groups, ()) == robots
+def test_grouped_layout_uses_swarm_ups_groups():
+    for k in (1, 2, 3):
+        layout = floor_layout(_cfg(7), "/tmp/c.json", k)
+        groups = [p.args[p.args.index("--namespaces") + 1] for p in layout
+                  if p.name.startswith("group_")]
+        assert groups == [",".join(g) for g in split_groups(_cfg(7).robots, k)]
 
 
 def test_per_robot_layout_has_a_navigator_and_a_commander_process_per_robot():
@@ -60,9 +52,9 @@ def test_per_robot_layout_has_a_navigator_and_a_commander_process_per_robot():
 def test_grouped_layout_holds_navigators_and_commanders_together():
     layout = floor_layout(_cfg(5), "/tmp/c.json", 2)
     assert [p.name for p in layout] == ["listener", "group_1", "group_2", "sim"]
-    assert layout[1].args[-4:] == ("--namespaces", "Srobot1,Srobot2,Srobot3", "--navigators",
+    assert layout[1].args[-4:] == ("--namespaces", "Srobot1,Srobot3,Srobot5", "--navigators",
                                    "--commanders")
-    assert layout[2].args[-4:-2] == ("--namespaces", "Srobot4,Srobot5")
+    assert layout[2].args[-4:-2] == ("--namespaces", "Srobot2,Srobot4")
     without = floor_layout(_cfg(5, commanders=False), "/tmp/c.json", PER_ROBOT)
     assert len(without) == 1 + 5 + 1
 
