@@ -44,7 +44,7 @@ from swarm_common.geometry import Path2D, Points2D, wrap_angle
 from swarm_nav.config import DwaConfig
 
 _GRID = 0.025  # [m/cell] resolution of the local distance grid
-_BATCH = 40    # rollouts checked exactly at a time, cheapest first
+_BATCH = 40    # rollouts checked exactly at a time, cheapest first (after the cheapest alone)
 
 
 @dataclass(frozen=True)
@@ -351,62 +351,90 @@ def dwa_command(state: RobotState, path: Path2D, obstacles: Points2D, cfg: DwaCo
     nv, nw, nt = len(vs), len(ws), len(times)
     bx, by = (b.reshape(nv * nw, nt) for b in _box_centres(
         x.reshape(nv, nw, nt), y.reshape(nv, nw, nt), fan.cos, fan.sin, footprint))
-    lower, upper, est = _gap_bounds(bx, by, local, footprint)
-    sure_bad = (upper < need_s).any(axis=1)   # some pose surely too near: inadmissible
-    unsure = lower < need_s                   # poses only an exact check can clear
+    lower, upper_min, est_min = _gap_bounds(bx, by, local, footprint)
+    sure_bad = upper_min < need_s[:, 0]   # some pose surely too near: inadmissible
+    unsure = lower < need_s               # poses only an exact check can clear
     moving = (np.abs(V) > 1e-9) | (np.abs(W) > 1e-9)
 
-    carrot, tangent = _lookahead(path, pose[:2], cfg.lookahead_dist)
+    dxy = path - pose[:2]
+    to_path = np.hypot(dxy[:, 0], dxy[:, 1])  # (N,) [m] from the robot to each path point
+    i0 = int(np.argmin(to_path))
+    carrot, tangent = _lookahead(path, pose[:2], cfg.lookahead_dist, i0)
     ex, ey = x[:, -1], y[:, -1]
     eth = np.tile(fan.th[:, -1], nv)
     tx, ty = carrot[0] - ex, carrot[1] - ey  # rollout end -> carrot
     goal_dist = np.hypot(tx, ty)
-    path_dist = _path_dist(ex, ey, path, pose)
+    path_dist = _path_dist(ex, ey, path, pose, to_path, i0)
     aim = np.where(goal_dist > 0.15, np.arctan2(ty, tx), tangent)
     align = np.abs(wrap_angle(eth - aim))
     infl = cfg.obstacle_influence
-    obst = np.clip((infl - est.min(axis=1)) / infl, 0.0, 1.0) ** 2
+    obst = np.clip((infl - est_min) / infl, 0.0, 1.0) ** 2
     speed = (cfg.max_vel_x - V) / cfg.max_vel_x
     cost = (cfg.path_dist_scale * path_dist + cfg.goal_dist_scale * goal_dist
             + cfg.path_align_scale * align + cfg.obstacle_scale * obst + cfg.speed_scale * speed)
 
-    # check the candidates exactly in order of cost, a batch at a time; the first admissible wins
+    # check the candidates exactly in order of cost; the first admissible wins
     order = np.flatnonzero(moving & ~sure_bad)
     order = order[np.argsort(cost[order], kind="stable")]
-    hx, hy = footprint.half_size
-    for k in range(0, len(order), _BATCH):
-        idx = order[k:k + _BATCH]
-        mask = unsure[idx]
-        ok = np.ones(len(idx), dtype=bool)
-        if mask.any():
-            rows, cols = np.nonzero(mask)
-            sel = idx[rows]
-            _, c, s = fan.heading(sel)
-            c, s = c[np.arange(len(sel)), cols], s[np.arange(len(sel)), cols]
-            need_p = need_s[sel, 0]
-            pbx, pby = bx[sel, cols], by[sel, cols]
-            # a point fails a pose's check only inside its box grown by that pose's need, so
-            # within `reach` of its centre; farther points cannot change any verdict
-            grown = float(need_p.max())
-            reach = math.hypot(hx + grown, hy + grown) + 1e-6
-            near = local[(local[:, 0] >= pbx.min() - reach) & (local[:, 0] <= pbx.max() + reach)
-                         & (local[:, 1] >= pby.min() - reach) & (local[:, 1] <= pby.max() + reach)]
-            if len(near):
-                bad = (_gaps(pbx, pby, c, s, near, footprint).min(axis=1) < need_p)
-                ok[np.unique(rows[bad])] = False
-        if ok.any():
-            j = int(np.argmax(ok))
-            best = int(idx[j])
-            th_b, c_b, s_b = fan.heading(best)
-            gaps = lower[best].copy()
-            if mask[j].any():  # the exact gaps of the poses the bounds did not clear
-                m = mask[j]
-                gaps[m] = _gaps(bx[best, m], by[best, m], c_b[m], s_b[m], local,
-                                footprint).min(axis=-1)
-            traj = np.column_stack((x[best], y[best], wrap_angle(th_b)))
-            return Command(float(V[best]), float(W[best]), True, float(cost[best]),
-                           float(gaps.min()), traj)
+    best = _first_admissible(order, unsure, need_s[:, 0], bx, by, fan, local, footprint)
+    if best is not None:
+        th_b, c_b, s_b = fan.heading(best)
+        gaps = lower[best].copy()
+        m = unsure[best]
+        if m.any():  # the exact gaps of the poses the bounds did not clear
+            gaps[m] = _gaps(bx[best, m], by[best, m], c_b[m], s_b[m], local,
+                            footprint).min(axis=-1)
+        traj = np.column_stack((x[best], y[best], wrap_angle(th_b)))
+        return Command(float(V[best]), float(W[best]), True, float(cost[best]),
+                       float(gaps.min()), traj)
     return _fallback(pose, carrot, tangent, local, footprint, cfg, (w_lo, w_hi))
+
+
+def _first_admissible(order: np.ndarray, unsure: np.ndarray, need: np.ndarray, bx: np.ndarray,
+                      by: np.ndarray, fan: _Fan, pts: np.ndarray, footprint: Footprint
+                      ) -> int | None:
+    """The first rollout of ``order`` whose unsure poses all keep the footprint gap [m] to every
+    point at least its ``need``, or ``None``.
+
+    The cheapest candidate is checked alone (it usually wins), then the others ``_BATCH`` at a
+    time.  A point fails a pose's check only inside its box grown by that pose's need, so only
+    points within ``hypot(hx + need, hy + need)`` of some unsure pose's box centre are compared:
+    the verdicts are those of comparing every point.
+
+    Args:
+        order: (K,) candidate rollouts, cheapest first.
+        unsure: (S, T) poses whose gap the bounds could not clear.
+        need: (S,) the gap [m] each rollout must keep.
+        bx: (S, T) box centres x [m] in ``map``.
+        by: (S, T) box centres y [m] in ``map``.
+        fan: the rollouts (for the headings).
+        pts: (M, 2) obstacle points x, y [m] in ``map``.
+        footprint: the footprint box.
+    """
+    hx, hy = footprint.half_size
+    k = 0
+    while k < len(order):
+        idx = order[k:k + (1 if k == 0 else _BATCH)]
+        k += len(idx)
+        mask = unsure[idx]
+        if not mask.any():
+            return int(idx[0])
+        ok = np.ones(len(idx), dtype=bool)
+        rows, cols = np.nonzero(mask)
+        sel = idx[rows]
+        _, c, s = fan.heading(sel)
+        c, s = c[np.arange(len(sel)), cols], s[np.arange(len(sel)), cols]
+        need_p = need[sel]
+        pbx, pby = bx[sel, cols], by[sel, cols]
+        grown = float(need_p.max())
+        reach = math.hypot(hx + grown, hy + grown) + 1e-6
+        near = pts[(pts[:, 0] >= pbx.min() - reach) & (pts[:, 0] <= pbx.max() + reach)
+                   & (pts[:, 1] >= pby.min() - reach) & (pts[:, 1] <= pby.max() + reach)]
+        if len(near):
+            ok[rows[_gaps(pbx, pby, c, s, near, footprint).min(axis=1) < need_p]] = False
+        if ok.any():
+            return int(idx[np.argmax(ok)])
+    return None
 
 
 def rotation_is_safe(pose, angle: float, obstacles: Points2D, footprint: Footprint,
@@ -451,22 +479,24 @@ def _gap_now(pose: np.ndarray, pts: np.ndarray, footprint: Footprint) -> float:
     return float(point_gaps(pose, pts, footprint).min())
 
 
-def _path_dist(ex: np.ndarray, ey: np.ndarray, path: np.ndarray, pose: np.ndarray
-               ) -> np.ndarray:
+def _path_dist(ex: np.ndarray, ey: np.ndarray, path: np.ndarray, pose: np.ndarray,
+               to_path: np.ndarray, i0: int) -> np.ndarray:
     """(S,) distance [m] from each rollout end ``ex, ey`` to the nearest point of the path from
-    the point nearest the robot on.
+    the point ``i0`` nearest the robot on (``to_path``: (N,) each path point's distance [m] to the
+    robot).
 
-    Only path points that can be the nearest to some end are compared: with ``p0`` the path point
-    nearest the robot (distance ``dev``) and every end within ``reach`` of the robot, a point
-    farther than ``2 reach + dev`` from the robot is farther from every end than ``p0``.
+    Only path points that can be the nearest to some end are compared: with every end within
+    ``reach`` of the robot, a point farther than ``2 reach + to_path[i0]`` from the robot is
+    farther from every end than the point ``i0``.
     """
-    dxy = path - pose[:2]
-    d = np.hypot(dxy[:, 0], dxy[:, 1])
-    i0 = int(np.argmin(d))
     reach = float(np.hypot(ex - pose[0], ey - pose[1]).max())
-    rest = path[i0:][d[i0:] <= 2.0 * reach + d[i0] + 1e-6]
-    return np.sqrt(((ex[:, None] - rest[None, :, 0]) ** 2
-                    + (ey[:, None] - rest[None, :, 1]) ** 2).min(axis=1))
+    rest = path[i0:][to_path[i0:] <= 2.0 * reach + to_path[i0] + 1e-6]
+    dx = ex[:, None] - rest[:, 0]
+    dx *= dx
+    dy = ey[:, None] - rest[:, 1]
+    dy *= dy
+    dx += dy
+    return np.sqrt(dx.min(axis=1))
 
 
 def _gap_bounds(bx: np.ndarray, by: np.ndarray, pts: np.ndarray, footprint: Footprint
@@ -485,12 +515,13 @@ def _gap_bounds(bx: np.ndarray, by: np.ndarray, pts: np.ndarray, footprint: Foot
         footprint: the footprint box.
 
     Returns:
-        (S, T) lower bounds, (S, T) upper bounds, and (S, T) estimates for the BaseObstacle critic
-        (``d`` minus the mean of ``r`` and ``R``); all ``inf`` without points.
+        (S, T) lower bounds; (S,) per rollout the least upper bound over its poses; and (S,) per
+        rollout the least estimate for the BaseObstacle critic (``d`` minus the mean of ``r`` and
+        ``R``); all ``inf`` without points.  (Rounding is monotonic, so the minimum of ``d + c``
+        over a rollout is ``min(d) + c``, bit for bit.)
     """
     if len(pts) == 0:
-        inf = np.full(bx.shape, np.inf)
-        return inf, inf, inf
+        return np.full(bx.shape, np.inf), np.full(len(bx), np.inf), np.full(len(bx), np.inf)
     hx, hy = footprint.half_size
     r_out, r_in = math.hypot(hx, hy), min(hx, hy)
     px, py = pts[:, 0], pts[:, 1]
@@ -502,15 +533,17 @@ def _gap_bounds(bx: np.ndarray, by: np.ndarray, pts: np.ndarray, footprint: Foot
                    dtype=bool)
     free[((py - lo_y) / _GRID).astype(int), ((px - lo_x) / _GRID).astype(int)] = False
     dist = ndimage.distance_transform_edt(free) * _GRID
-    d = dist[((by - lo_y) / _GRID).astype(int), ((bx - lo_x) / _GRID).astype(int)]
+    cell = ((by - lo_y) / _GRID).astype(int) * free.shape[1] + ((bx - lo_x) / _GRID).astype(int)
+    d = dist.ravel()[cell]
+    d_min = d.min(axis=1)
     err = _GRID * math.sqrt(2.0)
-    return d - err - r_out, d + err - r_in, d - 0.5 * (r_in + r_out)
+    return d - err - r_out, d_min + err - r_in, d_min - 0.5 * (r_in + r_out)
 
 
-def _lookahead(path: np.ndarray, xy: np.ndarray, dist: float) -> tuple[np.ndarray, float]:
-    """The point ``dist`` [m] along the path from the point nearest ``xy``, and the path's heading
-    [rad] there."""
-    i0 = int(np.argmin(np.hypot(*(path - xy).T)))
+def _lookahead(path: np.ndarray, xy: np.ndarray, dist: float, i0: int
+               ) -> tuple[np.ndarray, float]:
+    """The point ``dist`` [m] along the path from its point ``i0`` (the one nearest ``xy``), and
+    the path's heading [rad] there."""
     rest = path[i0:]
     if len(rest) == 1:
         d = rest[0] - xy

@@ -17,14 +17,12 @@ from scipy import ndimage
 from swarm_common.geometry import wrap_angle
 from swarm_nav.config import DwaConfig
 from swarm_nav.dwa import (
-    _BATCH,
     _GRID,
     Command,
     Footprint,
     RobotState,
     _fallback,
     _local_points,
-    _lookahead,
     dwa_command,
     dynamic_window,
     footprint_gaps,
@@ -39,6 +37,30 @@ DT = 0.1
 
 
 # ---------------------------------------------------------------- the reference (before)
+REF_BATCH = 40
+
+
+def ref_lookahead(path, xy, dist):
+    i0 = int(np.argmin(np.hypot(*(path - xy).T)))
+    rest = path[i0:]
+    if len(rest) == 1:
+        d = rest[0] - xy
+        heading = math.atan2(d[1], d[0]) if np.hypot(*d) > 1e-6 else 0.0
+        if len(path) > 1:
+            seg = path[-1] - path[-2]
+            heading = math.atan2(seg[1], seg[0])
+        return rest[0], heading
+    seg = np.diff(rest, axis=0)
+    s = np.concatenate(([0.0], np.cumsum(np.hypot(seg[:, 0], seg[:, 1]))))
+    k = int(np.searchsorted(s, dist))
+    if k >= len(rest):
+        return rest[-1], math.atan2(seg[-1, 1], seg[-1, 0])
+    k = max(k, 1)
+    f = (dist - s[k - 1]) / max(s[k] - s[k - 1], 1e-9)
+    point = rest[k - 1] + f * (rest[k] - rest[k - 1])
+    return point, math.atan2(seg[k - 1, 1], seg[k - 1, 0])
+
+
 def ref_gaps(x, y, yaw, pts, footprint):
     cx, cy = footprint.centre
     hx, hy = footprint.half_size
@@ -113,7 +135,7 @@ def ref_dwa_command(state, path, obstacles, cfg, *, footprint, dt):
     sure_bad = (upper < need_s).any(axis=1)
     unsure = lower < need_s
     moving = (np.abs(V) > 1e-9) | (np.abs(W) > 1e-9)
-    carrot, tangent = _lookahead(path, pose[:2], cfg.lookahead_dist)
+    carrot, tangent = ref_lookahead(path, pose[:2], cfg.lookahead_dist)
     ex, ey, eth = x[:, -1], y[:, -1], th[:, -1]
     to_carrot = carrot - np.column_stack((ex, ey))
     goal_dist = np.hypot(to_carrot[:, 0], to_carrot[:, 1])
@@ -130,8 +152,8 @@ def ref_dwa_command(state, path, obstacles, cfg, *, footprint, dt):
             + cfg.path_align_scale * align + cfg.obstacle_scale * obst + cfg.speed_scale * speed)
     order = np.flatnonzero(moving & ~sure_bad)
     order = order[np.argsort(cost[order], kind="stable")]
-    for k in range(0, len(order), _BATCH):
-        idx = order[k:k + _BATCH]
+    for k in range(0, len(order), REF_BATCH):
+        idx = order[k:k + REF_BATCH]
         gaps = np.where(unsure[idx], np.inf, lower[idx])
         mask = unsure[idx]
         if mask.any():
