@@ -22,6 +22,7 @@ from swarm_nav.dwa import (
     Footprint,
     RobotState,
     _fallback,
+    _fan,
     _local_points,
     dwa_command,
     dynamic_window,
@@ -254,3 +255,21 @@ def test_gap_functions_equal_the_reference(seed):
             assert np.array_equal(
                 footprint_gaps(poses[:, 0], poses[:, 1], poses[:, 2], pts, footprint),
                 ref_footprint_gaps(poses[:, 0], poses[:, 1], poses[:, 2], pts, footprint))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_fan_equals_rollout_per_pair(seed):
+    """The shared-heading rollouts are those of rollout() for every (v, w) pair, bit for bit."""
+    rng = np.random.default_rng(200 + seed)
+    for _ in range(30):
+        pose = rng.uniform([-5, -5, -4], [5, 5, 4])
+        vs = np.sort(rng.uniform(-0.1, 0.3, size=rng.integers(1, 8)))
+        ws = np.concatenate((rng.uniform(-1.0, 1.0, size=rng.integers(1, 8)), [0.0, 5e-7]))
+        times = 1.7 * np.arange(1, 18) / 17
+        fan = _fan(pose, vs, ws, times)
+        x, y, th = rollout(pose, np.repeat(vs, len(ws)), np.tile(ws, len(vs)), times)
+        assert np.array_equal(fan.x, x) and np.array_equal(fan.y, y)
+        k = np.arange(len(x))
+        assert np.array_equal(fan.heading(k)[0], th)
+        assert np.array_equal(fan.heading(k)[1], np.cos(th))
+        assert np.array_equal(fan.heading(k)[2], np.sin(th))
