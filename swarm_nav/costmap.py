@@ -83,18 +83,21 @@ class Costmap(GridGeometry):
 
     def cost_at(self, xy) -> np.ndarray:
         """The (...,) uint8 costs at (..., 2) points x, y [m] in ``map``; ``LETHAL`` outside."""
-        rc = self.world_to_cell(xy)
-        inside = self.in_bounds(rc)
-        out = np.full(rc.shape[:-1], LETHAL, dtype=np.uint8)
-        out[inside] = self.costs[rc[inside][:, 0], rc[inside][:, 1]]
-        return out
+        return self._lookup(self.costs, xy, LETHAL)
 
     def distance_at(self, xy) -> np.ndarray:
         """The (...,) distances [m] to the nearest lethal cell at (..., 2) points; 0 outside."""
+        return self._lookup(self.obstacle_distance, xy, 0.0, float)
+
+    def _lookup(self, grid: np.ndarray, xy, outside, dtype=None) -> np.ndarray:
+        """``grid`` at the cells of (..., 2) points x, y [m], ``outside`` off the map."""
         rc = self.world_to_cell(xy)
+        row, col = rc[..., 0], rc[..., 1]
         inside = self.in_bounds(rc)
-        out = np.zeros(rc.shape[:-1])
-        out[inside] = self.obstacle_distance[rc[inside][:, 0], rc[inside][:, 1]]
+        if inside.all():  # the usual case: one gather
+            return np.asarray(grid[row, col], dtype=dtype or grid.dtype)
+        out = np.full(rc.shape[:-1], outside, dtype=dtype or grid.dtype)
+        out[inside] = grid[row[inside], col[inside]]
         return out
 
     def traversable(self, allow_unknown: bool) -> np.ndarray:

@@ -25,7 +25,11 @@ Collision checks are vectorised over all rollout poses at once: a distance trans
 obstacle points on a local 2.5 cm grid gives, for every pose, a lower bound of its distance to the
 nearest point; only poses that bound cannot clear are checked exactly against the points (the
 footprint box's signed Chebyshev gap, a lower bound of the Euclidean gap, so the check is
-conservative).
+conservative), and only against the points near enough to those poses to fail the check.
+
+The samples form a grid of ``vx x vtheta`` pairs and a rollout's headings depend on its rotational
+speed alone, so headings and their sines and cosines are computed once per ``vtheta`` sample and
+shared by all ``vx`` samples (the same floating-point values as computing them per rollout).
 """
 
 from __future__ import annotations
@@ -40,7 +44,7 @@ from swarm_common.geometry import Path2D, Points2D, wrap_angle
 from swarm_nav.config import DwaConfig
 
 _GRID = 0.025  # [m/cell] resolution of the local distance grid
-_BATCH = 40    # rollouts checked exactly at a time, cheapest first
+_BATCH = 40    # rollouts checked exactly at a time, cheapest first (after the cheapest alone)
 
 
 @dataclass(frozen=True)
@@ -181,6 +185,52 @@ def rollout(pose, v, w, times) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return x, y, th
 
 
+@dataclass(frozen=True)
+class _Fan:
+    """The rollouts of a grid of velocity samples: rollout ``k`` has ``v = vs[k // len(ws)]`` and
+    ``w = ws[k % len(ws)]``.  Poses are those of :func:`rollout`, bit for bit; headings (and
+    their cosines and sines) are stored once per ``w`` sample.
+
+    Attributes:
+        x: (S, T) x [m] in ``map``, ``S = len(vs) * len(ws)``.
+        y: (S, T) y [m] in ``map``.
+        th: (W, T) yaw [rad] (not wrapped) of the rollouts with ``w = ws[j]``.
+        cos: (W, T) ``cos(th)``.
+        sin: (W, T) ``sin(th)``.
+    """
+
+    x: np.ndarray
+    y: np.ndarray
+    th: np.ndarray
+    cos: np.ndarray
+    sin: np.ndarray
+
+    def heading(self, k) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(th, cos, sin)`` of the rollouts ``k`` (an index or an index array), (..., T)."""
+        j = np.asarray(k) % len(self.th)
+        return self.th[j], self.cos[j], self.sin[j]
+
+
+def _fan(pose: np.ndarray, vs: np.ndarray, ws: np.ndarray, times: np.ndarray) -> _Fan:
+    """The rollouts of every pair of ``vs`` x ``ws`` (see :class:`_Fan`), with the operations of
+    :func:`rollout` applied in the same order to the same operands."""
+    x0, y0, th0 = (float(c) for c in pose)
+    nv, nw, nt = len(vs), len(ws), len(times)
+    th = th0 + ws[:, None] * times[None, :]
+    straight = np.abs(ws) < 1e-6
+    w_safe = np.where(straight, 1.0, ws)
+    s0, c0 = math.sin(th0), math.cos(th0)
+    sin_th, cos_th = np.sin(th), np.cos(th)
+    k = (vs[:, None] / w_safe[None, :])[:, :, None]  # v / w, (V, W, 1)
+    x = x0 + k * (sin_th - s0)
+    y = y0 - k * (cos_th - c0)
+    if straight.any():
+        vt = vs[:, None] * times[None, :]  # (V, T)
+        x[:, straight] = (x0 + vt * c0)[:, None, :]
+        y[:, straight] = (y0 + vt * s0)[:, None, :]
+    return _Fan(x.reshape(nv * nw, nt), y.reshape(nv * nw, nt), th, cos_th, sin_th)
+
+
 def footprint_gaps(x, y, yaw, points: Points2D, footprint: Footprint) -> np.ndarray:
     """Signed gap [m] between the footprint box at each pose and the nearest obstacle point.
 
@@ -202,20 +252,27 @@ def footprint_gaps(x, y, yaw, points: Points2D, footprint: Footprint) -> np.ndar
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
     if len(pts) == 0:
         return np.full(x.shape, np.inf)
-    return _gaps(x, y, yaw, pts, footprint).min(axis=-1)
-
-
-def _gaps(x, y, yaw, pts: np.ndarray, footprint: Footprint) -> np.ndarray:
-    """(..., M) Chebyshev gaps between the box at each pose (x, y, yaw of shape (...)) and each
-    point of the (M, 2) ``pts`` (see :func:`footprint_gaps`)."""
-    cx, cy = footprint.centre
-    hx, hy = footprint.half_size
     yaw = np.asarray(yaw, dtype=float)
-    c, s = np.cos(yaw)[..., None], np.sin(yaw)[..., None]
-    bx = np.asarray(x, dtype=float)[..., None] + c * cx - s * cy
-    by = np.asarray(y, dtype=float)[..., None] + s * cx + c * cy
-    dx = pts[:, 0] - bx
-    dy = pts[:, 1] - by
+    c, s = np.cos(yaw), np.sin(yaw)
+    bx, by = _box_centres(x, np.asarray(y, dtype=float), c, s, footprint)
+    return _gaps(bx, by, c, s, pts, footprint).min(axis=-1)
+
+
+def _box_centres(x, y, c, s, footprint: Footprint) -> tuple[np.ndarray, np.ndarray]:
+    """Centres x, y [m] in ``map`` of the box at poses x, y with ``c, s`` = cos, sin of the yaw
+    (all of one shape, or broadcasting)."""
+    cx, cy = footprint.centre
+    return x + c * cx - s * cy, y + s * cx + c * cy
+
+
+def _gaps(bx, by, c, s, pts: np.ndarray, footprint: Footprint) -> np.ndarray:
+    """(..., M) Chebyshev gaps between the box centred at ``bx, by`` (shape (...)) with ``c, s``
+    the cosine and sine of its yaw (same shape) and each point of the (M, 2) ``pts`` (see
+    :func:`footprint_gaps`)."""
+    hx, hy = footprint.half_size
+    c, s = np.asarray(c)[..., None], np.asarray(s)[..., None]
+    dx = pts[:, 0] - np.asarray(bx)[..., None]
+    dy = pts[:, 1] - np.asarray(by)[..., None]
     return np.maximum(np.abs(c * dx + s * dy) - hx, np.abs(c * dy - s * dx) - hy)
 
 
@@ -231,7 +288,13 @@ def point_gaps(pose, points: Points2D, footprint: Footprint) -> np.ndarray:
         footprint: the footprint box.
     """
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
-    return _gaps(pose[0], pose[1], pose[2], pts, footprint)
+    yaw = float(pose[2])
+    c, s = float(np.cos(yaw)), float(np.sin(yaw))
+    bx, by = _box_centres(float(pose[0]), float(pose[1]), c, s, footprint)
+    hx, hy = footprint.half_size
+    dx = pts[:, 0] - bx
+    dy = pts[:, 1] - by
+    return np.maximum(np.abs(c * dx + s * dy) - hx, np.abs(c * dy - s * dx) - hy)
 
 
 def dwa_command(state: RobotState, path: Path2D, obstacles: Points2D, cfg: DwaConfig, *,
@@ -262,9 +325,10 @@ def dwa_command(state: RobotState, path: Path2D, obstacles: Points2D, cfg: DwaCo
     v_lo, v_hi, w_lo, w_hi = dynamic_window(state, cfg, dt)
     vs = np.linspace(v_lo, v_hi, cfg.vx_samples) if v_hi > v_lo else np.array([v_lo])
     ws = np.linspace(w_lo, w_hi, cfg.vtheta_samples) if w_hi > w_lo else np.array([w_lo])
-    if w_lo < 0.0 < w_hi and not np.any(ws == 0.0):
+    if w_lo < 0.0 < w_hi and not (ws == 0.0).any():
         ws = np.append(ws, 0.0)  # always offer driving straight
-    V, W = (a.ravel() for a in np.meshgrid(vs, ws, indexing="ij"))
+    V = np.repeat(vs, len(ws))  # rollout k: vs[k // len(ws)], ws[k % len(ws)]
+    W = np.tile(ws, len(vs))
     reach_v = max(abs(v_lo), abs(v_hi))
     reach_w = max(abs(w_lo), abs(w_hi))
     # the rollout must cover one period plus the braking distance (Fox et al.'s admissibility)
@@ -272,7 +336,8 @@ def dwa_command(state: RobotState, path: Path2D, obstacles: Points2D, cfg: DwaCo
     n = max(1, math.ceil(reach_v * horizon / cfg.sim_granularity),
             math.ceil(reach_w * horizon / cfg.angular_sim_granularity))
     times = horizon * np.arange(1, n + 1) / n
-    x, y, th = rollout(pose, V, W, times)
+    fan = _fan(pose, vs, ws, times)
+    x, y = fan.x, fan.y
 
     local = _local_points(obstacles, pose, reach_v * horizon + footprint.radius
                           + cfg.footprint_padding + 2 * _GRID)
@@ -282,45 +347,94 @@ def dwa_command(state: RobotState, path: Path2D, obstacles: Points2D, cfg: DwaCo
     # at most half of it below the checked values: demand that much more (a continuous guarantee)
     step = (np.abs(V) + np.abs(W) * footprint.radius) * (horizon / n)
     need_s = (need + 0.5 * step)[:, None]
-    lower, upper, est = _gap_bounds(x, y, th, local, footprint)
-    sure_bad = (upper < need_s).any(axis=1)   # some pose surely too near: inadmissible
-    unsure = lower < need_s                   # poses only an exact check can clear
+    # box centres, computed per (v, w) pair from the headings shared by each w
+    nv, nw, nt = len(vs), len(ws), len(times)
+    bx, by = (b.reshape(nv * nw, nt) for b in _box_centres(
+        x.reshape(nv, nw, nt), y.reshape(nv, nw, nt), fan.cos, fan.sin, footprint))
+    lower, upper_min, est_min = _gap_bounds(bx, by, local, footprint)
+    sure_bad = upper_min < need_s[:, 0]   # some pose surely too near: inadmissible
+    unsure = lower < need_s               # poses only an exact check can clear
     moving = (np.abs(V) > 1e-9) | (np.abs(W) > 1e-9)
 
-    carrot, tangent = _lookahead(path, pose[:2], cfg.lookahead_dist)
-    ex, ey, eth = x[:, -1], y[:, -1], th[:, -1]
-    to_carrot = carrot - np.column_stack((ex, ey))
-    goal_dist = np.hypot(to_carrot[:, 0], to_carrot[:, 1])
-    i0 = int(np.argmin(np.hypot(*(path - pose[:2]).T)))
-    rest = path[i0:]
-    path_dist = np.sqrt(((ex[:, None] - rest[None, :, 0]) ** 2
-                         + (ey[:, None] - rest[None, :, 1]) ** 2).min(axis=1))
-    aim = np.where(goal_dist > 0.15, np.arctan2(to_carrot[:, 1], to_carrot[:, 0]), tangent)
+    dxy = path - pose[:2]
+    to_path = np.hypot(dxy[:, 0], dxy[:, 1])  # (N,) [m] from the robot to each path point
+    i0 = int(np.argmin(to_path))
+    carrot, tangent = _lookahead(path, pose[:2], cfg.lookahead_dist, i0)
+    ex, ey = x[:, -1], y[:, -1]
+    eth = np.tile(fan.th[:, -1], nv)
+    tx, ty = carrot[0] - ex, carrot[1] - ey  # rollout end -> carrot
+    goal_dist = np.hypot(tx, ty)
+    path_dist = _path_dist(ex, ey, path, pose, to_path, i0)
+    aim = np.where(goal_dist > 0.15, np.arctan2(ty, tx), tangent)
     align = np.abs(wrap_angle(eth - aim))
     infl = cfg.obstacle_influence
-    obst = np.clip((infl - est.min(axis=1)) / infl, 0.0, 1.0) ** 2
+    obst = np.clip((infl - est_min) / infl, 0.0, 1.0) ** 2
     speed = (cfg.max_vel_x - V) / cfg.max_vel_x
     cost = (cfg.path_dist_scale * path_dist + cfg.goal_dist_scale * goal_dist
             + cfg.path_align_scale * align + cfg.obstacle_scale * obst + cfg.speed_scale * speed)
 
-    # check the candidates exactly in order of cost, a batch at a time; the first admissible wins
+    # check the candidates exactly in order of cost; the first admissible wins
     order = np.flatnonzero(moving & ~sure_bad)
     order = order[np.argsort(cost[order], kind="stable")]
-    for k in range(0, len(order), _BATCH):
-        idx = order[k:k + _BATCH]
-        gaps = np.where(unsure[idx], np.inf, lower[idx])
-        mask = unsure[idx]
-        if mask.any():
-            gaps[mask] = footprint_gaps(x[idx][mask], y[idx][mask], th[idx][mask], local,
-                                        footprint)
-        ok = (gaps >= need_s[idx]).all(axis=1)
-        if ok.any():
-            j = int(np.argmax(ok))
-            best = int(idx[j])
-            traj = np.column_stack((x[best], y[best], wrap_angle(th[best])))
-            return Command(float(V[best]), float(W[best]), True, float(cost[best]),
-                           float(gaps[j].min()), traj)
+    best = _first_admissible(order, unsure, need_s[:, 0], bx, by, fan, local, footprint)
+    if best is not None:
+        th_b, c_b, s_b = fan.heading(best)
+        gaps = lower[best].copy()
+        m = unsure[best]
+        if m.any():  # the exact gaps of the poses the bounds did not clear
+            gaps[m] = _gaps(bx[best, m], by[best, m], c_b[m], s_b[m], local,
+                            footprint).min(axis=-1)
+        traj = np.column_stack((x[best], y[best], wrap_angle(th_b)))
+        return Command(float(V[best]), float(W[best]), True, float(cost[best]),
+                       float(gaps.min()), traj)
     return _fallback(pose, carrot, tangent, local, footprint, cfg, (w_lo, w_hi))
+
+
+def _first_admissible(order: np.ndarray, unsure: np.ndarray, need: np.ndarray, bx: np.ndarray,
+                      by: np.ndarray, fan: _Fan, pts: np.ndarray, footprint: Footprint
+                      ) -> int | None:
+    """The first rollout of ``order`` whose unsure poses all keep the footprint gap [m] to every
+    point at least its ``need``, or ``None``.
+
+    The cheapest candidate is checked alone (it usually wins), then the others ``_BATCH`` at a
+    time.  A point fails a pose's check only inside its box grown by that pose's need, so only
+    points within ``hypot(hx + need, hy + need)`` of some unsure pose's box centre are compared:
+    the verdicts are those of comparing every point.
+
+    Args:
+        order: (K,) candidate rollouts, cheapest first.
+        unsure: (S, T) poses whose gap the bounds could not clear.
+        need: (S,) the gap [m] each rollout must keep.
+        bx: (S, T) box centres x [m] in ``map``.
+        by: (S, T) box centres y [m] in ``map``.
+        fan: the rollouts (for the headings).
+        pts: (M, 2) obstacle points x, y [m] in ``map``.
+        footprint: the footprint box.
+    """
+    hx, hy = footprint.half_size
+    k = 0
+    while k < len(order):
+        idx = order[k:k + (1 if k == 0 else _BATCH)]
+        k += len(idx)
+        mask = unsure[idx]
+        if not mask.any():
+            return int(idx[0])
+        ok = np.ones(len(idx), dtype=bool)
+        rows, cols = np.nonzero(mask)
+        sel = idx[rows]
+        _, c, s = fan.heading(sel)
+        c, s = c[np.arange(len(sel)), cols], s[np.arange(len(sel)), cols]
+        need_p = need[sel]
+        pbx, pby = bx[sel, cols], by[sel, cols]
+        grown = float(need_p.max())
+        reach = math.hypot(hx + grown, hy + grown) + 1e-6
+        near = pts[(pts[:, 0] >= pbx.min() - reach) & (pts[:, 0] <= pbx.max() + reach)
+                   & (pts[:, 1] >= pby.min() - reach) & (pts[:, 1] <= pby.max() + reach)]
+        if len(near):
+            ok[rows[_gaps(pbx, pby, c, s, near, footprint).min(axis=1) < need_p]] = False
+        if ok.any():
+            return int(idx[np.argmax(ok)])
+    return None
 
 
 def rotation_is_safe(pose, angle: float, obstacles: Points2D, footprint: Footprint,
@@ -362,10 +476,30 @@ def _gap_now(pose: np.ndarray, pts: np.ndarray, footprint: Footprint) -> float:
     """The exact gap [m] of the footprint at ``pose`` to the points (``inf`` without points)."""
     if len(pts) == 0:
         return math.inf
-    return float(footprint_gaps(pose[:1], pose[1:2], pose[2:3], pts, footprint)[0])
+    return float(point_gaps(pose, pts, footprint).min())
 
 
-def _gap_bounds(x, y, th, pts, footprint: Footprint
+def _path_dist(ex: np.ndarray, ey: np.ndarray, path: np.ndarray, pose: np.ndarray,
+               to_path: np.ndarray, i0: int) -> np.ndarray:
+    """(S,) distance [m] from each rollout end ``ex, ey`` to the nearest point of the path from
+    the point ``i0`` nearest the robot on (``to_path``: (N,) each path point's distance [m] to the
+    robot).
+
+    Only path points that can be the nearest to some end are compared: with every end within
+    ``reach`` of the robot, a point farther than ``2 reach + to_path[i0]`` from the robot is
+    farther from every end than the point ``i0``.
+    """
+    reach = float(np.hypot(ex - pose[0], ey - pose[1]).max())
+    rest = path[i0:][to_path[i0:] <= 2.0 * reach + to_path[i0] + 1e-6]
+    dx = ex[:, None] - rest[:, 0]
+    dx *= dx
+    dy = ey[:, None] - rest[:, 1]
+    dy *= dy
+    dx += dy
+    return np.sqrt(dx.min(axis=1))
+
+
+def _gap_bounds(bx: np.ndarray, by: np.ndarray, pts: np.ndarray, footprint: Footprint
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Cheap bounds of the gaps [m] between the footprint at the rollout poses and the points.
 
@@ -374,35 +508,42 @@ def _gap_bounds(x, y, th, pts, footprint: Footprint
     the box's half diagonal) and at most ``d + e - r`` (``r`` its half width, the nearest point
     being at most that far inside the box's inscribed circle).
 
+    Args:
+        bx: (S, T) box centres x [m] in ``map`` at the rollout poses.
+        by: (S, T) box centres y [m].
+        pts: (M, 2) obstacle points x, y [m] in ``map``.
+        footprint: the footprint box.
+
     Returns:
-        (S, T) lower bounds, (S, T) upper bounds, and (S, T) estimates for the BaseObstacle critic
-        (``d`` minus the mean of ``r`` and ``R``); all ``inf`` without points.
+        (S, T) lower bounds; (S,) per rollout the least upper bound over its poses; and (S,) per
+        rollout the least estimate for the BaseObstacle critic (``d`` minus the mean of ``r`` and
+        ``R``); all ``inf`` without points.  (Rounding is monotonic, so the minimum of ``d + c``
+        over a rollout is ``min(d) + c``, bit for bit.)
     """
     if len(pts) == 0:
-        inf = np.full(x.shape, np.inf)
-        return inf, inf, inf
-    cx, cy = footprint.centre
+        return np.full(bx.shape, np.inf), np.full(len(bx), np.inf), np.full(len(bx), np.inf)
     hx, hy = footprint.half_size
     r_out, r_in = math.hypot(hx, hy), min(hx, hy)
-    c, s = np.cos(th), np.sin(th)
-    bx = x + c * cx - s * cy
-    by = y + s * cx + c * cy
-    lo = np.array([min(bx.min(), pts[:, 0].min()), min(by.min(), pts[:, 1].min())]) - 2 * _GRID
-    hi = np.array([max(bx.max(), pts[:, 0].max()), max(by.max(), pts[:, 1].max())]) + 2 * _GRID
-    shape = np.ceil((hi - lo) / _GRID).astype(int) + 1
-    free = np.ones((shape[1], shape[0]), dtype=bool)
-    pc = ((pts - lo) / _GRID).astype(int)
-    free[pc[:, 1], pc[:, 0]] = False
+    px, py = pts[:, 0], pts[:, 1]
+    lo_x = min(float(bx.min()), float(px.min())) - 2 * _GRID
+    lo_y = min(float(by.min()), float(py.min())) - 2 * _GRID
+    hi_x = max(float(bx.max()), float(px.max())) + 2 * _GRID
+    hi_y = max(float(by.max()), float(py.max())) + 2 * _GRID
+    free = np.ones((math.ceil((hi_y - lo_y) / _GRID) + 1, math.ceil((hi_x - lo_x) / _GRID) + 1),
+                   dtype=bool)
+    free[((py - lo_y) / _GRID).astype(int), ((px - lo_x) / _GRID).astype(int)] = False
     dist = ndimage.distance_transform_edt(free) * _GRID
-    d = dist[((by - lo[1]) / _GRID).astype(int), ((bx - lo[0]) / _GRID).astype(int)]
+    cell = ((by - lo_y) / _GRID).astype(int) * free.shape[1] + ((bx - lo_x) / _GRID).astype(int)
+    d = dist.ravel()[cell]
+    d_min = d.min(axis=1)
     err = _GRID * math.sqrt(2.0)
-    return d - err - r_out, d + err - r_in, d - 0.5 * (r_in + r_out)
+    return d - err - r_out, d_min + err - r_in, d_min - 0.5 * (r_in + r_out)
 
 
-def _lookahead(path: np.ndarray, xy: np.ndarray, dist: float) -> tuple[np.ndarray, float]:
-    """The point ``dist`` [m] along the path from the point nearest ``xy``, and the path's heading
-    [rad] there."""
-    i0 = int(np.argmin(np.hypot(*(path - xy).T)))
+def _lookahead(path: np.ndarray, xy: np.ndarray, dist: float, i0: int
+               ) -> tuple[np.ndarray, float]:
+    """The point ``dist`` [m] along the path from its point ``i0`` (the one nearest ``xy``), and
+    the path's heading [rad] there."""
     rest = path[i0:]
     if len(rest) == 1:
         d = rest[0] - xy

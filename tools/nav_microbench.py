@@ -1,6 +1,7 @@
 """Micro-benchmark of the navigator's pure core on slim_blockage (a benchmark, not a test).
 
-Prints the median time of a DWA step, of a whole NavigatorCore tick, of a scan update, and of
+Prints the median time of a DWA step (open scenes, a crowd of robots, a dense cloud), of the
+footprint gap of a few predicted points, of a whole NavigatorCore tick, of a scan update, and of
 cross-map global plans (fresh cost-to-go, and a replan to the same goal), as a small table.
 
 The map is ``maps/slim_blockage.yaml`` when it exists and ``swarm_common.map_io`` can load it,
@@ -31,7 +32,7 @@ from swarm_nav import planner  # noqa: E402
 from swarm_nav.config import NavigatorConfig  # noqa: E402
 from swarm_nav.core import NavigatorCore  # noqa: E402
 from swarm_nav.costmap import build_costmap, overlay_obstacles  # noqa: E402
-from swarm_nav.dwa import Footprint, RobotState, dwa_command  # noqa: E402
+from swarm_nav.dwa import Footprint, RobotState, dwa_command, point_gaps  # noqa: E402
 from swarm_nav.planner import plan_path  # noqa: E402
 
 # slim_blockage walls, xmin, xmax, ymin, ymax [m] (shared/reference/seed_facts.md)
@@ -82,13 +83,18 @@ def load(map_path: str | None, resolution: float) -> tuple[OccupancyMap, str]:
 
 
 def synthetic_scan(boundary: np.ndarray, pose, other=None) -> np.ndarray:
-    """One return per degree: the nearest boundary point (and robot point) in each 1 deg bin."""
+    """One return per degree: the nearest boundary point (and robot point) in each 1 deg bin.
+
+    ``other`` is one robot's pose (3,), or (K, 3) poses of several, each seen as its front face.
+    """
     pts = boundary
     if other is not None:
         s = np.linspace(-0.133, 0.133, 12)
-        c, si = math.cos(other[2]), math.sin(other[2])
-        face = np.column_stack((other[0] + 0.069 * c - s * si, other[1] + 0.069 * si + s * c))
-        pts = np.vstack((pts, face))
+        faces = [pts]
+        for ox, oy, oyaw in np.asarray(other, dtype=float).reshape(-1, 3):
+            c, si = math.cos(oyaw), math.sin(oyaw)
+            faces.append(np.column_stack((ox + 0.069 * c - s * si, oy + 0.069 * si + s * c)))
+        pts = np.vstack(faces)
     d = pts - pose[:2]
     r = np.hypot(d[:, 0], d[:, 1])
     keep = (r > 0.12) & (r < 3.5)
@@ -152,6 +158,26 @@ def main(argv=None) -> int:
     worst = median_ms(lambda: dwa_command(state, path, cloud, cfg.dwa, footprint=fp,
                                           dt=cfg.control_period), args.repeat)
     rows.append(("dwa_command, dense cloud", f"{worst:.2f} ms (400 points within 1 m)"))
+    # a crowd: 8 robots 0.5-1.2 m around, facing us, in the open and in the passage
+    crowd_ms = []
+    for x, y, yaw in POSES[:2]:
+        pose = np.array([x, y, yaw])
+        ang = yaw + np.linspace(-2.5, 2.5, 8)
+        r = 0.5 + 0.1 * np.arange(8)
+        others = np.column_stack((x + r * np.cos(ang), y + r * np.sin(ang), ang + math.pi))
+        scan = synthetic_scan(boundary, pose, others)
+        s = np.linspace(0.0, 3.0, 31)
+        path = np.column_stack((x + s * math.cos(yaw), y + s * math.sin(yaw)))
+        state = RobotState(pose, 0.2, 0.1)
+        crowd_ms.append(median_ms(lambda st=state, p=path, sc=scan: dwa_command(
+            st, p, sc, cfg.dwa, footprint=fp, dt=cfg.control_period), args.repeat))
+    rows.append(("dwa_command, crowd of 8", f"{statistics.median(crowd_ms):.2f} ms "
+                 f"(per scenario {', '.join(f'{m:.2f}' for m in crowd_ms)})"))
+    # the navigator filters each moving robot's predicted points with point_gaps, twice a tick
+    face = cloud[:12]
+    gaps_us = 1e3 * median_ms(lambda: point_gaps(np.array([0.0, 0.0, 0.3]), face, fp),
+                              args.repeat * 5)
+    rows.append(("point_gaps, 12 points", f"{gaps_us:.1f} us"))
 
     # the whole tick: on_scan at 5 Hz, step at 10 Hz
     core = NavigatorCore(cfg, WAFFLE)

@@ -145,3 +145,22 @@ def test_segment_max_cost():
     assert segment_max_cost(cm, [0.05, 1.05], [1.95, 1.05]) == LETHAL
     assert segment_max_cost(cm, [0.05, 0.05], [1.95, 0.05]) == 0
     assert segment_max_cost(cm, [0.05, 0.05], [5.0, 0.05]) == LETHAL  # leaves the map
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_lookups_equal_a_cell_by_cell_reading(seed):
+    """cost_at / distance_at against reading each point's cell by hand (inside and outside)."""
+    rng = np.random.default_rng(seed)
+    cm = build_costmap(random_grid(rng, 40, 50, 0.05), CostmapConfig(robot_radius=0.2))
+    for shape in ((), (7,), (3, 4)):
+        for spread in (1.0, 3.0):  # all inside, or some outside the map
+            xy = rng.uniform(-spread + 1.0, spread + 1.5, size=(*shape, 2))
+            cost, dist = cm.cost_at(xy), cm.distance_at(xy)
+            assert cost.shape == shape and cost.dtype == np.uint8
+            assert dist.shape == shape and dist.dtype == np.float64
+            for idx in np.ndindex(*shape):
+                col = math.floor((xy[idx][0] - cm.origin[0]) / cm.resolution)
+                row = math.floor((xy[idx][1] - cm.origin[1]) / cm.resolution)
+                inside = 0 <= row < cm.height and 0 <= col < cm.width
+                assert cost[idx] == (cm.costs[row, col] if inside else LETHAL)
+                assert dist[idx] == (float(cm.obstacle_distance[row, col]) if inside else 0.0)
