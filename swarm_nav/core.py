@@ -69,6 +69,7 @@ _SPIN_LOOKAHEAD = 5  # path points ahead of the progress index that choose a spi
 _NEAR_PATH_SLACK = 0.5  # [m] robots centred farther than the checked distance plus this are
 #                         not looked at for the path ahead (a cheap pre-filter)
 _EPS = 1e-6  # [m] a goal shift below this is no shift
+_STATIC_MARGIN = 0.5  # [m] the robot moves this far before its static obstacle window is renewed
 
 
 
@@ -153,6 +154,9 @@ class NavigatorCore:
         self._centres = np.zeros((0, 2))
         self._tracker = RobotTracker(cfg.perception)
         self._scan_time = -math.inf
+        self._static_superset = np.zeros((0, 2))  # boundary points near _static_centre
+        self._static_centre: np.ndarray | None = None
+        self._static_source: np.ndarray | None = None  # the boundary array it was taken from
 
     # ------------------------------------------------------------------ inputs
     def set_map(self, occ: OccupancyMap) -> None:
@@ -548,28 +552,54 @@ class NavigatorCore:
 
     def _obstacles(self, pose: np.ndarray) -> np.ndarray:
         """Scan points plus the static map's obstacle boundary near the robot."""
-        r = self.cfg.obstacle_window
-        stat = self.costmap.boundary_points() if self.costmap is not None else np.zeros((0, 2))
-        if len(stat):
-            m = (np.abs(stat[:, 0] - pose[0]) < r) & (np.abs(stat[:, 1] - pose[1]) < r)
-            stat = stat[m]
-        parts = [self._scan, stat]
+        parts = [self._scan, self._static_near(pose)]
         # Robots seen moving: also where they will be shortly (the scan is up to a period old).
         # A predicted point already within the padding of where we stand is left out: DWA relaxes
         # its padding to the current gap when the robot already is that near (so that it can
         # leave a tight spot), and a point that is only a guess must not relax it against the
         # points that are really there (a collision at 100 robots; tests/swarm_nav/test_core.py).
-        pad = self.cfg.dwa.footprint_padding
-        for r in self._robots:
-            speed = float(np.hypot(*r.velocity)) if np.all(np.isfinite(r.velocity)) else 0.0
-            if speed > self.cfg.holding.moving_speed:
-                lag = max(0.0, self._now - self._scan_time)
-                step = self.cfg.prediction_step
-                for tau in (lag + step, lag + 2.0 * step):
-                    ahead = r.points + r.velocity * min(tau, self.cfg.prediction_max)
-                    parts.append(ahead[point_gaps(pose, ahead, self.footprint) >= pad])
+        # All robots' predictions are checked in one point_gaps call (it is per point).
+        lag = max(0.0, self._now - self._scan_time)
+        step = self.cfg.prediction_step
+        taus = [min(tau, self.cfg.prediction_max) for tau in (lag + step, lag + 2.0 * step)]
+        ahead = [r.points + r.velocity * tau for r in self._robots
+                 if self._moving(r) for tau in taus]
+        if ahead:
+            ahead = np.vstack(ahead)
+            parts.append(ahead[point_gaps(pose, ahead, self.footprint)
+                               >= self.cfg.dwa.footprint_padding])
         parts = [p for p in parts if len(p)]
         return np.vstack(parts) if parts else np.zeros((0, 2))
+
+    def _static_near(self, pose: np.ndarray) -> np.ndarray:
+        """(K, 2) the static map's boundary points within ``obstacle_window`` (per axis) of pose.
+
+        Filtered from a cached superset (the window grown by ``_STATIC_MARGIN``, taken about where
+        the robot stood) that is renewed once the robot has moved ``_STATIC_MARGIN``: the same
+        points in the same order as filtering the whole boundary, without reading all of it
+        every tick.
+        """
+        if self.costmap is None:
+            return np.zeros((0, 2))
+        stat = self.costmap.boundary_points()
+        r = self.cfg.obstacle_window
+        c = self._static_centre
+        if (self._static_source is not stat or c is None
+                or abs(pose[0] - c[0]) > _STATIC_MARGIN or abs(pose[1] - c[1]) > _STATIC_MARGIN):
+            grown = r + _STATIC_MARGIN + _EPS  # _EPS: no rounding at the edge can drop a point
+            m = (np.abs(stat[:, 0] - pose[0]) < grown) & (np.abs(stat[:, 1] - pose[1]) < grown)
+            self._static_superset = stat[m]
+            self._static_centre = pose[:2].copy()
+            self._static_source = stat
+        near = self._static_superset
+        m = (np.abs(near[:, 0] - pose[0]) < r) & (np.abs(near[:, 1] - pose[1]) < r)
+        return near[m]
+
+    def _moving(self, robot: SeenRobot) -> bool:
+        """Whether a robot seen moves faster than ``moving_speed`` (NaN velocity: it does not)."""
+        v = robot.velocity
+        speed = float(np.hypot(*v)) if np.all(np.isfinite(v)) else 0.0
+        return speed > self.cfg.holding.moving_speed
 
     # ------------------------------------------------------------------ recovery
     def _needs_recovery(self, pose, ok: bool, v: float, w: float, now: float) -> bool:

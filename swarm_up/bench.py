@@ -16,10 +16,11 @@ The JSON (``--output``): ``command`` (the bench's argv), ``started``/``finished`
 ``load_average_start``/``_end``), ``settings`` (the flags), ``run_dir``, ``interrupted``,
 ``exit_code``, ``records`` and ``summary``.  A swarm record: ``kind`` ``"swarm"``, ``size``,
 ``run``, ``seed``, ``command`` (swarm-up's argv), ``exit_code``, ``log``, ``error`` (the last
-error line when the exit code is not 0), ``cpu_s``, ``cpu_per_robot``, ``rss_mb_per_robot`` and
-``metrics`` (swarm-up's ``--metrics`` file as it wrote it, None if it wrote none).  A floor record:
-``kind`` ``"floor"``, ``size``, ``command`` (the equivalent ``python -m swarm_up.floor run``),
-``exit_code`` and ``floor`` (its figures, :func:`swarm_up.floor.run_floor`).
+error line when the exit code is not 0), ``cpu_s``, ``cpu_source``, ``cpu_per_robot``,
+``rss_mb_per_robot`` and ``metrics`` (swarm-up's ``--metrics`` file as it wrote it, None if it
+wrote none).  A floor record: ``kind`` ``"floor"``, ``size``, ``command`` (the equivalent
+``python -m swarm_up.floor run``), ``exit_code`` and ``floor`` (its figures,
+:func:`swarm_up.floor.run_floor`).
 
 Figures the bench adds to swarm-up's:
 
@@ -28,7 +29,10 @@ Figures the bench adds to swarm-up's:
   thread included), from the moment swarm-up reports every navigator ready to the moment it
   starts stopping, divided by robots x simulated seconds.  x1000 = the table's "ms"; x100 = the
   CPU % one robot needs at RTF 1.  Spawning and shutting down are left out.  Sampled with
-  psutil every second (a process that exits keeps its last sample).
+  psutil every second (a process that exits keeps its last sample); ``cpu_source`` ``"bench"``.
+  A run that ends before the bench could sample between those two moments (a few simulated
+  seconds at a high RTF) takes swarm-up's own ``cpu_percent`` over its whole wall time instead,
+  spawning included: ``cpu_source`` ``"swarm-up"``.
 - ``rss_mb_per_robot`` [MB]: swarm-up's ``peak_rss_mb_per_robot`` (the peak of the summed RSS of
   the navigator, commander and group processes, divided by N; the simulator's is apart).
 - floor records: the floor's ``rtf``, ``robot_ticks_per_s``, ``ticks``, ``late_ticks``,
@@ -117,6 +121,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="also measure the bare messaging floor of every size")
     p.add_argument("--run-dir", type=Path, default=None, metavar="DIR",
                    help="logs and run directories (default: runs/bench-<timestamp>/)")
+    p.add_argument("--swarm-up", type=Path, default=None, metavar="PATH",
+                   help="the swarm-up executable to measure, e.g. another checkout's "
+                   "venv/bin/swarm-up to compare versions (default: the one beside this Python)")
     return p
 
 
@@ -136,6 +143,7 @@ class BenchConfig:
         plot: PNG path.
         floor: measure the floor.
         run_dir: absolute directory of the logs and runs.
+        swarm_up: the ``swarm-up`` executable measured (absolute).
     """
 
     sizes: tuple[int, ...]
@@ -149,6 +157,7 @@ class BenchConfig:
     plot: Path
     floor: bool
     run_dir: Path
+    swarm_up: Path
 
 
 def _check_file_flag(flag: str, path: Path, suffix: str | None = None) -> Path:
@@ -184,7 +193,8 @@ def validate(args: argparse.Namespace) -> BenchConfig:
     return BenchConfig(
         sizes=args.sizes, duration_s=args.duration, runs=args.runs, world=args.world,
         seed=args.seed, coordination=args.coordination, processes=args.processes,
-        output=output, plot=plot, floor=args.floor, run_dir=run_dir.expanduser().resolve())
+        output=output, plot=plot, floor=args.floor, run_dir=run_dir.expanduser().resolve(),
+        swarm_up=swarm_up_path(args.swarm_up))
 
 
 def _default_run_dir() -> Path:
@@ -311,12 +321,17 @@ class StopFlag:
         return self.signum is not None
 
 
-def swarm_up_path() -> Path:
-    """``swarm-up`` beside this Python (the same venv).
+def swarm_up_path(given: Path | None = None) -> Path:
+    """The ``swarm-up`` to measure: ``given`` (``--swarm-up``), else the one beside this Python.
 
     Raises:
-        InputError: it is not installed there.
+        InputError: it is not an executable file.
     """
+    if given is not None:
+        path = given.expanduser().resolve()
+        if not (path.is_file() and os.access(path, os.X_OK)):
+            raise InputError(f"--swarm-up: '{given}' is not an executable file")
+        return path
     path = Path(sys.executable).parent / "swarm-up"
     if not path.is_file():
         raise InputError(f"swarm-up: not installed beside {sys.executable} "
@@ -327,7 +342,7 @@ def swarm_up_path() -> Path:
 def swarm_up_command(cfg: BenchConfig, n: int, seed: int, run_dir: Path,
                      metrics: Path) -> list[str]:
     """The ``swarm-up`` command line of one run."""
-    argv = [str(swarm_up_path()), "--swarm-size", str(n), "--world", cfg.world,
+    argv = [str(cfg.swarm_up), "--swarm-size", str(n), "--world", cfg.world,
             "--seed", str(seed), "--commanders", "--rtf", "0", "--duration", f"{cfg.duration_s:g}",
             "--metrics", str(metrics), "--run-dir", str(run_dir),
             "--coordination", cfg.coordination]
@@ -415,7 +430,11 @@ def run_swarm_up(cfg: BenchConfig, n: int, r: int, stop: StopFlag, view: BenchVi
         metrics = None
     metrics = metrics if isinstance(metrics, dict) else None
     sim_s = _num(metrics, "sim_time_s")
-    cpu_s = cpu.since_mark() if stopping else None
+    cpu_s, cpu_source = (cpu.since_mark() if stopping else None), "bench"
+    if not cpu_s:  # the run ended within one poll: no sample fell between ready and stopping
+        cpu_pct, wall = _num(metrics, "cpu_percent"), _num(metrics, "orchestrator_wall_time_s")
+        cpu_s = cpu_pct / 100.0 * wall if cpu_pct and wall else None
+        cpu_source = "swarm-up" if cpu_s else None
     record = {
         "kind": "swarm",
         "size": n,
@@ -427,6 +446,7 @@ def run_swarm_up(cfg: BenchConfig, n: int, r: int, stop: StopFlag, view: BenchVi
         "log": str(log_path),
         "error": _error_line(log_path) if code != EXIT_OK else None,
         "cpu_s": cpu_s,
+        "cpu_source": cpu_source,
         "cpu_per_robot": (cpu_s / (n * sim_s)) if cpu_s is not None and sim_s else None,
         "rss_mb_per_robot": _num(metrics, "peak_rss_mb_per_robot"),
         "metrics": metrics,
@@ -630,7 +650,6 @@ def _write_json(path: Path, doc: dict) -> None:
 def bench(cfg: BenchConfig, argv: list[str]) -> int:
     """Run the whole bench; returns the exit code (0, 1 or 130)."""
     cfg.run_dir.mkdir(parents=True, exist_ok=True)
-    swarm_up_path()
     base_floor = None
     if cfg.floor:
         from swarm_up.floor import make_config

@@ -10,7 +10,8 @@ process layout; its real-time factor is the ceiling that the messaging sets, and
 ``swarm_up/metrics.py``):
 
 - simulator process: per control tick (10 Hz simulated) ``/clock``, every robot's ``odom`` and
-  ``ground_truth`` (``nav_msgs/Odometry``, reliable, depth 10), on lidar ticks (5 Hz: every 2nd
+  (while anyone subscribes to it, as the simulator) ``ground_truth`` (``nav_msgs/Odometry``,
+  reliable, depth 10), on lidar ticks (5 Hz: every 2nd
   tick, from the robot's URDF) a ``sensor_msgs/LaserScan`` per robot with the URDF's beams (360)
   and fixed ranges (sensor-data QoS); then it waits until every active robot's
   ``geometry_msgs/TwistStamped`` ``cmd_vel`` stamped with that tick has arrived (3 s timeout,

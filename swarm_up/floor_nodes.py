@@ -208,8 +208,10 @@ class FloorSimNode(Node):
         for i in range(self.n):
             x, y, yaw = self._poses[i]
             qz, qw = math.sin(yaw / 2.0), math.cos(yaw / 2.0)
-            for msg, pub in ((self._odom_msgs[i], self.odom_pubs[i]),
-                             (self._truth_msgs[i], self.truth_pubs[i])):
+            outputs = [(self._odom_msgs[i], self.odom_pubs[i])]
+            if self.truth_pubs[i].get_subscription_count():  # as the simulator: only if heard
+                outputs.append((self._truth_msgs[i], self.truth_pubs[i]))
+            for msg, pub in outputs:
                 msg.header.stamp = stamp
                 msg.pose.pose.position.x = float(x)
                 msg.pose.pose.position.y = float(y)

@@ -260,3 +260,23 @@ def test_a_robot_predicted_into_our_footprint_does_not_unlock_driving_into_anoth
     x, y, th = rollout(pose, np.array([v]), np.array([w]), np.linspace(0.05, 1.7, 34))
     gaps = footprint_gaps(x[0], y[0], th[0], ahead, fp)
     assert gaps.min() >= NavigatorConfig().dwa.footprint_padding - 1e-6, (v, w, gaps.min())
+
+
+# ------------------------------------------------------------------ obstacles (exact shortcuts)
+def test_static_obstacle_window_from_its_cache_equals_filtering_the_whole_boundary(occ):
+    r = make_robot(occ, [0.0, 0.0, math.pi], log=False)
+    core = r.core
+    boundary = core.costmap.boundary_points()
+    win = core.cfg.obstacle_window
+    rng = np.random.default_rng(7)
+    pose = np.array([0.0, 0.0, 0.0])
+    renewals = 0
+    for _ in range(400):  # a random walk: small steps, and jumps past the cache's margin
+        pose[:2] += rng.normal(0.0, 0.35 if rng.random() < 0.9 else 2.0, 2)
+        pose[:2] = np.clip(pose[:2], [-8.0, -4.5], [9.0, 9.0])
+        before = core._static_centre
+        got = core._static_near(pose)
+        renewals += core._static_centre is not before
+        m = (np.abs(boundary[:, 0] - pose[0]) < win) & (np.abs(boundary[:, 1] - pose[1]) < win)
+        assert np.array_equal(got, boundary[m])  # the same points in the same order
+    assert 20 < renewals < 400  # the cache was both reused and renewed

@@ -23,7 +23,7 @@ from swarm_up.bench import build_parser, summarize, write_plot
 SWARM_BENCH = Path(sys.executable).parent / "swarm-bench"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 RECORD_KEYS = {"kind", "size", "run", "seed", "command", "exit_code", "interrupted", "log",
-               "cpu_s", "cpu_per_robot", "rss_mb_per_robot", "metrics"}
+               "cpu_s", "cpu_source", "cpu_per_robot", "rss_mb_per_robot", "metrics"}
 METRICS_KEYS = {"robots", "sim_time_s", "wall_time_s", "rtf", "robot_ticks_per_s",
                 "tasks_completed", "throughput_per_hour", "goals_reached", "goals_aborted",
                 "collisions", "min_separation_m", "late_ticks", "cpu_percent",
@@ -94,6 +94,8 @@ BAD_FLAGS = [
     (["--plot", "/no/such/dir/bench.png"], "--plot"),
     (["--plot", "bench.jpg"], "--plot"),
     (["--output", "/no/such/dir/bench.json"], "--output"),
+    (["--swarm-up", "/no/such/swarm-up"], "--swarm-up"),
+    (["--swarm-up", "/etc/hostname"], "--swarm-up"),
     (["--frobnicate"], "--frobnicate"),
 ]
 
@@ -197,6 +199,7 @@ def test_small_sweep_with_floor_writes_table_json_and_plot(tmp_path):
         assert m["sim_time_s"] == pytest.approx(duration)
         assert m["rtf"] > 0 and m["robot_ticks_per_s"] > 0
         assert rec["cpu_per_robot"] > 0 and rec["rss_mb_per_robot"] > 0
+        assert rec["cpu_source"] in ("bench", "swarm-up")
         assert "--commanders" in rec["command"] and rec["command"][:1] == [
             str(Path(sys.executable).parent / "swarm-up")]
         assert rec["command"][rec["command"].index("--rtf") + 1] == "0"
