@@ -185,13 +185,15 @@ def validate(args: argparse.Namespace) -> BenchConfig:
     except InputError as exc:
         msg = str(exc)
         raise InputError(msg if msg.startswith("--world") else f"--world: {msg}") from None
+    # swarm-up runs in its run directory: a world given by path is passed on absolute
+    world = str(Path(args.world).resolve()) if Path(args.world).is_file() else args.world
     output = _check_file_flag("--output", args.output)
     plot = _check_file_flag("--plot", args.plot, ".png")
     if args.run_dir is not None and args.run_dir.exists() and not args.run_dir.is_dir():
         raise InputError(f"--run-dir: '{args.run_dir}' exists and is not a directory")
     run_dir = args.run_dir or _default_run_dir()
     return BenchConfig(
-        sizes=args.sizes, duration_s=args.duration, runs=args.runs, world=args.world,
+        sizes=args.sizes, duration_s=args.duration, runs=args.runs, world=world,
         seed=args.seed, coordination=args.coordination, processes=args.processes,
         output=output, plot=plot, floor=args.floor, run_dir=run_dir.expanduser().resolve(),
         swarm_up=swarm_up_path(args.swarm_up))
@@ -393,9 +395,16 @@ def run_swarm_up(cfg: BenchConfig, n: int, r: int, stop: StopFlag, view: BenchVi
     log_path = cfg.run_dir / f"{name}.log"
     argv = swarm_up_command(cfg, n, seed, cfg.run_dir / name, metrics_path)
     view.start(f"size {n}, run {r + 1}/{cfg.runs}", cfg.duration_s)
+    (cfg.run_dir / name).mkdir(parents=True, exist_ok=True)
     with open(log_path, "wb") as log:
-        proc = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT,
-                                env=dict(os.environ), start_new_session=True)
+        # cwd: the run's own directory, so that the ``python -m`` children of a swarm-up from
+        # another checkout (--swarm-up) cannot import this checkout's packages from the cwd.
+        try:
+            proc = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT,
+                                    cwd=cfg.run_dir / name, env=dict(os.environ),
+                                    start_new_session=True)
+        except OSError as exc:
+            raise InputError(f"--swarm-up: cannot run '{argv[0]}': {exc.strerror}") from None
     tail, cpu = _Tail(log_path), TreeCpu([proc.pid])
     stopping = interrupted = False
     signalled_at: float | None = None

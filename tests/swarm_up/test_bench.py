@@ -95,7 +95,7 @@ BAD_FLAGS = [
     (["--plot", "bench.jpg"], "--plot"),
     (["--output", "/no/such/dir/bench.json"], "--output"),
     (["--swarm-up", "/no/such/swarm-up"], "--swarm-up"),
-    (["--swarm-up", "/etc/hostname"], "--swarm-up"),
+    (["--swarm-up", "/etc/passwd"], "--swarm-up"),  # not executable
     (["--frobnicate"], "--frobnicate"),
 ]
 
@@ -243,3 +243,17 @@ def test_interrupted_bench_keeps_the_finished_rows(tmp_path):
     assert [s["size"] for s in doc["summary"]] == [2]
     assert bench.png.read_bytes()[:8] == PNG_MAGIC
     assert "interrupted" in bench.stderr.read_text()
+
+
+@pytest.mark.e2e
+def test_a_swarm_up_that_cannot_run_exits_2_with_one_line(tmp_path):
+    fake = tmp_path / "swarm-up"
+    fake.write_text("not a program\n")
+    fake.chmod(0o755)  # executable, but no format the kernel runs
+    res = subprocess.run([str(SWARM_BENCH), "--swarm-up", str(fake), "--sizes", "2",
+                          "--duration", "1", "--output", str(tmp_path / "b.json"),
+                          "--plot", str(tmp_path / "b.png"), "--run-dir", str(tmp_path / "runs")],
+                         capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    assert res.returncode == 2, res.stdout + res.stderr
+    assert res.stderr.strip().splitlines() == [
+        f"swarm-bench: error: --swarm-up: cannot run '{fake}': Exec format error"]
