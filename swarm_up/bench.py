@@ -67,6 +67,7 @@ from pathlib import Path
 from swarm_common import cli
 from swarm_common.errors import EXIT_OK, EXIT_RUNTIME, InputError, run_cli
 from swarm_up.args import PER_ROBOT, default_processes, processes_arg
+from swarm_up.supervisor import LogTail, StopFlag
 
 PROG = "swarm-bench"
 SCHEMA_VERSION = 1
@@ -309,20 +310,6 @@ class BenchView:
 
 
 # ------------------------------------------------------------------------------------------ runs
-class StopFlag:
-    """Set by SIGINT/SIGTERM; the loops poll it."""
-
-    def __init__(self):
-        self.signum: int | None = None
-
-    def __call__(self, signum, _frame):
-        if self.signum is None:
-            self.signum = signum
-
-    def __bool__(self) -> bool:
-        return self.signum is not None
-
-
 def swarm_up_path(given: Path | None = None) -> Path:
     """The ``swarm-up`` to measure: ``given`` (``--swarm-up``), else the one beside this Python.
 
@@ -351,24 +338,6 @@ def swarm_up_command(cfg: BenchConfig, n: int, seed: int, run_dir: Path,
     if cfg.processes is not None:
         argv += ["--processes", str(cfg.processes)]
     return argv
-
-
-class _Tail:
-    """New complete lines of a growing file."""
-
-    def __init__(self, path: Path):
-        self.path, self._pos, self._partial = path, 0, ""
-
-    def lines(self) -> list[str]:
-        try:
-            with open(self.path, encoding="utf-8", errors="replace") as fh:
-                fh.seek(self._pos)
-                text = self._partial + fh.read()
-                self._pos = fh.tell()
-        except OSError:
-            return []
-        *done, self._partial = text.split("\n")
-        return done
 
 
 def _error_line(log: Path) -> str:
@@ -405,7 +374,7 @@ def run_swarm_up(cfg: BenchConfig, n: int, r: int, stop: StopFlag, view: BenchVi
                                     start_new_session=True)
         except OSError as exc:
             raise InputError(f"--swarm-up: cannot run '{argv[0]}': {exc.strerror}") from None
-    tail, cpu = _Tail(log_path), TreeCpu([proc.pid])
+    tail, cpu = LogTail(log_path), TreeCpu([proc.pid])
     stopping = interrupted = False
     signalled_at: float | None = None
     last_cpu = 0.0

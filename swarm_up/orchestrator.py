@@ -26,41 +26,10 @@ from swarm_up.args import PER_ROBOT, RunConfig
 from swarm_up.children import child_specs
 from swarm_up.output import ProgressView, print_summary, say, warn
 from swarm_up.rundir import RunError, load_nav_template, prepare_map, write_params_files
+from swarm_up.supervisor import LogTail, ResourceSampler, StopFlag, Supervisor
 
 POLL_PERIOD_S = 0.1  # supervision poll [s] (10 Hz; restarts within 2 s need >= 5 Hz)
 SPAWNED_RE = re.compile(r"spawned\s+(\d+)\s+robots?", re.IGNORECASE)
-
-
-class _StopFlag:
-    """Set by SIGINT/SIGTERM; the main loop polls it."""
-
-    def __init__(self):
-        self.signum: int | None = None
-
-    def __call__(self, signum, _frame):
-        if self.signum is None:
-            self.signum = signum
-
-
-class _LogTail:
-    """Reads what a growing log file gained since the last call."""
-
-    def __init__(self, path: Path):
-        self.path = path
-        self._pos = 0
-        self._partial = ""
-
-    def lines(self) -> list[str]:
-        try:
-            with open(self.path, encoding="utf-8", errors="replace") as fh:
-                fh.seek(self._pos)
-                chunk = fh.read()
-                self._pos = fh.tell()
-        except OSError:
-            return []
-        text = self._partial + chunk
-        *done, self._partial = text.split("\n")
-        return done
 
 
 def _last_line(path: Path) -> str:
@@ -88,8 +57,7 @@ class Orchestrator:
     """
 
     def __init__(self, cfg: RunConfig):
-        from swarm_up.metrics import MetricsListener
-        from swarm_up.supervisor import ResourceSampler, Supervisor
+        from swarm_up.metrics import MetricsListener  # rclpy: imported only when a run starts
 
         self.cfg = cfg
         self.logs = cfg.run_dir / "logs"
@@ -103,7 +71,7 @@ class Orchestrator:
         self.all_ready = False
         self._last_report = time.monotonic()
         self._report_mark: tuple[float, float] | None = None  # (wall, sim) of the last line
-        self._sim_tail = _LogTail(self.logs / "sim.log")
+        self._sim_tail = LogTail(self.logs / "sim.log")
         self._spawned_from_log = 0
         self._navigators = {s.name for s in self.specs if s.kind in ("nav", "group")}
         self._dead: dict[str, int] = {}  # exited, not to be restarted -> exit code
@@ -280,7 +248,7 @@ def run(cfg: RunConfig) -> int:
 
     shm_before = shm.snapshot()
     orch = Orchestrator(cfg)
-    stop = _StopFlag()
+    stop = StopFlag()
     old_handlers = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
     outcome = None
     try:

@@ -367,3 +367,47 @@ class ResourceSampler:
         )
         sim = self.peak_sim_rss_b / 2**20 if self.samples else None
         return {"cpu_percent": cpu, "peak_rss_mb_per_robot": per_robot, "sim_peak_rss_mb": sim}
+
+
+class StopFlag:
+    """A SIGINT/SIGTERM handler that only records the first signal; the caller's loop polls it.
+
+    Install with ``signal.signal(sig, flag)``; ``bool(flag)`` is True once a signal came.
+    """
+
+    def __init__(self):
+        self.signum: int | None = None
+
+    def __call__(self, signum, _frame):
+        if self.signum is None:
+            self.signum = signum
+
+    def __bool__(self) -> bool:
+        return self.signum is not None
+
+
+class LogTail:
+    """The complete lines a growing log file gained since the last call (a partial last line
+    waits for its end).
+
+    Args:
+        path: the log file; it need not exist yet.
+    """
+
+    def __init__(self, path: Path):
+        self.path = path
+        self._pos = 0
+        self._partial = ""
+
+    def lines(self) -> list[str]:
+        """New complete lines, without their newline; [] when the file cannot be read."""
+        try:
+            with open(self.path, encoding="utf-8", errors="replace") as fh:
+                fh.seek(self._pos)
+                chunk = fh.read()
+                self._pos = fh.tell()
+        except OSError:
+            return []
+        *done, self._partial = (self._partial + chunk).split("\n")
+        return done
+
