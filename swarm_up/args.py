@@ -329,16 +329,15 @@ def validate(args: argparse.Namespace) -> RunConfig:
     )
 
 
-def default_run_dir(base: Path | None = None) -> Path:
-    """``runs/<YYYYmmdd-HHMMSS>`` (with ``-2``, ``-3`` ... if taken) under ``base`` (cwd)."""
+def default_run_dir(base: Path | None = None, prefix: str = "") -> Path:
+    """``runs/<prefix><YYYYmmdd-HHMMSS>`` (``-2``, ``-3`` ... if taken) under ``base`` (cwd)."""
     base = Path("runs") if base is None else base
-    stamp = time.strftime("%Y%m%d-%H%M%S")
+    stamp = prefix + time.strftime("%Y%m%d-%H%M%S")
     candidate, i = base / stamp, 1
     while candidate.exists():
         i += 1
         candidate = base / f"{stamp}-{i}"
     return candidate
-
 
 
 class _Collect(logging.Handler):

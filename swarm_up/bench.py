@@ -66,7 +66,7 @@ from pathlib import Path
 
 from swarm_common import cli
 from swarm_common.errors import EXIT_OK, EXIT_RUNTIME, InputError, run_cli
-from swarm_up.args import PER_ROBOT, default_processes, processes_arg
+from swarm_up.args import PER_ROBOT, default_processes, default_run_dir, processes_arg
 from swarm_up.supervisor import LogTail, StopFlag
 
 PROG = "swarm-bench"
@@ -192,21 +192,12 @@ def validate(args: argparse.Namespace) -> BenchConfig:
     plot = _check_file_flag("--plot", args.plot, ".png")
     if args.run_dir is not None and args.run_dir.exists() and not args.run_dir.is_dir():
         raise InputError(f"--run-dir: '{args.run_dir}' exists and is not a directory")
-    run_dir = args.run_dir or _default_run_dir()
+    run_dir = args.run_dir or default_run_dir(prefix="bench-")
     return BenchConfig(
         sizes=args.sizes, duration_s=args.duration, runs=args.runs, world=world,
         seed=args.seed, coordination=args.coordination, processes=args.processes,
         output=output, plot=plot, floor=args.floor, run_dir=run_dir.expanduser().resolve(),
         swarm_up=swarm_up_path(args.swarm_up))
-
-
-def _default_run_dir() -> Path:
-    stamp = time.strftime("%Y%m%d-%H%M%S")
-    candidate, i = Path("runs") / f"bench-{stamp}", 1
-    while candidate.exists():
-        i += 1
-        candidate = Path("runs") / f"bench-{stamp}-{i}"
-    return candidate
 
 
 # -------------------------------------------------------------------------------------- context

@@ -82,7 +82,13 @@ from pathlib import Path
 
 from swarm_common import cli
 from swarm_common.errors import InputError, run_cli
-from swarm_up.args import PER_ROBOT, default_processes, processes_arg, split_groups
+from swarm_up.args import (
+    PER_ROBOT,
+    default_processes,
+    default_run_dir,
+    processes_arg,
+    split_groups,
+)
 
 PROG = "swarm_up.floor"
 DEFAULT_GOAL_PERIOD_S = 180.0  # [s] simulated
@@ -394,7 +400,7 @@ def main(argv: list[str] | None = None) -> int:
     def body() -> int:
         args = build_parser().parse_args(argv)
         if args.role == "run":
-            run_dir = args.run_dir or Path("runs") / time.strftime("floor-%Y%m%d-%H%M%S")
+            run_dir = args.run_dir or default_run_dir(prefix="floor-")
             run_dir.mkdir(parents=True, exist_ok=True)
             cfg = make_config(args.swarm_size, args.duration, run_dir.resolve(),
                               world=args.world, robot=args.robot, commanders=args.commanders,

@@ -33,6 +33,7 @@ import psutil
 import pytest
 
 from swarm_up import shm
+from tests.support.ros import alive
 
 pytestmark = pytest.mark.e2e
 
@@ -162,12 +163,7 @@ class SwarmUp:
     # -------------------------------------------------------------- stopping
     def alive_descendants(self) -> list[psutil.Process]:
         """The remembered descendants still running (zombies count as gone)."""
-        alive = []
-        for p in self.known.values():
-            with contextlib.suppress(psutil.Error):
-                if p.is_running() and p.status() != psutil.STATUS_ZOMBIE:
-                    alive.append(p)
-        return alive
+        return alive(self.known.values())
 
     def cleanup(self) -> None:
         """Stop swarm-up (SIGINT, then SIGKILL) and kill whatever it started that is left."""

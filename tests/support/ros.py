@@ -14,6 +14,7 @@ import sys
 import time
 from pathlib import Path
 
+import psutil
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 
@@ -65,3 +66,13 @@ def spin_until(executor, condition, timeout: float, what: str = "condition") -> 
         if time.monotonic() > deadline:
             raise AssertionError(f"timed out after {timeout} s waiting for {what}")
         executor.spin_once(timeout_sec=0.05)
+
+
+def alive(processes) -> list[psutil.Process]:
+    """The processes of ``processes`` (psutil) still running; zombies count as gone."""
+    out = []
+    for p in processes:
+        with contextlib.suppress(psutil.Error):
+            if p.is_running() and p.status() != psutil.STATUS_ZOMBIE:
+                out.append(p)
+    return out

@@ -21,15 +21,9 @@ from swarm_nav.perception import SeenRobot
 from tests.swarm_nav.helpers import (
     SLIM_BLOCKAGE_LOOP,
     grid_map,
-    slim_blockage_map,
 )
 
 CFG = HoldingConfig()
-
-
-@pytest.fixture(scope="module")
-def costmap():
-    return build_costmap(slim_blockage_map(), CostmapConfig())
 
 
 def robot_at(x, y, vx=0.0, vy=0.0, n=12):

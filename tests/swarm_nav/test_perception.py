@@ -5,8 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from swarm_nav.config import CostmapConfig, PerceptionConfig
-from swarm_nav.costmap import build_costmap
+from swarm_nav.config import PerceptionConfig
 from swarm_nav.perception import (
     RobotTracker,
     cluster_centres,
@@ -22,15 +21,9 @@ from tests.swarm_nav.helpers import (
     box_segments,
     footprint_polygon,
     polygon_segments,
-    slim_blockage_map,
 )
 
 PCFG = PerceptionConfig()
-
-
-@pytest.fixture(scope="module")
-def costmap():
-    return build_costmap(slim_blockage_map(), CostmapConfig())
 
 
 def test_dynamic_points_keep_only_what_the_map_does_not_explain(costmap):

@@ -19,6 +19,7 @@ import psutil
 import pytest
 
 from swarm_up.bench import build_parser, summarize, write_plot
+from tests.support.ros import alive
 
 SWARM_BENCH = Path(sys.executable).parent / "swarm-bench"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -155,12 +156,7 @@ class Bench:
         return json.loads(self.out.read_text())
 
     def alive(self) -> list[psutil.Process]:
-        alive = []
-        for p in self.known.values():
-            with contextlib.suppress(psutil.Error):
-                if p.is_running() and p.status() != psutil.STATUS_ZOMBIE:
-                    alive.append(p)
-        return alive
+        return alive(self.known.values())
 
     def __enter__(self) -> Bench:
         return self
