@@ -130,9 +130,12 @@ class Swarm:
         self.nav = start(["python", "-m", "swarm_up.group", "--namespaces",
                           ",".join(self.names), "--params-dir", str(params)],
                          self.dir / "nav.log")
-        self.spin_until(lambda: all(self.statuses[ns] for ns in self.names)
+        # The simulator publishes ground truth only once it has matched a reader, which may
+        # be a few ticks after its first: wait for every robot's, so that the truth of a test
+        # starts before its first goal.
+        self.spin_until(lambda: all(self.statuses[ns] and self.truth[ns] for ns in self.names)
                         and all(p.get_subscription_count() for p in self.goal_pubs.values()),
-                        60, "every navigator to report ready")
+                        60, "every navigator to report ready and every ground truth")
         return self
 
     def close(self) -> dict | None:
