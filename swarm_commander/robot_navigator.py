@@ -481,10 +481,15 @@ class BasicNavigator(Node):
         self._finish(task, result)
 
     def _on_idle(self, task: _Task):
-        """The navigator is idle while our goal should run: it lost the goal (restart)."""
+        """The navigator is idle while our goal should run: it lost the goal (restart).
+
+        Once the navigator has taken our goal (``task.seen``), an ``IDLE`` can only come from a
+        restarted navigator: the goal is sent again at once, stamped with that status, so the
+        same run gives the same goal at the same tick. Before, a stale ``IDLE`` (published before
+        the goal arrived) is told apart by waiting :attr:`resend_after` wall seconds."""
         if task.cancel_requested:
             self._finish(task, TaskResult.CANCELED)
-        elif time.monotonic() - task.sent_wall > self.resend_after:
+        elif task.seen or time.monotonic() - task.sent_wall > self.resend_after:
             self.warn(f"navigator is idle, not driving to goal {task.goal_id}; sending it again")
             self._send_current()
 

@@ -221,6 +221,7 @@ class NavigatorNode(Node):
             self._warn("map", f"dropped a malformed /map: {exc}")
             return
         self._set_map(occ)
+        self._release()
 
     def _on_scan(self, msg: LaserScan) -> None:
         n = len(msg.ranges)
@@ -244,6 +245,9 @@ class NavigatorNode(Node):
     def _release(self) -> None:
         """Answer the pending tick once it may be answered (docs/ARCHITECTURE.md):
 
+        - the very first answer waits for the map (up to ``COMMANDER_WAIT_S``): a navigator
+          restarted mid-run (a fault) must not answer its first ticks blind, or when it becomes
+          ready would depend on the wall clock;
         - on a lidar tick, that tick's scan has arrived (a lost scan makes the tick late);
         - on the first tick after the goal ended (or the first tick at all), with a commander
           connected, its next goal has arrived, the commander left, or ``goal_wait_timeout`` wall
@@ -254,6 +258,9 @@ class NavigatorNode(Node):
         if msg is None:
             return
         t = stamp_ns(msg.header.stamp)
+        if (not self._answered and not self.has_map
+                and time.monotonic() - self._started < COMMANDER_WAIT_S):
+            return
         if self._is_lidar_tick(t) and (self._scan is None or self._scan[0] != t):
             return
         if self._awaits_goal(t):

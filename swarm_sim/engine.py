@@ -225,12 +225,16 @@ class SimEngine:
 
     # -- stepping ------------------------------------------------------------------------------
 
-    def step(self, v_cmd: np.ndarray, w_cmd: np.ndarray) -> list[CollisionEvent]:
+    def step(self, v_cmd: np.ndarray, w_cmd: np.ndarray,
+             held: np.ndarray | None = None) -> list[CollisionEvent]:
         """Advance one control tick with the commanded twists.
 
         Args:
             v_cmd: (N,) commanded linear velocities [m/s] in ``base_footprint``.
             w_cmd: (N,) commanded angular velocities [rad/s].
+            held: (N,) bool, robots held still this tick whatever they are commanded (a frozen
+                or dead robot, :mod:`swarm_sim.faults`): their twist is zero at once, without
+                the deceleration limit. None: none.
 
         Returns:
             The collision episodes that started during this tick.
@@ -242,6 +246,9 @@ class SimEngine:
         events: list[CollisionEvent] = []
         for _ in range(cfg.physics_substeps):
             self.v, self.w = limit_twist(v_target, w_target, self.v, self.w, self.limits, dt)
+            if held is not None:
+                self.v[held] = 0.0
+                self.w[held] = 0.0
             new = integrate_unicycle(self.poses, self.v, self.w, dt)
             moved = np.flatnonzero(np.any(new != self.poses, axis=1))
             self._set_body_poses(new, moved)

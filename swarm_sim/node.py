@@ -39,12 +39,26 @@ from sensor_msgs.msg import LaserScan
 
 from swarm_common import cli
 from swarm_common.errors import InputError, run_cli
+from swarm_common.faults import (
+    ACK_NAME,
+    ACKS_TOPIC,
+    END,
+    EVENT_NAME,
+    KILL_COORDINATOR,
+    KILL_NAV,
+    KILL_ROBOT,
+    START,
+    FaultAck,
+    FaultEvent,
+    parse_faults,
+)
 from swarm_common.sim_summary import CollisionCounts, RobotSummary, SimSummary
 from swarm_common.stamps import NS_PER_S
 
 # A manual (zero-stamp) command outranks the navigator's answers for this long after it arrived,
 # as teleop outranks navigation in twist_mux (its default timeout is 0.5 s).
 MANUAL_PRIORITY_S = 0.5  # [s] wall
+REJOIN_TIMEOUT_S = 60.0  # [s] wall: how long a tick waits for a killed navigator's successor
 
 
 @dataclass(frozen=True)
@@ -67,6 +81,9 @@ class SimSettings:
         wait_for: robots that must have answered before simulated time starts (the start gate;
             ``swarm-up`` passes N) [-].
         gui: open PyBullet's window.
+        faults: the ``--faults`` SPEC (inline syntax or YAML path, :mod:`swarm_common.faults`),
+            or None.
+        fault_ack_timeout: wall time a tick waits for a fault's acknowledgement [s].
     """
 
     world: str = "slim_blockage"
@@ -83,6 +100,8 @@ class SimSettings:
     inactive_after: int = 1  # [ticks]
     wait_for: int = 0  # [robots]
     gui: bool = False
+    faults: str | None = None
+    fault_ack_timeout: float = 10.0  # [s] wall
 
 
 def _time_msg(t_ns: int) -> Time:
@@ -122,9 +141,11 @@ class SimulatorNode(Node):
         engine: the world, already built with the spawned robots.
         occ: the map published once on ``/map`` (transient local).
         namespaces: robot namespaces without the leading slash, index-aligned with the engine.
+        faults: the fault schedule (:func:`swarm_common.faults.parse_faults`); empty: none.
     """
 
-    def __init__(self, settings: SimSettings, engine, occ, namespaces: list[str]):
+    def __init__(self, settings: SimSettings, engine, occ, namespaces: list[str],
+                 faults=()):
         super().__init__("swarm_sim")
         # Parameters: read-only mirrors of the flags, so `ros2 param get /swarm_sim rtf` works.
         for name, value in (
@@ -154,6 +175,20 @@ class SimulatorNode(Node):
         """Set by :meth:`request_stop` (SIGINT/SIGTERM): the loops end at their next check."""
         self._last_warn = 0.0
         self._scans = None  # the current tick's scans, cast once (re-publishing reuses them)
+        # Fault injection (swarm_sim.faults): this tick's silenced robots, lost messages,
+        # rejoining navigators; the acknowledgements received; the commands applied last tick.
+        self.faults = None
+        if faults:
+            from swarm_sim.faults import SimFaults, TickDrops
+
+            self.faults = SimFaults(faults, namespaces, settings.seed)
+            self._drops = TickDrops()
+        self._silenced: set[int] = set()
+        self._rejoin: set[int] = set()
+        self._acks: set[tuple[int, str]] = set()
+        self.fault_ack_timeouts = 0
+        self.fault_log: list[dict] = []  # every fault transition applied, in order
+        self._last_cmd = np.zeros((self.n, 2))
         # Publishers and subscribers.
         reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
@@ -173,6 +208,10 @@ class SimulatorNode(Node):
             self.create_subscription(
                 TwistStamped, f"/{ns}/cmd_vel", lambda msg, i=i: self._on_cmd_vel(i, msg),
                 reliable)
+        if self.faults is not None:
+            self.create_subscription(DiagnosticStatus, ACKS_TOPIC, self._on_fault_ack,
+                                     QoSProfile(depth=100,
+                                                reliability=ReliabilityPolicy.RELIABLE))
         self._odom_msgs = [self._make_odom(ns, f"{ns}/odom") for ns in namespaces]
         self._truth_msgs = [self._make_odom(ns, "map") for ns in namespaces]
         self._scan_msgs = [self._make_scan(ns) for ns in namespaces]
@@ -215,7 +254,7 @@ class SimulatorNode(Node):
         stamp = _stamp_ns(msg.header.stamp)
         if stamp == 0:  # manual driving: apply now, hold until replaced
             self.manual[i] = (v, w, time.monotonic())
-        elif stamp == self.t_ns:
+        elif stamp == self.t_ns and i not in self._silenced:
             self.answers[i] = (v, w)
             if not self.active[i]:
                 self.active[i] = True
@@ -253,6 +292,112 @@ class SimulatorNode(Node):
     def _event(self, name: str, i: int, message: str) -> None:
         self._publish_events([self._status(name, i, message)])
 
+    # -- faults (swarm_sim.faults, docs/ARCHITECTURE.md "Faults") ------------------------------
+
+    def _on_fault_ack(self, msg: DiagnosticStatus) -> None:
+        if msg.name != ACK_NAME:
+            return
+        ack = FaultAck.decode({kv.key: kv.value for kv in msg.values})
+        if ack is not None:
+            self._acks.add((ack.fault, ack.phase))
+
+    def _fault_status(self, fault, phase: str) -> DiagnosticStatus:
+        """The ``/swarm/events`` status announcing a fault's start or end at this tick."""
+        t = self.t_ns / NS_PER_S
+        ev = FaultEvent(fault=fault.index, kind=fault.kind, phase=phase,
+                        robot=fault.robot or "", t=t, duration=fault.duration,
+                        topic=fault.topic or "", fraction=fault.fraction)
+        values = ev.encode()
+        if fault.robot is not None:
+            x, y = self.engine.poses[self.faults.robot(fault), :2]
+            values["x"], values["y"] = f"{x:.3f}", f"{y:.3f}"
+        verb = "starts" if phase == START else "ends"
+        return DiagnosticStatus(
+            level=DiagnosticStatus.WARN, name=EVENT_NAME,
+            message=f"fault {fault.index} {fault.label()} {verb} at t = {t:.1f} s",
+            hardware_id=fault.robot or "coordinator",
+            values=[_kv(k, v) for k, v in values.items()])
+
+    def apply_faults(self, executor) -> None:
+        """Start and end the faults due at this tick, before it is published: announce each on
+        ``/swarm/events``; hold the tick for the acknowledgements the protocol needs (a killed
+        coordinator, its restart; a killed navigator before its robot rejoins); decide the
+        messages lost at this tick."""
+        due = self.faults.advance(self.t_ns)
+        self.fault_log += [{"fault": f.index, "kind": f.kind, "phase": phase,
+                            "robot": f.robot, "t": round(self.t_ns / NS_PER_S, 3)}
+                           for f, phase in due]
+        if due:
+            self._publish_events([self._fault_status(f, phase) for f, phase in due])
+        for f, phase in due:
+            self.get_logger().warning(f"fault {f.index}: {f.label()} {phase} at "
+                                      f"t = {self.t_ns / NS_PER_S:.1f} s")
+            i = self.faults.robot(f) if f.robot is not None else None
+            if f.kind in (KILL_NAV, KILL_ROBOT) and phase == START:
+                self.active[i] = False  # not waited for; its answers are ignored from now
+                self.answers.pop(i, None)
+                self.late_streak[i] = 0
+            elif f.kind == KILL_NAV and phase == END:
+                # The old navigator must be gone before its robot's odometry flows again, so
+                # that the answer the tick waits for comes from its successor.
+                self._hold_for_ack(executor, f, START)
+                self._rejoin.add(i)
+            elif f.kind == KILL_COORDINATOR:
+                self._hold_for_ack(executor, f, phase)
+        self._silenced = self.faults.silenced()
+        self._drops = self.faults.draw_drops(self.engine.lidar_due())
+
+    def _hold_for_ack(self, executor, fault, phase: str) -> None:
+        """Hold simulated time until fault ``fault``'s ``phase`` is acknowledged on
+        ``/swarm/fault_acks`` (or ``fault_ack_timeout`` wall seconds passed: warned, counted)."""
+        deadline = time.monotonic() + self.settings.fault_ack_timeout
+        while (fault.index, phase) not in self._acks:
+            if self.stop_requested or not rclpy.ok():
+                return
+            if time.monotonic() >= deadline:
+                self.fault_ack_timeouts += 1
+                self.get_logger().warning(
+                    f"fault {fault.index} ({fault.label()}): no acknowledgement of its {phase} "
+                    f"within {self.settings.fault_ack_timeout:g} s; going on (the run may not "
+                    "be reproducible)")
+                return
+            executor.spin_once(timeout_sec=0.05)
+
+    def wait_for_rejoin(self, executor) -> None:
+        """Hold this tick until every rejoining robot (a killed navigator's outage ended) has
+        answered it, re-publishing its odometry and scan every 0.5 s wall for a navigator that
+        subscribed late; after ``REJOIN_TIMEOUT_S`` it goes on (warned; the robot joins when it
+        answers, like a late one)."""
+        deadline = time.monotonic() + REJOIN_TIMEOUT_S
+        resend = time.monotonic() + 0.5
+        while self._rejoin - self.answers.keys():
+            now = time.monotonic()
+            if self.stop_requested or not rclpy.ok():
+                return
+            if now >= deadline:
+                names = ", ".join(self.namespaces[i] for i in sorted(self._rejoin))
+                self.get_logger().warning(f"{names}: no restarted navigator answered within "
+                                          f"{REJOIN_TIMEOUT_S:g} s; going on without it")
+                break
+            if now >= resend:
+                resend = now + 0.5
+                for i in self._rejoin - self.answers.keys():
+                    self._republish(i)
+            executor.spin_once(timeout_sec=0.05)
+        self._rejoin.clear()
+
+    def _republish(self, i: int) -> None:
+        """Publish robot ``i``'s odometry (and scan, on a lidar tick) of this tick again."""
+        stamp = _time_msg(self.t_ns)
+        if self.engine.lidar_due() and self._scans is not None:
+            msg = self._scan_msgs[i]
+            msg.header.stamp = stamp
+            msg.ranges = array.array("f", self._scans[i].tobytes())
+            self.scan_pubs[i].publish(msg)
+        msg = self._odom_msgs[i]
+        msg.header.stamp = stamp
+        self.odom_pubs[i].publish(msg)
+
     # -- the loop ------------------------------------------------------------------------------
 
     def publish_spawns(self) -> None:
@@ -272,15 +417,19 @@ class SimulatorNode(Node):
             if self._scans is None:
                 self._scans = eng.scans()
             scans = self._scans
+            mute = self._silenced | self._drops.scan if self.faults is not None else ()
             for i, pub in enumerate(self.scan_pubs):
+                if i in mute:
+                    continue
                 msg = self._scan_msgs[i]
                 msg.header.stamp = stamp
                 msg.ranges = array.array("f", scans[i].tobytes())
                 pub.publish(msg)
+        mute = self._silenced | self._drops.odom if self.faults is not None else ()
         for i in range(self.n):
             x, y, yaw = eng.poses[i]
             qz, qw = math.sin(yaw / 2.0), math.cos(yaw / 2.0)
-            outputs = [(self._odom_msgs[i], self.odom_pubs[i])]
+            outputs = [] if i in mute else [(self._odom_msgs[i], self.odom_pubs[i])]
             # Ground truth only while someone listens (a probe, a recorder, ros2 topic echo):
             # in a swarm-up run nothing does, and converting and writing 100 messages a tick
             # for no reader was a third of the simulator's publishing time.
@@ -304,10 +453,12 @@ class SimulatorNode(Node):
         """Wait for this tick's answers of the active robots, then build the command vectors;
         None if a stop was requested meanwhile (the tick is neither stepped nor counted late)."""
         deadline = time.monotonic() + self.settings.command_timeout
+        excused = self._drops.excused if self.faults is not None else ()
         while True:
             if self.stop_requested:
                 return None
-            waiting = [i for i in np.flatnonzero(self.active) if i not in self.answers]
+            waiting = [i for i in np.flatnonzero(self.active)
+                       if i not in self.answers and i not in excused]
             if not waiting:
                 break
             remaining = deadline - time.monotonic()
@@ -327,8 +478,13 @@ class SimulatorNode(Node):
                     continue  # teleop outranks the navigator while it keeps coming
                 del self.manual[i]
             v[i], w[i] = vi, wi
+        if self.faults is not None:
+            for i in self._drops.cmd_vel:  # a lost command: the drive keeps the last one
+                if i in self.answers:
+                    v[i], w[i] = self._last_cmd[i]
+            self._last_cmd[:, 0], self._last_cmd[:, 1] = v, w
         for i in np.flatnonzero(self.active):
-            if i in self.answers:
+            if i in self.answers or i in excused:
                 continue
             self.late_ticks[i] += 1
             self.late_streak[i] += 1
@@ -344,7 +500,8 @@ class SimulatorNode(Node):
 
     def step(self, v: np.ndarray, w: np.ndarray) -> None:
         """Step the world one tick and publish the collision episodes that started."""
-        events = self.engine.step(v, w)
+        held = self.faults.held_still() if self.faults is not None else None
+        events = self.engine.step(v, w, held)
         self.t_ns += self.period_ns
         self._scans = None
         statuses = []
@@ -383,7 +540,11 @@ class SimulatorNode(Node):
         sim0_ns = self.t_ns
         end_ns = None if s.duration is None else round(s.duration * NS_PER_S)
         while rclpy.ok() and not self.stop_requested and (end_ns is None or self.t_ns < end_ns):
+            if self.faults is not None:
+                self.apply_faults(executor)
             self.publish_tick()
+            if self._rejoin:
+                self.wait_for_rejoin(executor)
             commands = self.collect_commands(executor)
             if commands is None:
                 break
@@ -423,6 +584,12 @@ class SimulatorNode(Node):
             min_separation_m=(round(eng.min_separation, 4)
                               if math.isfinite(eng.min_separation) else None),
             per_robot=per_robot,
+            extras={} if self.faults is None else {"faults": {
+                "injected": [f.label() for f in self.faults.faults],
+                "messages_dropped": {str(k): v for k, v in self.faults.dropped.items()},
+                "ack_timeouts": self.fault_ack_timeouts,
+                "log": self.fault_log,
+            }},
         )
 
 
@@ -463,6 +630,13 @@ def build_parser() -> argparse.ArgumentParser:
                    "stopped; it is waited for again once it answers [3.0]")
     p.add_argument("--wait-for", type=cli.non_negative_int, default=0, metavar="K",
                    help="hold simulated time at the first tick until K robots answer it [0]")
+    p.add_argument("--faults", default=None, metavar="SPEC",
+                   help="inject faults at simulated times: KIND[:TARGET]@TIME[+DURATION],... "
+                   "or a YAML file (kinds kill-nav, kill-robot, freeze, drop, kill-coordinator; "
+                   "see README, Faults) [none]")
+    p.add_argument("--fault-ack-timeout", type=cli.positive_float, default=10.0,
+                   metavar="SEC", help="wall seconds a tick waits for a fault's "
+                   "acknowledgement on /swarm/fault_acks [10]")
     p.add_argument("--gui", action="store_true",
                    help="open the PyBullet window (default headless)")
     p.add_argument("--headless", action="store_true", help="run without a window (the default)")
@@ -480,7 +654,7 @@ def parse_settings(argv: list[str]) -> SimSettings:
         world=a.world, robot=a.robot, swarm_size=a.swarm_size, name_prefix=a.name_prefix,
         seed=a.seed, rtf=a.rtf, duration=a.duration, map_path=a.map, summary=a.summary,
         control_rate=a.control_rate, command_timeout=a.command_timeout, wait_for=a.wait_for,
-        gui=a.gui,
+        gui=a.gui, faults=a.faults, fault_ack_timeout=a.fault_ack_timeout,
     )
 
 
@@ -567,6 +741,13 @@ def main(args=None) -> int:
         with held_warnings():  # bad input: only the one error line, not the loaders' warnings
             holder["engine"], occ, namespaces = prepare(settings)
         engine = holder["engine"]
+        faults = ()
+        if settings.faults is not None:
+            try:
+                faults = parse_faults(settings.faults, tuple(namespaces), settings.name_prefix,
+                                      settings.duration)
+            except InputError as exc:
+                raise InputError(f"--faults: {exc}") from None
         print(f"spawned {len(namespaces)} robots in {settings.world} "
               f"({namespaces[0]}..{namespaces[-1]})", flush=True)
         # Until the node runs, Ctrl-C and SIGTERM raise KeyboardInterrupt (not rclpy's handler,
@@ -576,7 +757,7 @@ def main(args=None) -> int:
         signal.signal(signal.SIGTERM, _raise_interrupt)
         signal.signal(signal.SIGINT, signal.default_int_handler)  # even if started ignoring it
         rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
-        node = SimulatorNode(settings, engine, occ, namespaces)
+        node = SimulatorNode(settings, engine, occ, namespaces, faults)
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, node.request_stop)
         node.set_parameters([Parameter("use_sim_time", value=False)])

@@ -20,15 +20,27 @@ Definitions (``docs/ARCHITECTURE.md``, ``/<ns>/nav_status``):
   tell: no late tick, no goal-wait timeout and no restart (each lets wall-clock timing decide
   something the simulation then depends on); None when the late ticks are unknown.
 - *task*: one goal reached (every commander goal is one workstation visit), so
-  ``tasks_completed == goals_reached`` and ``throughput_per_hour`` is tasks per simulated hour.
+  ``tasks_completed == goals_reached`` and ``throughput_per_hour`` is tasks per simulated hour;
+  ``task_times_s`` lists the simulated time of every task's first ``SUCCEEDED`` status, sorted
+  (tasks over time, e.g. around a fault).
+- *faults*: injected faults (:mod:`swarm_common.faults`) that started: ``faults`` in all,
+  ``faults_by_kind``, and ``fault_log`` (every start and end: id, kind, phase, robot, simulated
+  time), from the simulator's summary (its log of what it applied), else from the
+  ``/swarm/events`` announcements seen; ``fault_messages_dropped`` by ``drop`` faults. The
+  simulator's own "stopped answering" events (a navigator that went silent) are
+  ``unresponsive_events``. A restart caused
+  by a fault does not make a run irreproducible (the schedule decides it); a fault the simulator
+  had to go on without acknowledging does.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from swarm_common.faults import FaultEvent
 from swarm_common.nav_status import NavState, decode
 from swarm_common.sim_summary import RobotSummary, SimSummary, SimSummaryError
 
@@ -71,6 +83,7 @@ class RobotRecord:
     late_events: int = 0
     goal_wait_timeouts: int = 0  # the navigator's counter, as last published
     goal_wait_timeouts_before: int = 0  # the counters of earlier (restarted) navigator processes
+    task_times: list[float] = field(default_factory=list)  # [s] sim time of each first SUCCEEDED
 
     @property
     def goal_wait_timeouts_total(self) -> int:
@@ -91,7 +104,8 @@ class RunRecorder:
     last_sim_time_s: float | None = None  # [s] latest /clock
     collision_events: dict[str, int] = field(default_factory=lambda: {"robot_robot": 0,
                                                                       "robot_wall": 0})
-    fault_events: int = 0
+    fault_events: int = 0  # the simulator's "stopped answering" / "answers again" events
+    fault_log: list[FaultEvent] = field(default_factory=list)  # injected faults, in order
     spawn_events: int = 0
 
     def __post_init__(self) -> None:
@@ -129,6 +143,8 @@ class RunRecorder:
             if goal:
                 if goal not in rec.reached:
                     rec.reached[goal] = ttg
+                    if status.stamp_ns is not None:
+                        rec.task_times.append(status.stamp_ns / 1e9)
             elif previous != NavState.SUCCEEDED:
                 rec.anonymous_reached += 1
                 if ttg is not None:
@@ -167,7 +183,11 @@ class RunRecorder:
             if rec is not None:
                 rec.late_events += 1
         elif kind == "fault":
-            self.fault_events += 1
+            injected = FaultEvent.decode(values)
+            if injected is None:
+                self.fault_events += 1
+            else:
+                self.fault_log.append(injected)
 
     def on_clock(self, sim_time_s: float) -> None:
         """One ``/clock`` message [s]."""
@@ -283,6 +303,7 @@ def aggregate(
     resources: dict | None = None,
     restarts: int = 0,
     extra: dict | None = None,
+    fault_restarts: int = 0,
 ) -> dict:
     """The ``--metrics`` dict of a run (SPEC §6).
 
@@ -301,6 +322,7 @@ def aggregate(
         resources: ``cpu_percent`` [%] and ``peak_rss_mb_per_robot`` [MB] (ResourceSampler).
         restarts: restarts of navigators/commanders/groups.
         extra: more keys to add (run dir, process layout, ...).
+        fault_restarts: those of ``restarts`` that injected faults caused.
 
     Returns:
         A JSON-serialisable dict with the keys of SPEC §6 (None where unknown).
@@ -321,6 +343,19 @@ def aggregate(
     waits = sum(r.goal_wait_timeouts_total for r in recorder.per_robot.values())
     hours = sim_time / 3600.0 if sim_time else None
     resources = resources or {}
+    # The simulator's own log of the faults it applied is complete; the events seen are the
+    # fallback (a listener may miss an announcement).
+    sim_faults = sim.extras.get("faults") if isinstance(sim.extras, Mapping) else None
+    fault_log = (sim_faults or {}).get("log")
+    if not isinstance(fault_log, list):
+        fault_log = [{"fault": ev.fault, "kind": ev.kind, "phase": ev.phase,
+                      "robot": ev.robot or None, "t": ev.t} for ev in recorder.fault_log]
+    by_kind: dict[str, int] = {}
+    for entry in fault_log:
+        if isinstance(entry, Mapping) and entry.get("phase") == "start":
+            by_kind[str(entry.get("kind"))] = by_kind.get(str(entry.get("kind")), 0) + 1
+    ack_timeouts = (sim_faults or {}).get("ack_timeouts") or 0
+    wall_restarts = restarts - fault_restarts
     metrics = {
         "robots": n,
         "world": world,
@@ -343,12 +378,20 @@ def aggregate(
         "holding_time_s": sum((r["holding_time_s"] for r in per_robot.values()), 0.0),
         "late_ticks": late,
         "goal_wait_timeouts": waits,
-        "reproducible": None if late is None else (late == 0 and waits == 0 and restarts == 0),
+        "reproducible": None if late is None else (
+            late == 0 and waits == 0 and wall_restarts == 0 and ack_timeouts == 0),
         "cpu_percent": resources.get("cpu_percent"),
         "peak_rss_mb_per_robot": resources.get("peak_rss_mb_per_robot"),
         "sim_peak_rss_mb": resources.get("sim_peak_rss_mb"),
         "restarts": restarts,
-        "faults": recorder.fault_events,
+        "faults": sum(by_kind.values()),
+        "faults_by_kind": by_kind,
+        "fault_log": fault_log,
+        "fault_messages_dropped": sum(((sim_faults or {}).get("messages_dropped") or {}
+                                       ).values()),
+        "fault_ack_timeouts": ack_timeouts,
+        "unresponsive_events": recorder.fault_events,
+        "task_times_s": sorted(t for ns in robots for t in recorder.per_robot[ns].task_times),
         "per_robot": per_robot,
     }
     if extra:

@@ -94,6 +94,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="record the run to MCAP (not implemented yet: exits 2)")
     p.add_argument("--dashboard", type=cli.port, nargs="?", const=8765, default=None,
                    metavar="PORT", help="serve a live dashboard (not implemented yet: exits 2)")
+    p.add_argument("--faults", default=None, metavar="SPEC",
+                   help="inject faults at simulated times: a comma-separated list of "
+                   "KIND[:TARGET]@TIME[+DURATION] (kill-nav:3@60, kill-robot:3@60, "
+                   "freeze:2@30+20, drop:2/scan:0.5@30+20, kill-coordinator@120[+10]) or a "
+                   "YAML file (README, Faults)")
     p.add_argument("--processes", type=processes_arg, default=None, metavar="per-robot|K",
                    help="one navigator process per robot, or K processes each hosting a group "
                    f"of robots (default: per-robot up to {PER_ROBOT_MAX} robots, else "
@@ -138,6 +143,8 @@ class RunConfig:
         run_dir: absolute run directory.
         ready_timeout: [s] wall.
         nav_template: navigator parameter template.
+        faults: the ``--faults`` schedule (:func:`swarm_common.faults.parse_faults`); empty:
+            none.
     """
 
     robots: tuple[str, ...]
@@ -158,6 +165,7 @@ class RunConfig:
     run_dir: Path
     ready_timeout: float
     nav_template: Path
+    faults: tuple = ()
 
 
 
@@ -306,6 +314,7 @@ def validate(args: argparse.Namespace) -> RunConfig:
         processes = default_processes(n)
     groups = None if processes == PER_ROBOT else split_groups(robots, int(processes))
 
+    faults = check_faults(args.faults, robots, args.name_prefix, args.duration)
     run_dir = args.run_dir if args.run_dir is not None else default_run_dir()
     return RunConfig(
         robots=robots,
@@ -326,7 +335,25 @@ def validate(args: argparse.Namespace) -> RunConfig:
         run_dir=run_dir.expanduser().resolve(),
         ready_timeout=args.ready_timeout,
         nav_template=nav_template,
+        faults=faults,
     )
+
+
+def check_faults(spec: str | None, robots: tuple[str, ...], prefix: str,
+                 duration: float | None) -> tuple:
+    """Parse ``--faults`` (:func:`swarm_common.faults.parse_faults`).
+
+    Raises:
+        InputError: a malformed spec or file (names ``--faults``).
+    """
+    if spec is None:
+        return ()
+    from swarm_common.faults import parse_faults
+
+    try:
+        return parse_faults(spec, robots, prefix, duration)
+    except InputError as exc:
+        raise _prefix("--faults", exc) from None
 
 
 def default_run_dir(base: Path | None = None, prefix: str = "") -> Path:

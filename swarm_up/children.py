@@ -26,6 +26,11 @@ def command(script: str, module: str, func: str = "main") -> list[str]:
     return [sys.executable, "-c", f"import sys; from {module} import {func}; sys.exit({func}())"]
 
 
+def faults_file(cfg: RunConfig) -> Path:
+    """``RUN/faults.yaml``: the run's fault schedule as given to the simulator."""
+    return cfg.run_dir / "faults.yaml"
+
+
 def child_specs(cfg: RunConfig):
     """The supervised processes of a run, in start order: simulator, navigators, commanders.
 
@@ -50,6 +55,8 @@ def child_specs(cfg: RunConfig):
     if cfg.map_path is not None:
         sim += ["--map", str(cfg.map_path)]
     sim += ["--summary", str(cfg.run_dir / "sim_summary.json")]
+    if cfg.faults:
+        sim += ["--faults", str(faults_file(cfg))]
     if cfg.gui:
         sim.append("--gui")
     specs = [ChildSpec("sim", tuple(sim), logs / "sim.log", kind="sim", restart=False, env=env)]
@@ -74,6 +81,8 @@ def child_specs(cfg: RunConfig):
                     "--params-dir", str(params)]
             if cfg.commanders:
                 argv += ["--commanders", "--world", world, "--seed", str(cfg.seed)]
+            if cfg.faults:
+                argv.append("--faults")
             specs.append(ChildSpec(f"group_{g}", tuple(argv), logs / f"group_{g}.log",
                                    kind="group", robots=group, env=env))
     return specs

@@ -45,6 +45,9 @@ def build_parser() -> cli.ArgumentParser:
     p.add_argument("--seed", type=cli.seed, default=0, help="seed of the commanders' routes")
     p.add_argument("--loops", type=cli.non_negative_int, default=0,
                    help="commander route loops, 0 = forever")
+    p.add_argument("--faults", action="store_true",
+                   help="carry out the kill-nav and kill-robot faults of /swarm/events for "
+                   "these robots in-process (swarm_up.faults.GroupFaults)")
     return p
 
 
@@ -61,15 +64,21 @@ def _run(argv: list[str]) -> int:
 
         routes = {ns: build_route(opts.world, opts.seed, ns) for ns in names}
 
+    def make_navigator(ns: str) -> NavigatorNode:
+        return NavigatorNode(namespace=f"/{ns}",
+                             cli_args=["--ros-args", "--params-file", str(files[ns])])
+
     rclpy.init(args=[PROG])
     executor = EventsExecutor()
     nodes, runners = [], []
+    navigators, commanders = {}, {}  # ns -> node; ns -> (node, runner): what faults may kill
+    faults = None
     try:
         for ns in names:
-            node = NavigatorNode(namespace=f"/{ns}",
-                                 cli_args=["--ros-args", "--params-file", str(files[ns])])
+            node = make_navigator(ns)
             executor.add_node(node)
             nodes.append(node)
+            navigators[ns] = node
         if opts.commanders:
             from rclpy.logging import LoggingSeverity
 
@@ -86,9 +95,25 @@ def _run(argv: list[str]) -> int:
                                                emit=lambda line: print(line, flush=True)))
                 executor.add_node(nav)
                 nodes.append(nav)
+                commanders[ns] = (nav, runners[-1])
         print(f"{PROG}: {len(names)} navigators{' and commanders' if runners else ''} up: "
               f"{','.join(names)}", flush=True)
-        spin_forever(executor, nodes[0].context)
+        if opts.faults:
+            from swarm_up.faults import GroupFaults
+
+            def gone(node):
+                nodes.remove(node)
+                runners[:] = [r for r in runners if r.nav is not node]
+
+            faults = GroupFaults(executor, nodes[0].context, names[0], navigators, commanders,
+                                 make_navigator, gone, nodes.append,
+                                 emit=lambda line: print(line, flush=True))
+            context = nodes[0].context
+            while context.ok():
+                executor.spin_once(timeout_sec=0.1)
+                faults.service()
+        else:
+            spin_forever(executor, nodes[0].context)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception:
@@ -100,6 +125,8 @@ def _run(argv: list[str]) -> int:
             runner.stop()
             if runner.started:
                 print(runner.summary(), flush=True)
+        if faults is not None:
+            faults.close()
         for node in nodes:
             node.destroy_node()
         rclpy.try_shutdown()

@@ -75,6 +75,9 @@ class Orchestrator:
         self._spawned_from_log = 0
         self._navigators = {s.name for s in self.specs if s.kind in ("nav", "group")}
         self._dead: dict[str, int] = {}  # exited, not to be restarted -> exit code
+        self.faults = None  # swarm_up.faults.ProcessFaults, with --faults
+        self._acks = None
+        self._faults_seen = 0  # fault events of the recorder's log handled so far
 
     def _log_of(self, name: str) -> Path:
         return self.logs / f"{name}.log"
@@ -90,6 +93,12 @@ class Orchestrator:
             RunError: a command could not be started.
         """
         self.listener.start()
+        if self.cfg.faults:
+            from swarm_up.faults import AckPublisher, ProcessFaults
+
+            self._acks = AckPublisher()
+            per_robot = self.cfg.robots if self.cfg.groups is None else ()
+            self.faults = ProcessFaults(self.sup, per_robot, self._acks, say)
         for spec in self.specs:
             try:
                 self.sup.start(spec)
@@ -113,11 +122,21 @@ class Orchestrator:
                 warn(f"{ev.name} {what} {ev.code}; not restarted; logs: {self._log_of(ev.name)}")
         if sim_code is not None:
             return self._sim_ended(sim_code)
+        if self.faults is not None:
+            self._handle_faults()
         if not self.all_ready:
             return self._progress()
         self.sampler.maybe_sample()
         self._report_progress()
         return None
+
+    def _handle_faults(self) -> None:
+        """Carry out the process side of the faults the simulator announced since last time."""
+        with self.listener.lock:
+            log = self.listener.recorder.fault_log
+            new, self._faults_seen = log[self._faults_seen:], len(log)
+        for ev in new:
+            self.faults.handle(ev)
 
     def _report_progress(self, every_s: float = 10.0) -> None:
         """One line every ``every_s`` wall seconds: simulated time, RTF, goals, collisions."""
@@ -193,6 +212,8 @@ class Orchestrator:
         self.sup.stop()
         wall = time.monotonic() - self.t0
         self.listener.stop()
+        if self._acks is not None:
+            self._acks.close()
         return wall
 
     def report(self, outcome: Outcome, wall_s: float) -> dict:
@@ -209,6 +230,7 @@ class Orchestrator:
                 self.listener.recorder, summary, world=cfg.world_name, seed=cfg.seed,
                 coordination=cfg.coordination, wall_time_s=wall_s,
                 resources=self.sampler.result(), restarts=self.sup.restarts,
+                fault_restarts=self.faults.fault_restarts if self.faults is not None else 0,
                 extra={"ended_by": outcome.ended_by, "run_dir": str(cfg.run_dir),
                        "processes": PER_ROBOT if cfg.groups is None else len(cfg.groups),
                        "commanders": cfg.commanders, "rtf_requested": cfg.rtf},
@@ -241,6 +263,12 @@ def run(cfg: RunConfig) -> int:
     (cfg.run_dir / "params").mkdir(parents=True, exist_ok=True)
     cfg = prepare_map(cfg)
     write_params_files(cfg, template)
+    if cfg.faults:
+        from swarm_common.faults import dump_faults
+        from swarm_up.children import faults_file
+
+        dump_faults(cfg.faults, faults_file(cfg))
+        say(f"faults: {', '.join(f.label() for f in cfg.faults)}")
     layout = (f"{PER_ROBOT} processes" if cfg.groups is None
               else f"{len(cfg.groups)} group processes")
     say(f"{len(cfg.robots)} robots in {cfg.world_name}, seed {cfg.seed}, rtf {cfg.rtf:g}, "

@@ -112,6 +112,11 @@ def print_summary(metrics: dict, metrics_files: list[Path]) -> None:
         ("peak RSS per robot", _fmt(metrics.get("peak_rss_mb_per_robot"), "MB", 1)),
         ("restarts", _fmt(metrics.get("restarts"))),
     ]
+    if metrics.get("faults"):
+        by_kind = metrics.get("faults_by_kind") or {}
+        rows.append(("faults injected", ", ".join(f"{k} {v}" for k, v in by_kind.items())))
+        if metrics.get("fault_messages_dropped"):
+            rows.append(("messages dropped by faults", _fmt(metrics["fault_messages_dropped"])))
     table = Table(title="swarm-up summary", show_header=False)
     table.add_column("figure")
     table.add_column("value", justify="right")

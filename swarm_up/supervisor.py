@@ -66,6 +66,7 @@ class ChildState:
     fast_crashes: int = 0
     exit_code: int | None = None  # last exit code, once it exited and was not restarted
     given_up: bool = False
+    retired: bool = False  # killed on purpose (a fault) and not to be restarted by poll
 
 
 @dataclass(frozen=True)
@@ -194,6 +195,54 @@ class Supervisor:
     def restarts(self) -> int:
         """Total restarts of all children so far."""
         return sum(s.restarts for s in self.children.values())
+
+    def kill(self, name: str, restart: bool, wait_s: float = 2.0) -> int | None:
+        """Kill a child at once (SIGKILL to its process group), as a crash would (fault
+        injection, :mod:`swarm_up.faults`), and wait for it to exit.
+
+        Args:
+            name: the child.
+            restart: True: the next :meth:`poll` sees the crash and restarts it as any other
+                (a restart, counted); False: it is retired, not restarted (see :meth:`revive`).
+            wait_s: how long to wait for it to exit [s].
+
+        Returns:
+            Its exit code, or None if it was not running or did not exit in time.
+        """
+        state = self.children.get(name)
+        if state is None or state.proc is None or state.exit_code is not None:
+            return None
+        if not restart:
+            state.retired = True
+        try:
+            os.killpg(state.proc.pid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
+        try:
+            code = state.proc.wait(wait_s)
+        except subprocess.TimeoutExpired:
+            return None
+        if not restart:
+            state.exit_code = code
+        return code
+
+    def revive(self, name: str) -> bool:
+        """Start a retired child again (a restart, counted).
+
+        Returns:
+            Whether it was started.
+        """
+        state = self.children.get(name)
+        if state is None or self.stopping or (state.proc is not None
+                                              and state.proc.poll() is None):
+            return False
+        state.retired = False
+        state.restarts += 1
+        try:
+            self._launch(state)
+        except OSError:
+            return False
+        return True
 
     def alive(self, name: str) -> bool:
         """Whether the named child is running now."""
