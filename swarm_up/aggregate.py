@@ -269,6 +269,7 @@ def _robot_metrics(rec: RobotRecord, sim: RobotSummary) -> dict:
         "late_ticks": sim.late_ticks,
         "goal_wait_timeouts": rec.goal_wait_timeouts_total,
         "ready_s": rec.ready_wall_s,
+        "task_times_s": sorted(rec.task_times),
     }
 
 

@@ -354,3 +354,32 @@ def test_close_is_idempotent(empty, waffle):
     engine.close()
     engine.close()
     assert engine.client is None
+
+
+# -- held robots (faults: freeze, a dead robot) --------------------------------------------------
+
+
+def test_a_held_robot_stops_at_once_stays_put_and_is_still_seen(empty, waffle, make_engine):
+    engine = make_engine(empty, waffle, [(0.0, 0.0, 0.0), (3.0, 0.0, math.pi)], seed=1)
+    v = np.array([0.2, 0.0])
+    w = np.array([0.5, 0.0])
+    drive(engine, v, w, 20)
+    assert engine.v[0] > 0.1
+    held = np.array([True, False])
+    where = engine.poses[0].copy()
+    travelled = engine.distance[0]
+    for _ in range(30):
+        engine.step(v, w, held)
+        assert engine.v[0] == 0.0 and engine.w[0] == 0.0  # at once, whatever commanded
+    assert np.array_equal(engine.poses[0], where) and engine.distance[0] == travelled
+    # Its body stays in the world: the other robot's lidar sees it, and bumps into it.
+    x0, y0 = where[:2]
+    bearing = math.atan2(y0 - 0.0, x0 - (3.0 + 0.064))  # robot 1's lidar, facing -x
+    beam = round((bearing - math.pi) % (2 * math.pi) / (2 * math.pi / 360)) % 360
+    assert engine.scans()[1, beam] < 3.2
+    events = drive(engine, [0.0, 0.26], [0.0, 0.0], 200)
+    assert any(e.kind == "robot_robot" for e in events)
+    assert np.array_equal(engine.poses[0], where)
+    # Released, it drives again.
+    drive(engine, [-0.2, 0.0], [0.0, 0.0], 5)
+    assert engine.v[0] < 0.0 and engine.poses[0, 0] < where[0]
