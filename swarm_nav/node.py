@@ -249,7 +249,7 @@ class NavigatorNode(Node):
           restarted mid-run (a fault) must not answer its first ticks blind, or when it becomes
           ready would depend on the wall clock;
         - on a lidar tick, that tick's scan has arrived (a lost scan makes the tick late);
-        - on the first tick after the goal ended (or the first tick at all), with a commander
+        - on the first tick answered after the goal ended (or the first at all), with a commander
           connected, its next goal has arrived, the commander left, or ``goal_wait_timeout`` wall
           seconds passed (counted in ``goal_wait_timeouts``: the run is no longer reproducible);
           with ``wait_for_commander``, the very first answer waits for a commander to connect.
@@ -287,8 +287,11 @@ class NavigatorNode(Node):
                            f"{COMMANDER_WAIT_S:g} s; starting without one")
                 return False
             return True
-        return (self._terminal_ns is not None and t == self._terminal_ns + self._tick_ns
-                and self._goal_wait_over != t and self.count_publishers(self._goal_topic) > 0)
+        # The first tick answered after the goal ended (normally the next one; a later one when
+        # that tick's odometry or scan was lost, e.g. to a drop fault) waits, once.
+        return (self._terminal_ns is not None and t > self._terminal_ns
+                and (self._goal_wait_over is None or self._goal_wait_over <= self._terminal_ns)
+                and self.count_publishers(self._goal_topic) > 0)
 
     def _on_goal_wait_poll(self, t: int) -> None:
         waited = time.monotonic() - self._goal_wait_started
