@@ -232,6 +232,27 @@ def test_goal_lost_by_the_navigator_is_sent_again(context, ns, navigator):
     assert len(fake.goals) == 2 and fake.goals[0][0] != fake.goals[1][0]
 
 
+def test_goal_is_sent_again_at_once_when_a_navigator_that_took_it_restarts(context, ns,
+                                                                        navigator):
+    """A navigator that had taken our goal and reports ``IDLE`` was restarted (a fault): the
+    goal goes again at once, not after ``resend_after`` (the wall clock must not decide)."""
+    navigator.resend_after = 30.0
+    with running_fake_navigator(ns, context, drive_time=30.0) as fake:
+        assert navigator.waitUntilNav2Active(timeout_sec=10.0)
+        assert navigator.goToPose(pose(1.0, 1.0))
+        deadline = time.monotonic() + 5.0
+        while not (navigator.getFeedback() and navigator.getFeedback().state == "DRIVING"):
+            assert not navigator.isTaskComplete() and time.monotonic() < deadline
+        fake.drive_time = 0.2
+        fake.goal_id, fake.state = "", "IDLE"  # what a restarted navigator publishes first
+        fake._publish()
+        restarted = time.monotonic()
+        run_task(navigator, timeout=10.0)
+        assert navigator.getResult() == TaskResult.SUCCEEDED
+        assert time.monotonic() - restarted < 5.0
+    assert len(fake.goals) == 2 and fake.goals[0][0] != fake.goals[1][0]
+
+
 def test_goal_replaced_by_someone_else_fails(context, ns, navigator):
     other = rclpy.create_node("rviz_like", namespace=ns, context=context)
     pub = other.create_publisher(PoseStamped, "goal_pose", 10)
