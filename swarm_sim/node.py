@@ -324,9 +324,13 @@ class SimulatorNode(Node):
         coordinator, its restart; a killed navigator before its robot rejoins); decide the
         messages lost at this tick."""
         due = self.faults.advance(self.t_ns)
-        self.fault_log += [{"fault": f.index, "kind": f.kind, "phase": phase,
-                            "robot": f.robot, "t": round(self.t_ns / NS_PER_S, 3)}
-                           for f, phase in due]
+        for f, phase in due:
+            entry = {"fault": f.index, "kind": f.kind, "phase": phase, "robot": f.robot,
+                     "t": round(self.t_ns / NS_PER_S, 3)}
+            if f.robot is not None:  # where the robot was (a dead robot's body stays there)
+                x, y = self.engine.poses[self.faults.robot(f), :2]
+                entry["x"], entry["y"] = round(float(x), 3), round(float(y), 3)
+            self.fault_log.append(entry)
         if due:
             self._publish_events([self._fault_status(f, phase) for f, phase in due])
         for f, phase in due:

@@ -25,12 +25,11 @@ Definitions (``docs/ARCHITECTURE.md``, ``/<ns>/nav_status``):
   (tasks over time, e.g. around a fault).
 - *faults*: injected faults (:mod:`swarm_common.faults`) that started: ``faults`` in all,
   ``faults_by_kind``, and ``fault_log`` (every start and end: id, kind, phase, robot, simulated
-  time), from the simulator's summary (its log of what it applied), else from the
-  ``/swarm/events`` announcements seen; ``fault_messages_dropped`` by ``drop`` faults. The
-  simulator's own "stopped answering" events (a navigator that went silent) are
-  ``unresponsive_events``. A restart caused
-  by a fault does not make a run irreproducible (the schedule decides it); a fault the simulator
-  had to go on without acknowledging does.
+  time [s] and the robot's x, y [m] in ``map``), from the simulator's summary (its log of what
+  it applied), else from the ``/swarm/events`` announcements seen; ``fault_messages_dropped`` by
+  ``drop`` faults. The simulator's own "stopped answering" events (a navigator that went silent)
+  are ``unresponsive_events``. A restart caused by a fault does not make a run irreproducible
+  (the schedule decides it); a fault the simulator had to go on without acknowledging does.
 """
 
 from __future__ import annotations
