@@ -50,7 +50,7 @@ from swarm_nav.holding import (
     someone_came_first,
     staging_point,
 )
-from swarm_nav.perception import RobotTracker, SeenRobot, dynamic_points, robot_centres
+from swarm_nav.perception import RobotTracker, SeenArrays, SeenRobot, dynamic_points
 from swarm_nav.planner import PlanResult, plan_path
 from swarm_nav.recovery import SEQUENCE, ProgressChecker, Recovery, RecoveryKind
 from swarm_nav.traffic import (
@@ -58,7 +58,7 @@ from swarm_nav.traffic import (
     YieldStep,
     keep_right,
     must_yield,
-    oncoming,
+    oncoming_centres,
     plan_retreat,
     robots_ahead,
 )
@@ -137,6 +137,8 @@ class NavigatorCore:
         self._path_s: np.ndarray | None = None
         self._path_to_goal = False
         self._path_version = 0
+        self._path_lethal_key: tuple | None = None
+        self._path_lethal_mask = np.zeros(0, dtype=bool)
         self._idx = 0
         self._adjusted_goal: np.ndarray | None = None
         self._rotating = False
@@ -151,7 +153,9 @@ class NavigatorCore:
         self._scan = np.zeros((0, 2))
         self._dyn = np.zeros((0, 2))
         self._robots: list[SeenRobot] = []
-        self._centres = np.zeros((0, 2))
+        self._seen = SeenArrays.of([])
+        self._centres = self._seen.centres
+        self._movers = self._moving_points()
         self._tracker = RobotTracker(cfg.perception)
         self._scan_time = -math.inf
         self._static_superset = np.zeros((0, 2))  # boundary points near _static_centre
@@ -227,7 +231,9 @@ class NavigatorCore:
                                        self.cfg.perception.static_point_tolerance)
         viewer = self._pose[:2] if self._pose is not None else np.zeros(2)
         self._robots = self._tracker.update(self._dyn, viewer, now)
-        self._centres = robot_centres(self._robots)
+        self._seen = SeenArrays.of(self._robots)
+        self._centres = self._seen.centres
+        self._movers = self._moving_points()
 
     # ------------------------------------------------------------------ outputs
     @property
@@ -325,7 +331,8 @@ class NavigatorCore:
             return self._out(0.0, 0.0)
 
         local = keep_right(self._local_path(), pose,
-                           oncoming(self._robots, pose[:2], self.cfg.holding.moving_speed),
+                           oncoming_centres(self._seen.centres, self._seen.velocity, pose[:2],
+                                            self.cfg.holding.moving_speed),
                            self.costmap, self.cfg.traffic)
         obstacles = self._obstacles(pose)
         cmd = dwa_command(state, local, obstacles, self.cfg.dwa, footprint=self.footprint,
@@ -513,42 +520,55 @@ class NavigatorCore:
         s0 = self._path_s[self._idx]
         hi = int(np.searchsorted(self._path_s, s0 + self.cfg.blocked_check_distance))
         ahead = self._path[self._idx:max(hi, self._idx + 1)]
-        if len(ahead) > 1 and np.any(self.costmap.cost_at(ahead[1:]) >= INSCRIBED):
+        if len(ahead) > 1 and self._path_lethal()[self._idx + 1:self._idx + len(ahead)].any():
             return True
         blockers = self._robots_on_path(self.cfg.blocked_check_distance,
                                         self.cfg.costmap.robot_radius, now)
-        if not blockers:
+        if not len(blockers):
             self._blocked_since = None
             return False
         if self._blocked_since is None:
             self._blocked_since = now
-        standing = any(np.all(np.isfinite(r.velocity))
-                       and float(np.hypot(*r.velocity)) < self.cfg.holding.moving_speed
-                       for r in blockers)
+        seen = self._seen
+        standing = bool((seen.known[blockers]
+                         & (seen.speed[blockers] < self.cfg.holding.moving_speed)).any())
         wait = self.cfg.stationary_replan_time if standing else self.cfg.blocked_replan_time
         return now - self._blocked_since >= wait
 
-    def _robots_on_path(self, distance: float, radius: float, now: float) -> list[SeenRobot]:
-        """The robots seen with a point within ``radius`` of the next ``distance`` of path."""
-        if (self._path is None or not self._robots
+    def _path_lethal(self) -> np.ndarray:
+        """(N,) whether each path point lies in an inscribed or lethal cell of the static
+        costmap (kept per path and costmap)."""
+        key = self._path_lethal_key
+        if key is None or key[0] != self._path_version or key[1] is not self.costmap:
+            self._path_lethal_mask = self.costmap.cost_at(self._path) >= INSCRIBED
+            self._path_lethal_key = (self._path_version, self.costmap)
+        return self._path_lethal_mask
+
+    def _robots_on_path(self, distance: float, radius: float, now: float) -> np.ndarray:
+        """(J,) indices of the robots seen with a point within ``radius`` of the next
+        ``distance`` of path (all robots' points checked at once)."""
+        seen = self._seen
+        if (self._path is None or not len(seen.centres)
                 or now - self._scan_time > self.cfg.scan_max_age):
-            return []
+            return np.zeros(0, dtype=int)
         s0 = self._path_s[self._idx]
         hi = int(np.searchsorted(self._path_s, s0 + distance))
         ahead = self._path[self._idx:max(hi, self._idx + 1)]
-        out = []
-        for r in self._robots:
-            if np.hypot(*(r.centre - self._pose[:2])) > distance + _NEAR_PATH_SLACK:
-                continue
-            d = np.hypot(r.points[:, None, 0] - ahead[None, :, 0],
-                         r.points[:, None, 1] - ahead[None, :, 1])
-            if d.min() < radius:
-                out.append(r)
-        return out
+        rel = seen.centres - self._pose[:2]
+        near = np.flatnonzero(np.hypot(rel[:, 0], rel[:, 1]) <= distance + _NEAR_PATH_SLACK)
+        if not len(near):
+            return near
+        flag = np.zeros(len(seen.centres), dtype=bool)
+        flag[near] = True
+        mine = flag[seen.owner]
+        pts = seen.points[mine]
+        d = np.hypot(pts[:, None, 0] - ahead[None, :, 0], pts[:, None, 1] - ahead[None, :, 1])
+        starts = np.searchsorted(seen.owner[mine], near)  # each near robot's first point
+        return near[np.minimum.reduceat(d.min(axis=1), starts) < radius]
 
     def _dynamic_on_path(self, distance: float, radius: float, now: float) -> bool:
         """Whether a robot seen has a point within ``radius`` of the next ``distance`` of path."""
-        return bool(self._robots_on_path(distance, radius, now))
+        return bool(len(self._robots_on_path(distance, radius, now)))
 
     def _obstacles(self, pose: np.ndarray) -> np.ndarray:
         """Scan points plus the static map's obstacle boundary near the robot."""
@@ -562,14 +582,26 @@ class NavigatorCore:
         lag = max(0.0, self._now - self._scan_time)
         step = self.cfg.prediction_step
         taus = [min(tau, self.cfg.prediction_max) for tau in (lag + step, lag + 2.0 * step)]
-        ahead = [r.points + r.velocity * tau for r in self._robots
-                 if self._moving(r) for tau in taus]
-        if ahead:
-            ahead = np.vstack(ahead)
+        points, velocity, later = self._movers
+        if len(points):
+            ahead = points + velocity * np.where(later, taus[1], taus[0])[:, None]
             parts.append(ahead[point_gaps(pose, ahead, self.footprint)
                                >= self.cfg.dwa.footprint_padding])
         parts = [p for p in parts if len(p)]
         return np.vstack(parts) if parts else np.zeros((0, 2))
+
+    def _moving_points(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The points of the robots seen moving faster than ``moving_speed``, each robot's twice
+        (for the two prediction times of :meth:`_obstacles`): (P, 2) points x, y [m] in ``map``,
+        (P, 2) their robot's velocity [m/s], (P,) whether the point is for the later time."""
+        seen = self._seen
+        moving = np.flatnonzero(seen.known & (seen.speed > self.cfg.holding.moving_speed))
+        if not len(moving):
+            return np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0, dtype=bool)
+        idx = np.concatenate([np.arange(seen.starts[k], seen.starts[k] + seen.sizes[k])
+                              for k in moving for _ in range(2)])
+        later = np.concatenate([np.full(seen.sizes[k], t) for k in moving for t in (False, True)])
+        return seen.points[idx], seen.velocity[seen.owner[idx]], later
 
     def _static_near(self, pose: np.ndarray) -> np.ndarray:
         """(K, 2) the static map's boundary points within ``obstacle_window`` (per axis) of pose.
@@ -594,12 +626,6 @@ class NavigatorCore:
         near = self._static_superset
         m = (np.abs(near[:, 0] - pose[0]) < r) & (np.abs(near[:, 1] - pose[1]) < r)
         return near[m]
-
-    def _moving(self, robot: SeenRobot) -> bool:
-        """Whether a robot seen moves faster than ``moving_speed`` (NaN velocity: it does not)."""
-        v = robot.velocity
-        speed = float(np.hypot(*v)) if np.all(np.isfinite(v)) else 0.0
-        return speed > self.cfg.holding.moving_speed
 
     # ------------------------------------------------------------------ recovery
     def _needs_recovery(self, pose, ok: bool, v: float, w: float, now: float) -> bool:
@@ -710,3 +736,4 @@ class NavigatorCore:
 
     def _out(self, v: float, w: float) -> tuple[float, float]:
         return float(v), float(w)
+

@@ -25,6 +25,8 @@ from swarm_common.geometry import Points2D
 from swarm_nav.config import PerceptionConfig
 from swarm_nav.costmap import Costmap
 
+CENTRE_DEPTH = 0.1  # [m] a robot's centre behind its visible side (about half a waffle's width)
+
 
 def dynamic_points(points: Points2D, costmap: Costmap, tolerance: float) -> Points2D:
     """The scan points the static map does not explain (other robots, people, new objects).
@@ -92,7 +94,7 @@ def cluster_points(points: Points2D, link: float = 0.2) -> tuple[np.ndarray, int
 
 
 def cluster_centres(points: Points2D, viewer_xy, link: float = 0.2,
-                    depth: float = 0.1) -> np.ndarray:
+                    depth: float = CENTRE_DEPTH) -> np.ndarray:
     """Estimated centres of the objects (robots) behind clusters of dynamic points.
 
     A lidar sees an object's near side, so each cluster's centroid is pushed ``depth`` [m] away
@@ -109,6 +111,12 @@ def cluster_centres(points: Points2D, viewer_xy, link: float = 0.2,
     """
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
     labels, n = cluster_points(pts, link)
+    return _centres_of(pts, labels, n, viewer_xy, depth)
+
+
+def _centres_of(pts: np.ndarray, labels: np.ndarray, n: int, viewer_xy, depth: float
+                ) -> np.ndarray:
+    """(n, 2) the centres of the clusters ``labels`` of ``pts`` (see :func:`cluster_centres`)."""
     if n == 0:
         return np.zeros((0, 2))
     sums = np.zeros((n, 2))
@@ -162,7 +170,7 @@ def perceive_robots(dyn_points: Points2D, viewer_xy, earlier: np.ndarray | None 
     labels, n = cluster_points(pts)
     if n == 0:
         return []
-    centres = cluster_centres(pts, viewer_xy)
+    centres = _centres_of(pts, labels, n, viewer_xy, CENTRE_DEPTH)
     if earlier is None:
         vel = np.full((n, 2), np.nan)
     else:
@@ -208,6 +216,46 @@ class RobotTracker:
         robots = perceive_robots(dyn_points, viewer_xy, earlier, dt)
         self._history.append((now, robot_centres(robots)))
         return robots
+
+
+@dataclass(frozen=True)
+class SeenArrays:
+    """The robots of one scan as arrays, for checks over all of them at once.
+
+    Attributes:
+        centres: (K, 2) centres x, y [m] in ``map``.
+        velocity: (K, 2) velocities [m/s] (NaN: unknown).
+        known: (K,) whether the velocity is known (finite).
+        speed: (K,) speeds [m/s], 0 where unknown.
+        points: (P, 2) every robot's points x, y [m] in ``map``, robot after robot.
+        owner: (P,) the robot index of each point.
+        starts: (K,) the index of each robot's first point in ``points``.
+        sizes: (K,) the number of each robot's points.
+    """
+
+    centres: np.ndarray
+    velocity: np.ndarray
+    known: np.ndarray
+    speed: np.ndarray
+    points: np.ndarray
+    owner: np.ndarray
+    starts: np.ndarray
+    sizes: np.ndarray
+
+    @classmethod
+    def of(cls, robots: list[SeenRobot]) -> SeenArrays:
+        """The arrays of ``robots`` (in their order)."""
+        if not robots:
+            z2, zi = np.zeros((0, 2)), np.zeros(0, dtype=int)
+            return cls(z2, z2, np.zeros(0, dtype=bool), np.zeros(0), z2, zi, zi, zi)
+        velocity = np.array([r.velocity for r in robots], dtype=float)
+        known = np.isfinite(velocity).all(axis=1)
+        speed = np.where(known, np.hypot(velocity[:, 0], velocity[:, 1]), 0.0)
+        sizes = np.array([len(r.points) for r in robots], dtype=int)
+        starts = np.concatenate(([0], np.cumsum(sizes)[:-1])).astype(int)
+        return cls(robot_centres(robots), velocity, known, speed,
+                   np.vstack([r.points for r in robots]),
+                   np.repeat(np.arange(len(robots)), sizes), starts, sizes)
 
 
 def robot_centres(robots: list[SeenRobot]) -> np.ndarray:

@@ -49,15 +49,25 @@ def oncoming(robots: Sequence[SeenRobot], robot_xy, moving_speed: float) -> np.n
     Returns:
         (K, 2) their centres x, y [m] in ``map``, in the order of ``robots``.
     """
+    if not robots:
+        return np.zeros((0, 2))
+    return oncoming_centres(np.array([r.centre for r in robots], dtype=float),
+                            np.array([r.velocity for r in robots], dtype=float),
+                            robot_xy, moving_speed)
+
+
+def oncoming_centres(centres: np.ndarray, velocities: np.ndarray, robot_xy,
+                     moving_speed: float) -> np.ndarray:
+    """:func:`oncoming` on arrays: (K, 2) centres [m] and (K, 2) velocities [m/s] (NaN:
+    unknown) of the robots seen; the (J, 2) centres of those driving toward ``robot_xy``."""
     xy = np.asarray(robot_xy, dtype=float)[:2]
-    out = []
-    for r in robots:
-        d = xy - r.centre
-        n = float(np.hypot(*d))
-        if n > _EPS and np.all(np.isfinite(r.velocity)):
-            if r.velocity @ d / n > moving_speed:
-                out.append(r.centre)
-    return np.array(out) if out else np.zeros((0, 2))
+    d = xy - centres
+    n = np.hypot(d[:, 0], d[:, 1])
+    known = np.isfinite(velocities).all(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        toward = (velocities[:, 0] * d[:, 0] + velocities[:, 1] * d[:, 1]) / n
+    out = centres[(n > _EPS) & known & (toward > moving_speed)]
+    return out if len(out) else np.zeros((0, 2))
 
 
 def robots_ahead(pose, centres: np.ndarray, distance: float, half_angle: float = math.pi / 3

@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import logging
 import os
+import re
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,6 +32,7 @@ PER_ROBOT = "per-robot"
 # of CPU; 20 robots with commanders as 41 processes took minutes to come up on 2 cores.
 PER_ROBOT_MAX = 8
 DEFAULT_READY_TIMEOUT_S = 120.0
+RECORD_IN_RUN_DIR = Path("recording.mcap")  # --record without a path: in the run directory
 
 
 # ---------------------------------------------------------------------------------------- parsing
@@ -90,8 +92,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--metrics", type=Path, default=None, metavar="PATH",
                    help="write the run's figures as JSON here at exit (always also "
                    "RUN/metrics.json)")
-    p.add_argument("--record", type=Path, default=None, metavar="PATH.mcap",
-                   help="record the run to MCAP (not implemented yet: exits 2)")
+    p.add_argument("--record", type=Path, nargs="?", const=RECORD_IN_RUN_DIR, default=None,
+                   metavar="PATH.mcap",
+                   help="record the run to a rosbag2-compatible MCAP file (Foxglove, "
+                   "ros2 bag info/play, swarm-plot); without PATH: RUN/recording.mcap")
+    p.add_argument("--record-topics", default=None, metavar="REGEX",
+                   help="with --record: only the topics whose name matches REGEX (Python "
+                   "re.search), e.g. 'odom|ground_truth|/tf|events'")
     p.add_argument("--dashboard", type=cli.port, nargs="?", const=8765, default=None,
                    metavar="PORT", help="serve a live dashboard (not implemented yet: exits 2)")
     p.add_argument("--faults", default=None, metavar="SPEC",
@@ -166,6 +173,8 @@ class RunConfig:
     ready_timeout: float
     nav_template: Path
     faults: tuple = ()
+    record_path: Path | None = None
+    record_topics: str | None = None
 
 
 
@@ -280,8 +289,6 @@ def validate(args: argparse.Namespace) -> RunConfig:
     """
     if args.coordination == "centralized":
         raise InputError("--coordination: centralized is not implemented yet")
-    if args.record is not None:
-        raise InputError("--record: not implemented yet")
     if args.dashboard is not None:
         raise InputError("--dashboard: not implemented yet")
     if args.metrics is not None:
@@ -316,6 +323,8 @@ def validate(args: argparse.Namespace) -> RunConfig:
 
     faults = check_faults(args.faults, robots, args.name_prefix, args.duration)
     run_dir = args.run_dir if args.run_dir is not None else default_run_dir()
+    record_path = check_record(args.record, args.record_topics, robots,
+                               run_dir.expanduser().resolve())
     return RunConfig(
         robots=robots,
         name_prefix=args.name_prefix,
@@ -336,6 +345,8 @@ def validate(args: argparse.Namespace) -> RunConfig:
         ready_timeout=args.ready_timeout,
         nav_template=nav_template,
         faults=faults,
+        record_path=record_path,
+        record_topics=args.record_topics,
     )
 
 
@@ -354,6 +365,51 @@ def check_faults(spec: str | None, robots: tuple[str, ...], prefix: str,
         return parse_faults(spec, robots, prefix, duration)
     except InputError as exc:
         raise _prefix("--faults", exc) from None
+
+
+def check_record(record: Path | None, topics: str | None, robots: tuple[str, ...],
+                 run_dir: Path) -> Path | None:
+    """Check ``--record`` and ``--record-topics``.
+
+    Args:
+        record: ``--record``'s value (:data:`RECORD_IN_RUN_DIR` without a path), or None.
+        topics: ``--record-topics``'s regular expression, or None.
+        robots: the namespaces (the topics a regex may match).
+        run_dir: the run directory (absolute).
+
+    Returns:
+        The recording's absolute path, or None without ``--record``.
+
+    Raises:
+        InputError: ``--record-topics`` without ``--record``, not a regular expression or
+            matching no topic; a recording path that does not end in ``.mcap``, is a
+            directory or lies in a missing directory.
+    """
+    from swarm_up.recording import recorded_topics, select_topics
+
+    if record is None:
+        if topics is not None:
+            raise InputError("--record-topics: needs --record")
+        return None
+    if topics is not None:
+        try:
+            chosen = select_topics(recorded_topics(robots), topics)
+        except re.error as exc:
+            raise InputError(f"--record-topics: not a regular expression: {exc}") from None
+        if not chosen:
+            raise InputError(f"--record-topics: '{topics}' matches no recorded topic (/clock, "
+                             f"/map, /swarm/events, /tf, /{robots[0]}/scan|odom|ground_truth|"
+                             "cmd_vel|plan|nav_status ...)")
+    if record is RECORD_IN_RUN_DIR:
+        return run_dir / RECORD_IN_RUN_DIR
+    path = record.expanduser()
+    if path.suffix != ".mcap":
+        raise InputError(f"--record: '{record}' must end in .mcap")
+    if path.is_dir():
+        raise InputError(f"--record: '{record}' is a directory")
+    if not path.resolve().parent.is_dir():
+        raise InputError(f"--record: directory '{path.resolve().parent}' does not exist")
+    return path.resolve()
 
 
 def default_run_dir(base: Path | None = None, prefix: str = "") -> Path:

@@ -60,6 +60,8 @@ def child_specs(cfg: RunConfig):
     if cfg.gui:
         sim.append("--gui")
     specs = [ChildSpec("sim", tuple(sim), logs / "sim.log", kind="sim", restart=False, env=env)]
+    if cfg.record_path is not None:  # started first: swarm-up waits for it before the rest
+        specs.insert(0, recorder_spec(cfg, env))
 
     if cfg.groups is None:
         nav = command("swarm-nav", "swarm_nav.node")
@@ -87,3 +89,32 @@ def child_specs(cfg: RunConfig):
                                    kind="group", robots=group, env=env))
     return specs
 
+
+
+def recorder_spec(cfg: RunConfig, env: dict[str, str]):
+    """The recorder of ``--record`` (:mod:`swarm_up.record`), not restarted if it dies (a new
+    one would truncate the file)."""
+    import json
+
+    from swarm_common.poi import load_poi
+    from swarm_common.robot_model import load_robot
+    from swarm_up.recording import run_metadata
+    from swarm_up.supervisor import ChildSpec
+
+    lidar = load_robot(cfg.robot).lidar
+    stations = []
+    if cfg.poi_path is not None:
+        stations = [{"name": w.name, "x": float(w.pose[0]), "y": float(w.pose[1]),
+                     "yaw": float(w.pose[2]), "holding": w.holding.tolist()}
+                    for w in load_poi(cfg.poi_path).workstations]
+    meta = run_metadata(world=cfg.world_path, robot=cfg.robot, seed=cfg.seed,
+                        robots=cfg.robots, workstations=stations, rtf=cfg.rtf)
+    argv = [sys.executable, "-m", "swarm_up.record", "--out", str(cfg.record_path),
+            "--robots", ",".join(cfg.robots),
+            "--lidar=" + ",".join(
+                repr(float(v)) for v in (lidar.pose[0], lidar.pose[1], lidar.z, lidar.pose[2])),
+            "--lidar-frame", lidar.frame, "--meta", json.dumps(meta)]
+    if cfg.record_topics is not None:
+        argv += ["--topics", cfg.record_topics]
+    return ChildSpec("record", tuple(argv), cfg.run_dir / "logs" / "record.log", kind="record",
+                     restart=False, env=env)

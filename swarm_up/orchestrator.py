@@ -104,6 +104,29 @@ class Orchestrator:
                 self.sup.start(spec)
             except OSError as exc:
                 raise RunError(f"cannot start {spec.argv[0]}: {exc.strerror}") from None
+            if spec.kind == "record":
+                self._wait_for_recorder(spec)
+
+    def _wait_for_recorder(self, spec, timeout_s: float = 60.0) -> None:
+        """Hold the start of the simulator until the recorder's subscriptions exist, so that
+        it is matched (and ``ground_truth`` published) from the first tick on.
+
+        Raises:
+            RunError: the recorder exited or did not get ready within ``timeout_s`` wall s.
+        """
+        from swarm_up.record import READY_LINE
+
+        tail, deadline = LogTail(spec.log_path), time.monotonic() + timeout_s
+        while not any(line.startswith(READY_LINE) for line in tail.lines()):
+            proc = self.sup.children[spec.name].proc
+            if proc is not None and proc.poll() is not None:
+                raise RunError(f"the recorder exited with code {proc.returncode}: "
+                               f"{_last_line(spec.log_path)} (logs: {spec.log_path})")
+            if time.monotonic() > deadline:
+                raise RunError(f"the recorder was not ready after {timeout_s:g} s; "
+                               f"logs: {spec.log_path}")
+            time.sleep(0.05)
+        say(f"recording to {self.cfg.record_path}")
 
     def step(self) -> Outcome | None:
         """One supervision cycle (restarts, progress, readiness); an :class:`Outcome` at the end.
@@ -115,6 +138,11 @@ class Orchestrator:
         for ev in self.sup.poll():
             if ev.name == "sim":
                 sim_code = ev.code
+                continue
+            if ev.name == "record":
+                self._dead[ev.name] = ev.code
+                warn(f"the recorder exited with code {ev.code}; the recording ends here; "
+                     f"logs: {self._log_of(ev.name)}")
                 continue
             if not ev.restarted:
                 self._dead[ev.name] = ev.code
@@ -233,7 +261,8 @@ class Orchestrator:
                 fault_restarts=self.faults.fault_restarts if self.faults is not None else 0,
                 extra={"ended_by": outcome.ended_by, "run_dir": str(cfg.run_dir),
                        "processes": PER_ROBOT if cfg.groups is None else len(cfg.groups),
-                       "commanders": cfg.commanders, "rtf_requested": cfg.rtf},
+                       "commanders": cfg.commanders, "rtf_requested": cfg.rtf,
+                       **({"recording": str(cfg.record_path)} if cfg.record_path else {})},
             )
         files = [cfg.run_dir / "metrics.json"]
         if cfg.metrics_path:
@@ -300,6 +329,10 @@ def run(cfg: RunConfig) -> int:
     if removed:
         say(f"removed {len(removed)} stale shared-memory files from /dev/shm")
     orch.report(outcome, wall_s)
+    if cfg.record_path is not None and cfg.record_path.is_file():
+        size_mb = cfg.record_path.stat().st_size / 2**20
+        say(f"recording: {cfg.record_path} ({size_mb:.1f} MB); pictures: swarm-plot "
+            f"{cfg.record_path}")
     if outcome.error:
         print(f"{PROG}: error: {outcome.error}", file=sys.stderr, flush=True)
     return outcome.code

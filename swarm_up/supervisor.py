@@ -39,7 +39,7 @@ class ChildSpec:
         name: unique short name, also the log's stem (``sim``, ``nav_Srobot3``, ``group_1``).
         argv: the command line.
         log_path: file that receives stdout and stderr (appended to).
-        kind: ``sim`` | ``nav`` | ``cmd`` | ``group`` (used for per-robot accounting).
+        kind: ``sim`` | ``nav`` | ``cmd`` | ``group`` | ``record`` (used for per-robot accounting).
         robots: namespaces (without ``/``) this process serves.
         restart: restart it when it crashes (False: report its exit to the caller).
         env: environment (None: inherit the orchestrator's).
@@ -392,6 +392,8 @@ class ResourceSampler:
             self._cpu_s[proc.pid] = max(self._cpu_s.get(proc.pid, 0.0), cpu.user + cpu.system)
             if kind == "sim":
                 sim_rss += rss
+            elif kind == "record":
+                pass  # the recorder is no robot's: its CPU counts, its memory not per robot
             else:
                 robot_rss += rss
         self.peak_robot_rss_b = max(self.peak_robot_rss_b, robot_rss)

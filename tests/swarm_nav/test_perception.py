@@ -8,6 +8,8 @@ import pytest
 from swarm_nav.config import PerceptionConfig
 from swarm_nav.perception import (
     RobotTracker,
+    SeenArrays,
+    SeenRobot,
     cluster_centres,
     cluster_points,
     dynamic_points,
@@ -132,3 +134,33 @@ def test_tracker_takes_velocities_over_about_the_baseline():
     # a gap in the scans longer than the history forgets the old centres
     assert np.all(np.isnan(tracker.update(side, viewer, 5.0)[0].velocity))
     assert math.isfinite(tracker.update(side, viewer, 5.5)[0].velocity[0])
+
+
+def test_seen_arrays_lay_out_every_robots_points_in_order():
+    robots = [SeenRobot(np.array([1.0, 2.0]), np.array([[1.0, 1.9], [1.1, 2.0]]),
+                        np.array([0.3, -0.4])),
+              SeenRobot(np.array([-3.0, 0.5]), np.array([[-3.1, 0.5]]),
+                        np.array([np.nan, np.nan])),
+              SeenRobot(np.array([0.0, -4.0]), np.array([[0.0, -3.9], [0.1, -3.9], [0.2, -4.0]]),
+                        np.array([0.0, 0.05]))]
+    seen = SeenArrays.of(robots)
+    assert seen.centres.tolist() == [[1.0, 2.0], [-3.0, 0.5], [0.0, -4.0]]
+    assert seen.known.tolist() == [True, False, True]
+    assert seen.speed.tolist() == pytest.approx([0.5, 0.0, 0.05])
+    assert seen.owner.tolist() == [0, 0, 1, 2, 2, 2]
+    assert seen.starts.tolist() == [0, 2, 3]
+    assert seen.sizes.tolist() == [2, 1, 3]
+    for k, r in enumerate(robots):
+        assert np.array_equal(seen.points[seen.owner == k], r.points)
+    empty = SeenArrays.of([])
+    assert empty.centres.shape == (0, 2) and empty.points.shape == (0, 2)
+    assert len(empty.owner) == len(empty.starts) == len(empty.speed) == 0
+
+
+def test_perceive_robots_centres_match_cluster_centres():
+    rng = np.random.default_rng(4)
+    blobs = [c + 0.05 * rng.standard_normal((12, 2)) for c in ([2.0, 0.0], [0.0, 3.0], [-2, -2])]
+    pts = np.vstack(blobs)
+    robots = perceive_robots(pts, [0.0, 0.0])
+    assert len(robots) == 3
+    assert np.array_equal(robot_centres(robots), cluster_centres(pts, [0.0, 0.0]))

@@ -15,6 +15,7 @@ from swarm_nav.traffic import (
     keep_right,
     must_yield,
     oncoming,
+    oncoming_centres,
     plan_retreat,
     retreat_candidates,
     robots_ahead,
@@ -191,3 +192,19 @@ def test_yield_waits_at_least_the_minimum_and_at_most_the_timeout():
                   _blocked(True, calls))[0] == YieldStep.WAIT
     assert y.step([0.0, 0.0], 20.0, CFG, 2.0, _drive(0, 0, True, calls),
                   _blocked(True, calls))[0] == YieldStep.DONE       # yield_timeout after t0
+
+
+def test_oncoming_centres_is_oncoming_on_arrays():
+    rng = np.random.default_rng(2)
+    robots = [seen(*rng.uniform(-3, 3, 2), *rng.uniform(-0.3, 0.3, 2)) for _ in range(40)]
+    robots += [seen(1.0, 1.0, np.nan, 0.1), seen(0.0, 0.0, -0.5, 0.0)]
+    centres = np.array([r.centre for r in robots])
+    velocities = np.array([r.velocity for r in robots])
+    got = oncoming_centres(centres, velocities, [0.0, 0.0], 0.08)
+    assert 0 < len(got) < len(robots)
+    assert np.array_equal(got, oncoming(robots, [0.0, 0.0], 0.08))
+    # the same robots, counted one by one as the rule reads
+    one_by_one = [r.centre for r in robots
+                  if np.hypot(*r.centre) > 1e-6 and np.all(np.isfinite(r.velocity))
+                  and (r.velocity @ -r.centre) / np.hypot(*r.centre) > 0.08]
+    assert np.allclose(got, np.array(one_by_one))
