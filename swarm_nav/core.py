@@ -595,12 +595,13 @@ class NavigatorCore:
         (for the two prediction times of :meth:`_obstacles`): (P, 2) points x, y [m] in ``map``,
         (P, 2) their robot's velocity [m/s], (P,) whether the point is for the later time."""
         seen = self._seen
-        moving = np.flatnonzero(seen.known & (seen.speed > self.cfg.holding.moving_speed))
-        if not len(moving):
-            return np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0, dtype=bool)
-        idx = np.concatenate([np.arange(seen.starts[k], seen.starts[k] + seen.sizes[k])
-                              for k in moving for _ in range(2)])
-        later = np.concatenate([np.full(seen.sizes[k], t) for k in moving for t in (False, True)])
+        moving = seen.known & (seen.speed > self.cfg.holding.moving_speed)
+        rows = np.flatnonzero(moving[seen.owner])
+        # robot after robot: its points for the earlier time, then for the later one
+        twice = np.concatenate((rows, rows))
+        order = np.argsort(seen.owner[twice], kind="stable")
+        idx = twice[order]
+        later = order >= len(rows)
         return seen.points[idx], seen.velocity[seen.owner[idx]], later
 
     def _static_near(self, pose: np.ndarray) -> np.ndarray:

@@ -17,8 +17,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from swarm_common.geometry import Points2D
@@ -62,7 +60,8 @@ class SeenRobot:
 
 
 def cluster_points(points: Points2D, link: float = 0.2) -> tuple[np.ndarray, int]:
-    """Group points closer than ``link`` [m] (single linkage).
+    """Group points at most ``link`` [m] apart (single linkage); clusters are numbered in the
+    order of their first point.
 
     Args:
         points: (M, 2) x, y [m].
@@ -75,16 +74,17 @@ def cluster_points(points: Points2D, link: float = 0.2) -> tuple[np.ndarray, int
     m = len(pts)
     if m <= 1:
         return np.zeros(m, dtype=int), m
-    if m > 400:  # sparse for big clouds
-        pairs = cKDTree(pts).query_pairs(link, output_type="ndarray")
-        graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
-        n, labels = connected_components(graph, directed=False)
-        return labels, int(n)
-    d2 = (pts[:, None, 0] - pts[None, :, 0]) ** 2 + (pts[:, None, 1] - pts[None, :, 1]) ** 2
-    adj = d2 <= link * link
-    labels = np.arange(m)
+    # the links (a k-d tree's pairs, both ways, and every point to itself) sorted by point
+    pairs = cKDTree(pts).query_pairs(link, output_type="ndarray")
+    own = np.arange(m)
+    src = np.concatenate((own, pairs[:, 0], pairs[:, 1]))
+    dst = np.concatenate((own, pairs[:, 1], pairs[:, 0]))
+    order = np.argsort(src, kind="stable")
+    dst = dst[order]
+    first = np.searchsorted(src[order], own)  # each point's first link
+    labels = own
     while True:  # min-label propagation with pointer jumping
-        new = np.where(adj, labels[None, :], m).min(axis=1)
+        new = np.minimum.reduceat(labels[dst], first)
         new = new[new]
         if np.array_equal(new, labels):
             break

@@ -151,11 +151,12 @@ def keep_right(path: Path2D, pose, centres: np.ndarray, costmap: Costmap,
     right = np.column_stack((tang[:, 1], -tang[:, 0]))
     s = np.concatenate(([0.0], np.cumsum(np.hypot(seg[:, 0], seg[:, 1]))))
     ramp = np.clip(s / 0.5, 0.0, 1.0)
+    fracs = (1.0 / 3.0, 2.0 / 3.0, 1.0)
+    shifted = [path + (frac * cfg.keep_right_offset * ramp)[:, None] * right for frac in fracs]
+    costs = costmap.cost_at(np.stack([path, *shifted])).astype(int)  # one lookup for all
     best = np.zeros(len(path))
-    limit = np.maximum(costmap.cost_at(path).astype(int), max_cost)
-    for frac in (1.0 / 3.0, 2.0 / 3.0, 1.0):
-        cand = path + (frac * cfg.keep_right_offset * ramp)[:, None] * right
-        c = costmap.cost_at(cand).astype(int)
+    limit = np.maximum(costs[0], max_cost)
+    for frac, c in zip(fracs, costs[1:], strict=True):
         best = np.where((c <= limit) & (c < INSCRIBED), frac, best)
     return path + (best * cfg.keep_right_offset * ramp)[:, None] * right
 
