@@ -458,13 +458,16 @@ class SimulatorNode(Node):
         None if a stop was requested meanwhile (the tick is neither stepped nor counted late)."""
         deadline = time.monotonic() + self.settings.command_timeout
         excused = self._drops.excused if self.faults is not None else ()
+        waiting: set[int] = set()
         while True:
             if self.stop_requested:
                 return None
-            waiting = [i for i in np.flatnonzero(self.active)
-                       if i not in self.answers and i not in excused]
-            if not waiting:
-                break
+            waiting.difference_update(self.answers.keys())  # cheap: C set operations
+            if not waiting:  # then check in full (a robot may have been activated meanwhile)
+                waiting = {i for i in np.flatnonzero(self.active).tolist()
+                           if i not in self.answers and i not in excused}
+                if not waiting:
+                    break
             remaining = deadline - time.monotonic()
             if remaining <= 0.0:
                 break
