@@ -31,6 +31,7 @@ PER_ROBOT = "per-robot"
 # of CPU; 20 robots with commanders as 41 processes took minutes to come up on 2 cores.
 PER_ROBOT_MAX = 8
 DEFAULT_READY_TIMEOUT_S = 120.0
+DEFAULT_DASHBOARD_PORT = 8080
 
 
 # ---------------------------------------------------------------------------------------- parsing
@@ -92,8 +93,13 @@ def build_parser() -> argparse.ArgumentParser:
                    "RUN/metrics.json)")
     p.add_argument("--record", type=Path, default=None, metavar="PATH.mcap",
                    help="record the run to MCAP (not implemented yet: exits 2)")
-    p.add_argument("--dashboard", type=cli.port, nargs="?", const=8765, default=None,
-                   metavar="PORT", help="serve a live dashboard (not implemented yet: exits 2)")
+    p.add_argument("--dashboard", type=cli.port, nargs="?", const=DEFAULT_DASHBOARD_PORT,
+                   default=None, metavar="PORT",
+                   help="serve a live web dashboard on http://127.0.0.1:PORT/ (default port "
+                   f"{DEFAULT_DASHBOARD_PORT}); also publishes /swarm/markers")
+    p.add_argument("--markers", action="store_true",
+                   help="publish /swarm/markers (visualization_msgs/MarkerArray in map) for "
+                   "RViz2 or Foxglove")
     p.add_argument("--processes", type=processes_arg, default=None, metavar="per-robot|K",
                    help="one navigator process per robot, or K processes each hosting a group "
                    f"of robots (default: per-robot up to {PER_ROBOT_MAX} robots, else "
@@ -138,6 +144,8 @@ class RunConfig:
         run_dir: absolute run directory.
         ready_timeout: [s] wall.
         nav_template: navigator parameter template.
+        dashboard_port: serve the dashboard on this port of 127.0.0.1 (None: no dashboard).
+        markers: publish ``/swarm/markers`` (also on with the dashboard).
     """
 
     robots: tuple[str, ...]
@@ -158,6 +166,8 @@ class RunConfig:
     run_dir: Path
     ready_timeout: float
     nav_template: Path
+    dashboard_port: int | None = None
+    markers: bool = False
 
 
 
@@ -275,7 +285,9 @@ def validate(args: argparse.Namespace) -> RunConfig:
     if args.record is not None:
         raise InputError("--record: not implemented yet")
     if args.dashboard is not None:
-        raise InputError("--dashboard: not implemented yet")
+        from swarm_up.dashboard import check_port
+
+        check_port(args.dashboard)
     if args.metrics is not None:
         parent = args.metrics.expanduser().resolve().parent
         if not parent.is_dir():
@@ -326,6 +338,8 @@ def validate(args: argparse.Namespace) -> RunConfig:
         run_dir=run_dir.expanduser().resolve(),
         ready_timeout=args.ready_timeout,
         nav_template=nav_template,
+        dashboard_port=args.dashboard,
+        markers=args.markers or args.dashboard is not None,
     )
 
 

@@ -65,6 +65,11 @@ class Orchestrator:
         self.n = len(cfg.robots)
         self.t0 = time.monotonic()
         self.listener = MetricsListener(cfg.robots, self.t0)
+        self.live = None  # the dashboard and /swarm/markers (swarm_up.dashboard)
+        if cfg.markers or cfg.dashboard_port is not None:
+            from swarm_up.dashboard import LiveView
+
+            self.live = LiveView(cfg, self.listener)
         self.sup = Supervisor(on_restart=self._on_restart)
         self.sampler = ResourceSampler(self.sup, robots=self.n)
         self.view = ProgressView(self.n, tty=sys.stdout.isatty())
@@ -90,6 +95,10 @@ class Orchestrator:
             RunError: a command could not be started.
         """
         self.listener.start()
+        if self.live is not None:
+            url = self.live.start()
+            if url is not None:
+                say(f"dashboard: {url}")
         for spec in self.specs:
             try:
                 self.sup.start(spec)
@@ -192,6 +201,8 @@ class Orchestrator:
         self.sampler.maybe_sample(force=True)
         self.sup.stop()
         wall = time.monotonic() - self.t0
+        if self.live is not None:
+            self.live.stop()
         self.listener.stop()
         return wall
 
