@@ -52,6 +52,8 @@ from swarm_common.nav_status import NavState
 WS_FREE, WS_OCCUPIED, WS_HELD = "free", "occupied", "held"
 MAX_WATCH = 8
 """Robots one browser may watch at once (each costs a scan subscription)."""
+MAX_PATH_POINTS = 100
+"""A plan is drawn as a marker with at most this many points (every k-th; the last always)."""
 
 
 @dataclass(frozen=True)
@@ -246,6 +248,16 @@ class KpiTracker:
             "robots": len(recorder.robots),
             "ready": recorder.ready_count,
         }
+
+
+def decimate(path: np.ndarray, max_points: int = MAX_PATH_POINTS) -> np.ndarray:
+    """Every k-th point of ``path`` (N, 2), keeping the last, so at most ``max_points`` remain."""
+    n = len(path)
+    if n <= max_points:
+        return path
+    step = -(-(n - 1) // (max_points - 1))
+    idx = np.r_[np.arange(0, n - 1, step), n - 1]
+    return path[idx]
 
 
 # ------------------------------------------------------------------------------- messages

@@ -26,11 +26,9 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from swarm_common.geometry import transform_points
 from swarm_common.nav_status import NavState
-from swarm_up.fleet_view import WS_FREE, WS_HELD, WS_OCCUPIED, FleetState
+from swarm_up.fleet_view import WS_FREE, WS_HELD, WS_OCCUPIED, FleetState, decimate
 
 FRAME = "map"
-MAX_PATH_POINTS = 100
-"""A plan is drawn with at most this many points (every k-th; the last always)."""
 
 STATE_RGB = {
     None: (0.6, 0.6, 0.6),
@@ -63,16 +61,6 @@ def _marker(ns: str, mid: int, kind: int, rgb, stamp) -> Marker:
     m.pose.orientation.w = 1.0
     m.color = _color(rgb)
     return m
-
-
-def decimate(path: np.ndarray, max_points: int = MAX_PATH_POINTS) -> np.ndarray:
-    """Every k-th point of ``path`` (N, 2), keeping the last, so at most ``max_points`` remain."""
-    n = len(path)
-    if n <= max_points:
-        return path
-    step = -(-(n - 1) // (max_points - 1))
-    idx = np.r_[np.arange(0, n - 1, step), n - 1]
-    return path[idx]
 
 
 def fleet_markers(fleet: FleetState, footprint: np.ndarray, workstations, ws_states, stamp
