@@ -192,6 +192,25 @@
     ctx.drawImage(S.mapImg, T.px(e.x0), T.py(e.y0 + e.h), e.w * T.scale, e.h * T.scale);
   }
 
+  // The map and workstations' layer changes only with the view and the workstations' states:
+  // drawn once into an offscreen canvas and copied on every frame.
+  function drawBackground(canvas, ctx, T) {
+    const key = [canvas.width, canvas.height, T.px(0), T.py(0), T.scale, !!S.mapImg,
+      S.frame ? S.frame.ws.join() : ""].join();
+    let bg = canvas._bg;
+    if (!bg || bg.key !== key) {
+      bg = canvas._bg = { key, canvas: document.createElement("canvas") };
+      bg.canvas.width = canvas.width;
+      bg.canvas.height = canvas.height;
+      const b = bg.canvas.getContext("2d");
+      b.fillStyle = "#111";
+      b.fillRect(0, 0, canvas.width, canvas.height);
+      drawMap(b, T);
+      drawWorkstations(b, T);
+    }
+    ctx.drawImage(bg.canvas, 0, 0);
+  }
+
   function drawWorkstations(ctx, T) {
     const f = S.frame;
     S.hello.workstations.forEach((w, k) => {
@@ -222,6 +241,30 @@
     ctx.moveTo(T.px(path[0][0]), T.py(path[0][1]));
     for (let k = 1; k < path.length; k++) ctx.lineTo(T.px(path[k][0]), T.py(path[k][1]));
     ctx.stroke();
+    ctx.globalAlpha = 1;
+  }
+
+  // Every robot's plan, one stroke per colour (100 strokes of 300 points each were the page's
+  // largest cost at 100 robots).
+  function drawPaths(ctx, T, f, sel) {
+    const byColor = {};
+    for (const [i, path] of Object.entries(S.paths)) {
+      if (+i === sel || !path || path.length < 2) continue;
+      const r = f.robots[+i];
+      const color = STATE_COLOR[r && r[3]] || "#999";
+      (byColor[color] = byColor[color] || []).push(path);
+    }
+    ctx.globalAlpha = 0.55;
+    ctx.lineWidth = 1;
+    for (const [color, paths] of Object.entries(byColor)) {
+      ctx.strokeStyle = color;
+      ctx.beginPath();
+      for (const path of paths) {
+        ctx.moveTo(T.px(path[0][0]), T.py(path[0][1]));
+        for (let k = 1; k < path.length; k++) ctx.lineTo(T.px(path[k][0]), T.py(path[k][1]));
+      }
+      ctx.stroke();
+    }
     ctx.globalAlpha = 1;
   }
 
@@ -309,22 +352,15 @@
 
   function drawScene(canvas, T, opts) {
     const ctx = canvas.getContext("2d");
-    ctx.fillStyle = "#111";
-    ctx.fillRect(0, 0, canvas.width, canvas.height);
     if (!S.hello) return 0;
-    drawMap(ctx, T);
-    drawWorkstations(ctx, T);
+    drawBackground(canvas, ctx, T);
     const f = S.frame;
     if (!f) return 0;
     const names = S.hello.robots;
     const sel = selectedIndex();
     const holding = new Set(f.holding);
-    for (const [i, path] of Object.entries(S.paths)) {
-      if (!opts.allPaths && +i !== sel) continue;
-      const r = f.robots[+i];
-      drawPath(ctx, T, path, +i === sel ? "#7fffd4" : STATE_COLOR[r && r[3]] || "#999",
-        +i === sel ? 2 : 1);
-    }
+    if (opts.allPaths) drawPaths(ctx, T, f, sel);
+    if (sel >= 0) drawPath(ctx, T, S.paths[sel], "#7fffd4", 2);
     const rs = sel >= 0 ? S.robot[sel] : null;
     if (rs && rs.scan) drawScan(ctx, T, rs.scan);
     if (rs && rs.status) drawGoal(ctx, T, rs.status);
@@ -342,7 +378,10 @@
     if (!ROBOT_PAGE) {
       if (!S.view) fitView();
       const T = transformFor(mapCanvas, S.view);
-      S.drawn = drawScene(mapCanvas, T, { allPaths: true, labels: T.scale > 18 });
+      // Names when they fit: up to 40 robots from 18 px/m, more once zoomed in (text is the
+      // dearest thing to draw).
+      const n = S.hello.robots.length;
+      S.drawn = drawScene(mapCanvas, T, { allPaths: true, labels: T.scale > (n <= 40 ? 18 : 60) });
       $("kpi-robots").textContent = S.frame ? `${S.drawn}/${S.hello.robots.length}` : "-";
     }
     const i = selectedIndex();
