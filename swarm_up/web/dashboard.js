@@ -192,23 +192,32 @@
     ctx.drawImage(S.mapImg, T.px(e.x0), T.py(e.y0 + e.h), e.w * T.scale, e.h * T.scale);
   }
 
-  // The map and workstations' layer changes only with the view and the workstations' states:
-  // drawn once into an offscreen canvas and copied on every frame.
+  // The map and workstations' layer changes only with the view and the workstations' states.
+  // The main map has it on a canvas of its own underneath (redrawn only when it changes; the
+  // robots' canvas above is cleared, not repainted, each frame: copying a full-size layer was
+  // most of the page's cost); the robot view, which follows its robot, draws it every frame.
   function drawBackground(canvas, ctx, T) {
+    const under = canvas === mapCanvas ? $("mapbg") : null;
+    if (!under) {
+      ctx.fillStyle = "#111";
+      ctx.fillRect(0, 0, canvas.width, canvas.height);
+      drawMap(ctx, T);
+      drawWorkstations(ctx, T);
+      return;
+    }
     const key = [canvas.width, canvas.height, T.px(0), T.py(0), T.scale, !!S.mapImg,
       S.frame ? S.frame.ws.join() : ""].join();
-    let bg = canvas._bg;
-    if (!bg || bg.key !== key) {
-      bg = canvas._bg = { key, canvas: document.createElement("canvas") };
-      bg.canvas.width = canvas.width;
-      bg.canvas.height = canvas.height;
-      const b = bg.canvas.getContext("2d");
+    if (under._key !== key) {
+      under._key = key;
+      under.width = canvas.width;
+      under.height = canvas.height;
+      const b = under.getContext("2d");
       b.fillStyle = "#111";
       b.fillRect(0, 0, canvas.width, canvas.height);
       drawMap(b, T);
       drawWorkstations(b, T);
     }
-    ctx.drawImage(bg.canvas, 0, 0);
+    ctx.clearRect(0, 0, canvas.width, canvas.height);
   }
 
   function drawWorkstations(ctx, T) {
