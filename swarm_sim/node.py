@@ -490,11 +490,14 @@ class SimulatorNode(Node):
                 if i in self.answers:
                     v[i], w[i] = self._last_cmd[i]
             self._last_cmd[:, 0], self._last_cmd[:, 1] = v, w
+        late = []
         for i in np.flatnonzero(self.active):
             if i in self.answers or i in excused:
                 continue
             self.late_ticks[i] += 1
             self.late_streak[i] += 1
+            late.append(self._status("late", i, f"{self.namespaces[i]} late at "
+                                     f"t = {self.t_ns / NS_PER_S:.1f} s; stopped for this tick"))
             if self.late_streak[i] >= self.settings.inactive_after:
                 self.active[i] = False
                 ns = self.namespaces[i]
@@ -502,6 +505,7 @@ class SimulatorNode(Node):
                     f"{ns}: no command for {self.late_streak[i]} ticks; stopped and no longer "
                     "waited for until it answers again")
                 self._event("fault", i, f"{ns} stopped answering; robot stopped")
+        self._publish_events(late)  # live late ticks (the dashboard's KPI), one message a tick
         self.answers.clear()
         return v, w
 

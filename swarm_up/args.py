@@ -33,6 +33,7 @@ PER_ROBOT = "per-robot"
 PER_ROBOT_MAX = 8
 DEFAULT_READY_TIMEOUT_S = 120.0
 RECORD_IN_RUN_DIR = Path("recording.mcap")  # --record without a path: in the run directory
+DEFAULT_DASHBOARD_PORT = 8080
 
 
 # ---------------------------------------------------------------------------------------- parsing
@@ -99,8 +100,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--record-topics", default=None, metavar="REGEX",
                    help="with --record: only the topics whose name matches REGEX (Python "
                    "re.search), e.g. 'odom|ground_truth|/tf|events'")
-    p.add_argument("--dashboard", type=cli.port, nargs="?", const=8765, default=None,
-                   metavar="PORT", help="serve a live dashboard (not implemented yet: exits 2)")
+    p.add_argument("--dashboard", type=cli.port, nargs="?", const=DEFAULT_DASHBOARD_PORT,
+                   default=None, metavar="PORT",
+                   help="serve a live web dashboard on http://127.0.0.1:PORT/ (default port "
+                   f"{DEFAULT_DASHBOARD_PORT}); also publishes /swarm/markers")
+    p.add_argument("--markers", action="store_true",
+                   help="publish /swarm/markers (visualization_msgs/MarkerArray in map) for "
+                   "RViz2 or Foxglove")
     p.add_argument("--faults", default=None, metavar="SPEC",
                    help="inject faults at simulated times: a comma-separated list of "
                    "KIND[:TARGET]@TIME[+DURATION] (kill-nav:3@60, kill-robot:3@60, "
@@ -152,6 +158,10 @@ class RunConfig:
         nav_template: navigator parameter template.
         faults: the ``--faults`` schedule (:func:`swarm_common.faults.parse_faults`); empty:
             none.
+        record_path: ``--record`` MCAP file (None: no recording).
+        record_topics: ``--record-topics`` regular expression (None: every topic).
+        dashboard_port: serve the dashboard on this port of 127.0.0.1 (None: no dashboard).
+        markers: publish ``/swarm/markers`` (also on with the dashboard).
     """
 
     robots: tuple[str, ...]
@@ -175,6 +185,8 @@ class RunConfig:
     faults: tuple = ()
     record_path: Path | None = None
     record_topics: str | None = None
+    dashboard_port: int | None = None
+    markers: bool = False
 
 
 
@@ -290,7 +302,9 @@ def validate(args: argparse.Namespace) -> RunConfig:
     if args.coordination == "centralized":
         raise InputError("--coordination: centralized is not implemented yet")
     if args.dashboard is not None:
-        raise InputError("--dashboard: not implemented yet")
+        from swarm_up.dashboard import check_port
+
+        check_port(args.dashboard)
     if args.metrics is not None:
         parent = args.metrics.expanduser().resolve().parent
         if not parent.is_dir():
@@ -347,6 +361,8 @@ def validate(args: argparse.Namespace) -> RunConfig:
         faults=faults,
         record_path=record_path,
         record_topics=args.record_topics,
+        dashboard_port=args.dashboard,
+        markers=args.markers or args.dashboard is not None,
     )
 
 

@@ -16,8 +16,10 @@ while the EventsExecutor spins) cannot arise.
 
 from __future__ import annotations
 
+import queue
 import threading
 import time
+from collections.abc import Callable
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
@@ -56,12 +58,14 @@ class MetricsNode(Node):
         context: the rclpy context to create the node in.
     """
 
-    def __init__(self, recorder: RunRecorder, lock: threading.Lock, t0: float, context=None):
+    def __init__(self, recorder: RunRecorder, lock: threading.Lock, t0: float, context=None,
+                 status_hooks: tuple[Callable[[str, dict, str], None], ...] = ()):
         super().__init__("swarm_up_metrics", context=context)
         # state
         self._recorder = recorder
         self._lock = lock
         self._t0 = t0
+        self._status_hooks = status_hooks
         # subscriptions
         self._subs = [
             self.create_subscription(
@@ -82,6 +86,8 @@ class MetricsNode(Node):
         wall_s = time.monotonic() - self._t0
         with self._lock:
             self._recorder.on_status(ns, values, wall_s, message=msg.message)
+        for hook in self._status_hooks:
+            hook(ns, values, msg.message)
 
     def _on_events(self, msg: DiagnosticArray) -> None:
         with self._lock:
@@ -97,6 +103,10 @@ class MetricsNode(Node):
 class MetricsListener:
     """Runs a :class:`MetricsNode` in a background thread with its own context and executor.
 
+    Other nodes may share its context and thread (one DDS participant, no second discovery):
+    :meth:`attach` them before :meth:`start`, and :meth:`call_soon` runs a function in the spin
+    thread, the only thread that may touch them (``docs/ARCHITECTURE.md``, Executors).
+
     Args:
         robots: the namespaces, without ``/``.
         t0: ``time.monotonic()`` of the run's start [s].
@@ -111,13 +121,40 @@ class MetricsListener:
         self._executor: EventsExecutor | None = None
         self._thread: threading.Thread | None = None
         self._running = threading.Event()
+        self._factories: list[Callable] = []
+        self._status_hooks: list[Callable[[str, dict, str], None]] = []
+        self._extra_nodes: list[Node] = []
+        self._calls: queue.SimpleQueue[Callable[[], None]] = queue.SimpleQueue()
+
+    def attach(self, factory: Callable[[rclpy.Context], Node],
+               on_status: Callable[[str, dict, str], None] | None = None) -> None:
+        """Spin another node with this one (call before :meth:`start`).
+
+        Args:
+            factory: builds the node in the given context (called by :meth:`start`).
+            on_status: called in the spin thread with ``(ns, values, message)`` of every
+                ``nav_status`` (after the recorder has it), so the node needs no subscription
+                of its own.
+        """
+        self._factories.append(factory)
+        if on_status is not None:
+            self._status_hooks.append(on_status)
+
+    def call_soon(self, fn: Callable[[], None]) -> None:
+        """Run ``fn()`` in the spin thread, between two callbacks (thread-safe)."""
+        self._calls.put(fn)
 
     def start(self) -> None:
-        """Create the node and start spinning it."""
+        """Create the node (and the attached ones) and start spinning them."""
         rclpy.init(context=self._context, signal_handler_options=SignalHandlerOptions.NO)
-        self._node = MetricsNode(self.recorder, self.lock, self._t0, context=self._context)
+        self._node = MetricsNode(self.recorder, self.lock, self._t0, context=self._context,
+                                 status_hooks=tuple(self._status_hooks))
         self._executor = EventsExecutor(context=self._context)
         self._executor.add_node(self._node)
+        for factory in self._factories:
+            node = factory(self._context)
+            self._extra_nodes.append(node)
+            self._executor.add_node(node)
         self._running.set()
         self._thread = threading.Thread(target=self._spin, name="swarm_up_metrics", daemon=True)
         self._thread.start()
@@ -125,6 +162,8 @@ class MetricsListener:
     def _spin(self) -> None:
         while self._running.is_set() and self._context.ok():
             try:
+                while not self._calls.empty():
+                    self._calls.get_nowait()()
                 self._executor.spin_once(timeout_sec=0.1)
             except Exception:  # a shutdown race must not kill the thread loudly
                 if not self._running.is_set():
@@ -140,6 +179,9 @@ class MetricsListener:
         if self._executor is not None:
             self._executor.shutdown(timeout_sec=1.0)
             self._executor = None
+        for node in self._extra_nodes:
+            node.destroy_node()
+        self._extra_nodes.clear()
         if self._node is not None:
             self._node.destroy_node()
             self._node = None

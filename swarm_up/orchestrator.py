@@ -65,6 +65,11 @@ class Orchestrator:
         self.n = len(cfg.robots)
         self.t0 = time.monotonic()
         self.listener = MetricsListener(cfg.robots, self.t0)
+        self.live = None  # the dashboard and /swarm/markers (swarm_up.dashboard)
+        if cfg.markers or cfg.dashboard_port is not None:
+            from swarm_up.dashboard import LiveView
+
+            self.live = LiveView(cfg, self.listener)
         self.sup = Supervisor(on_restart=self._on_restart)
         self.sampler = ResourceSampler(self.sup, robots=self.n)
         self.view = ProgressView(self.n, tty=sys.stdout.isatty())
@@ -99,6 +104,10 @@ class Orchestrator:
             self._acks = AckPublisher()
             per_robot = self.cfg.robots if self.cfg.groups is None else ()
             self.faults = ProcessFaults(self.sup, per_robot, self._acks, say)
+        if self.live is not None:
+            url = self.live.start()
+            if url is not None:
+                say(f"dashboard: {url}")
         for spec in self.specs:
             try:
                 self.sup.start(spec)
@@ -239,6 +248,8 @@ class Orchestrator:
         self.sampler.maybe_sample(force=True)
         self.sup.stop()
         wall = time.monotonic() - self.t0
+        if self.live is not None:
+            self.live.stop()
         self.listener.stop()
         if self._acks is not None:
             self._acks.close()

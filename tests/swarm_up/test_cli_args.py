@@ -1,5 +1,6 @@
 """Every bad input of SPEC §2 exits 2 with one stderr line naming the flag, and no traceback."""
 
+import socket
 import subprocess
 import sys
 
@@ -34,9 +35,10 @@ BAD = [
     (["--record-topics", "odom"], "--record-topics"),
     (["--record", "run.mcap", "--record-topics", "(odom"], "--record-topics"),
     (["--record", "run.mcap", "--record-topics", "^/nothing$"], "--record-topics"),
-    (["--dashboard"], "--dashboard"),
-    (["--dashboard", "8080"], "--dashboard"),
     (["--dashboard", "99999"], "--dashboard"),
+    (["--dashboard", "0"], "--dashboard"),
+    (["--dashboard", "http"], "--dashboard"),
+    (["--dashboard", "80.5"], "--dashboard"),
     (["--headless", "--gui"], "--gui"),
     (["--metrics", "/nonexistent_dir_xyz/m.json"], "--metrics"),
     (["--map", "/nonexistent_dir_xyz/map.yaml"], "--map"),
@@ -65,6 +67,24 @@ def test_bad_input_exits_2_with_one_line(args, flag, tmp_path):
     assert flag in lines[0]
     assert "Traceback" not in res.stderr + res.stdout
     assert not (tmp_path / "run").exists()  # nothing started, nothing written
+
+
+def test_dashboard_port_in_use_exits_2_with_one_line(tmp_path):
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        res = _run(["--dashboard", str(port), "--run-dir", str(tmp_path / "run")], tmp_path)
+    assert res.returncode == 2
+    assert res.stderr.splitlines() == [
+        f"swarm-up: error: --dashboard: port {port} on 127.0.0.1 is in use"]
+    assert not (tmp_path / "run").exists()
+
+
+def test_help_names_the_dashboard_and_markers():
+    res = _run(["--help"], None)
+    assert res.returncode == 0
+    assert "--markers" in res.stdout and "127.0.0.1" in res.stdout and "8080" in res.stdout
 
 
 def test_run_dir_that_is_a_file(tmp_path):

@@ -1,0 +1,268 @@
+"""The live view in-process, fed by a fake swarm: ``/api/state``, ``/swarm/markers``, the page in
+headless Chromium (robots drawn, KPIs equal to the metrics recorder's, the scan of a watched
+robot subscribed only while a browser watches it).
+
+The fake swarm publishes what the simulator and the navigators do, with their QoS: reliable
+``odom``, latched ``plan`` and ``nav_status``, ``/clock``, ``/swarm/events`` (one collision, two
+late ticks), and best-effort scans.  Three robots: Srobot1 docked at loader1, Srobot2 holding for
+loader2, Srobot3 driving with a plan and a goal reached.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import socket
+import time
+import urllib.error
+import urllib.request
+
+import pytest
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import Odometry, Path
+from rclpy.qos import (
+    DurabilityPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+    qos_profile_sensor_data,
+)
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import LaserScan
+from visualization_msgs.msg import Marker, MarkerArray
+
+from swarm_common.nav_status import NavState, NavStatusRecord, encode
+from swarm_up.args import build_parser, validate
+from swarm_up.dashboard import LiveView
+from swarm_up.metrics import MetricsListener
+from tests.support.browser import Chromium, require_chromium
+from tests.support.ros import ros_context, spin_until
+
+pytestmark = pytest.mark.node
+
+RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+EVENTS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+LOADER1 = (-7.74575, -3.57766)
+LOADER2 = (-7.74575, -1.38526)
+POSES = {"Srobot1": (LOADER1[0] + 0.05, LOADER1[1], math.pi),
+         "Srobot2": (-7.74575, -2.48146, math.pi / 2),
+         "Srobot3": (1.0, 2.0, 0.0)}
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _status(ns, state, goal_id, goal, t):
+    record = NavStatusRecord(state=state, goal_id=goal_id, stamp_ns=int(t * 1e9), goal=goal,
+                             distance_remaining=0.0, navigation_time=1.0, recoveries=0,
+                             holding_time=0.0, goal_wait_timeouts=0, reason="")
+    return DiagnosticStatus(message=state.value, name=f"{ns}/navigator", hardware_id=ns,
+                            values=[KeyValue(key=k, value=v) for k, v in encode(record).items()])
+
+
+def _event(kind, robot, **values):
+    kv = [KeyValue(key="robot", value=robot)] + [KeyValue(key=k, value=v)
+                                                  for k, v in values.items()]
+    return DiagnosticStatus(name=kind, message=kind, values=kv)
+
+
+class FakeSwarm:
+    """Publishers of a 3-robot swarm in ``ctx``."""
+
+    def __init__(self, ctx):
+        self.node = rclpy.create_node("fake_swarm", context=ctx)
+        n = self.node
+        self.clock = n.create_publisher(Clock, "/clock", RELIABLE)
+        self.events = n.create_publisher(DiagnosticArray, "/swarm/events", EVENTS)
+        self.odom = {ns: n.create_publisher(Odometry, f"/{ns}/odom", RELIABLE) for ns in POSES}
+        self.plan = {ns: n.create_publisher(Path, f"/{ns}/plan", LATCHED) for ns in POSES}
+        self.status = {ns: n.create_publisher(DiagnosticStatus, f"/{ns}/nav_status", LATCHED)
+                       for ns in POSES}
+        self.scan = n.create_publisher(LaserScan, "/Srobot3/scan", qos_profile_sensor_data)
+        self.t = 0.0
+
+    def publish_tick(self):
+        self.t += 0.1
+        sec = int(self.t)
+        stamp = rclpy.time.Time(nanoseconds=int(self.t * 1e9)).to_msg()
+        self.clock.publish(Clock(clock=stamp))
+        for ns, (x, y, yaw) in POSES.items():
+            msg = Odometry()
+            msg.header.stamp = stamp
+            msg.header.frame_id = f"{ns}/odom"
+            msg.child_frame_id = f"{ns}/base_footprint"
+            msg.pose.pose.position.x, msg.pose.pose.position.y = x, y
+            msg.pose.pose.orientation.z = math.sin(yaw / 2)
+            msg.pose.pose.orientation.w = math.cos(yaw / 2)
+            self.odom[ns].publish(msg)
+        scan = LaserScan()
+        scan.header.stamp = stamp
+        scan.header.frame_id = "Srobot3/base_scan"
+        scan.angle_min, scan.angle_increment = 0.0, 2 * math.pi / 36
+        scan.range_min, scan.range_max = 0.12, 3.5
+        scan.ranges = [1.0 + 0.01 * k for k in range(36)]
+        self.scan.publish(scan)
+        return sec
+
+    def publish_once(self):
+        self.status["Srobot1"].publish(_status("Srobot1", NavState.SUCCEEDED, "1.000000000",
+                                               (*LOADER1, math.pi), 1.0))
+        self.status["Srobot2"].publish(_status("Srobot2", NavState.HOLDING, "1.000000000",
+                                               (*LOADER2, math.pi), 1.0))
+        self.status["Srobot3"].publish(_status("Srobot3", NavState.DRIVING, "2.000000000",
+                                               (5.0, 5.0, 0.0), 1.0))
+        path = Path()
+        path.header.frame_id = "map"
+        for k in range(50):
+            ps = PoseStamped()
+            ps.header = path.header
+            ps.pose.position.x, ps.pose.position.y = 1.0 + 0.08 * k, 2.0 + 0.06 * k
+            path.poses.append(ps)
+        self.plan["Srobot3"].publish(path)
+        self.events.publish(DiagnosticArray(status=[
+            _event("collision", "Srobot1", other="Srobot2"),
+            _event("late", "Srobot3"), _event("late", "Srobot3")]))
+
+
+@pytest.fixture
+def live(tmp_path):
+    """A LiveView of 3 robots on slim_blockage (dashboard on a free port) and its listener."""
+    port = _free_port()
+    args = build_parser().parse_args(["--swarm-size", "3", "--dashboard", str(port),
+                                      "--run-dir", str(tmp_path / "run")])
+    cfg = validate(args)
+    listener = MetricsListener(cfg.robots, time.monotonic())
+    view = LiveView(cfg, listener)
+    listener.start()
+    url = view.start()
+    try:
+        yield view, listener, url
+    finally:
+        view.stop()
+        listener.stop()
+
+
+def _get(url: str):
+    with urllib.request.urlopen(url, timeout=10) as resp:
+        return resp.status, resp.read()
+
+
+def _state(url: str) -> dict:
+    return json.loads(_get(url + "api/state")[1])
+
+
+def test_state_markers_and_pages(live):
+    view, listener, url = live
+    assert url.startswith("http://127.0.0.1:")
+    with ros_context() as (ctx, executor):
+        swarm = FakeSwarm(ctx)
+        markers: list[MarkerArray] = []
+        swarm.node.create_subscription(MarkerArray, "/swarm/markers", markers.append, RELIABLE)
+        executor.add_node(swarm.node)
+        spin_until(executor, lambda: swarm.odom["Srobot3"].get_subscription_count() >= 1
+                   and swarm.status["Srobot3"].get_subscription_count() >= 1
+                   and swarm.events.get_subscription_count() >= 1, 20.0, "the live view")
+        swarm.publish_once()
+        deadline = time.monotonic() + 20.0
+        while True:
+            swarm.publish_tick()
+            executor.spin_once(timeout_sec=0.05)
+            state = _state(url)
+            if (state["paths"].get("2") and all(state["robots"]) and state["kpi"]["late_ticks"]
+                    == 2 and state["holding"] and markers and len(markers[-1].markers) > 20):
+                break
+            assert time.monotonic() < deadline, state
+    robots = state["robots"]
+    assert [r[3] for r in robots] == ["SUCCEEDED", "HOLDING", "DRIVING"]
+    assert robots[2][:3] == [1.0, 2.0, 0.0]
+    assert robots[0][2] == pytest.approx(math.pi, abs=1e-3)
+    assert state["ws"] == ["occupied", "held", "free", "free", "free", "free"]
+    assert state["holding"] == [1]
+    assert len(state["paths"]["2"]) == 50 and state["paths"]["0"] == []
+    kpi = state["kpi"]
+    assert (kpi["tasks"], kpi["collisions"], kpi["late_ticks"], kpi["robots"]) == (1, 1, 2, 3)
+    with listener.lock:
+        assert kpi["tasks"] == listener.recorder.goal_totals()[0]
+    assert kpi["sim_time_s"] > 0
+
+    msg = markers[-1]
+    assert {m.header.frame_id for m in msg.markers} == {"map"}
+    assert msg.markers[0].action == Marker.DELETEALL
+    by_ns: dict[str, list[Marker]] = {}
+    for m in msg.markers[1:]:
+        by_ns.setdefault(m.ns, []).append(m)
+    assert {k: len(v) for k, v in by_ns.items()} == {
+        "footprint": 3, "heading": 3, "name": 3, "path": 1, "workstation": 6,
+        "workstation_name": 6}
+    assert sorted(m.text for m in by_ns["name"]) == ["Srobot1", "Srobot2", "Srobot3"]
+    assert len(by_ns["footprint"][0].points) == 5  # the closed 4-corner outline
+    held = by_ns["workstation"][1].color
+    assert (held.r, held.g) == (pytest.approx(0.9), pytest.approx(0.15))
+
+    assert _get(url + "robot/Srobot2")[0] == 200
+    assert b"dashboard.js" in _get(url)[1]
+    assert _get(url + "static/dashboard.js")[0] == 200
+    png = _get(url + "map.png")[1]
+    assert png[:8] == b"\x89PNG\r\n\x1a\n"
+    with pytest.raises(urllib.error.HTTPError) as err:
+        _get(url + "robot/Nobody")
+    err.value.close()
+    assert err.value.code == 404
+
+
+def test_page_in_headless_chromium(live):
+    require_chromium()
+    view, listener, url = live
+    with ros_context() as (ctx, executor):
+        swarm = FakeSwarm(ctx)
+        executor.add_node(swarm.node)
+        spin_until(executor, lambda: swarm.odom["Srobot3"].get_subscription_count() >= 1
+                   and swarm.status["Srobot3"].get_subscription_count() >= 1, 20.0, "the view")
+        swarm.publish_once()
+
+        def tick():
+            swarm.publish_tick()
+            executor.spin_once(timeout_sec=0.02)
+
+        with Chromium(url) as browser:
+            deadline = time.monotonic() + 40.0
+            stats = None
+            while time.monotonic() < deadline:
+                tick()
+                stats = browser.evaluate("window.dash && window.dash.stats()")
+                if stats and stats["drawn"] == 3 and stats["kpi"]["late_ticks"] == 2 \
+                        and stats["frames"] >= 20:
+                    break
+            assert stats and stats["drawn"] == 3, (stats, browser.log()[-2000:])
+            assert stats["robots"] == 3 and stats["paths"] == 1
+            with listener.lock:
+                assert stats["kpi"]["tasks"] == listener.recorder.goal_totals()[0] == 1
+                assert stats["kpi"]["collisions"] == 1
+            dom = browser.evaluate("document.getElementById('kpi-robots').textContent")
+            assert dom == "3/3"
+            assert browser.evaluate("document.getElementById('kpi-tasks').textContent") == "1"
+            assert stats["fps"] >= 5.0, stats
+
+            # Watching a robot subscribes to its scan; the page draws its 36 returns.
+            assert view.node.watched == frozenset()
+            browser.evaluate("window.dash.select('Srobot3')")
+            deadline = time.monotonic() + 20.0
+            while time.monotonic() < deadline:
+                tick()
+                stats = browser.evaluate("window.dash.stats()")
+                if stats["scanPoints"] == 36 and stats["status"]:
+                    break
+            assert stats["scanPoints"] == 36, stats
+            assert stats["status"]["state"] == "DRIVING"
+            assert view.node.watched == frozenset({2})
+        # The browser went away: its scan subscription and its client are gone.
+        deadline = time.monotonic() + 15.0
+        while view.node.watched or view.server.clients:
+            assert time.monotonic() < deadline, (view.node.watched, view.server.clients)
+            tick()
