@@ -27,7 +27,8 @@ def command(script: str, module: str, func: str = "main") -> list[str]:
 
 
 def child_specs(cfg: RunConfig):
-    """The supervised processes of a run, in start order: simulator, navigators, commanders.
+    """The supervised processes of a run, in start order: simulator, coordinator (centralized
+    mode: the child named ``coordinator``), navigators, commanders.
 
     Returns:
         A list of :class:`swarm_up.supervisor.ChildSpec`.
@@ -53,6 +54,9 @@ def child_specs(cfg: RunConfig):
     if cfg.gui:
         sim.append("--gui")
     specs = [ChildSpec("sim", tuple(sim), logs / "sim.log", kind="sim", restart=False, env=env)]
+    coordinated = cfg.coordination == "centralized"
+    if coordinated:
+        specs.append(coordinator_spec(cfg, env))
 
     if cfg.groups is None:
         nav = command("swarm-nav", "swarm_nav.node")
@@ -66,6 +70,8 @@ def child_specs(cfg: RunConfig):
             for ns in cfg.robots:
                 argv = cmd + [ns, "--world", world, "--seed", str(cfg.seed),
                               "--wait-timeout", repr(cfg.ready_timeout)]
+                if coordinated:
+                    argv.append("--coordinated")
                 specs.append(ChildSpec(f"cmd_{ns}", tuple(argv), logs / f"cmd_{ns}.log",
                                        kind="cmd", robots=(ns,), env=env))
     else:
@@ -74,7 +80,26 @@ def child_specs(cfg: RunConfig):
                     "--params-dir", str(params)]
             if cfg.commanders:
                 argv += ["--commanders", "--world", world, "--seed", str(cfg.seed)]
+                if coordinated:
+                    argv += ["--coordinated", "--coordinator-timeout", repr(cfg.ready_timeout)]
             specs.append(ChildSpec(f"group_{g}", tuple(argv), logs / f"group_{g}.log",
                                    kind="group", robots=group, env=env))
     return specs
 
+
+
+COORDINATOR = "coordinator"
+"""The child name of the coordinator (``RUN/logs/coordinator.log``); fault injection finds it by
+this name in the supervisor (``Supervisor.pid(COORDINATOR)``)."""
+
+
+def coordinator_spec(cfg: RunConfig, env: dict):
+    """The coordinator's :class:`~swarm_up.supervisor.ChildSpec` (restarted when it crashes)."""
+    from swarm_up.supervisor import ChildSpec
+
+    argv = command("swarm-coordinator", "swarm_coordinator.node") + [
+        "--swarm-size", str(len(cfg.robots)), "--name-prefix", cfg.name_prefix,
+        "--world", str(cfg.world_path), "--seed", str(cfg.seed), "--robot", cfg.robot,
+        "--start-timeout", repr(cfg.ready_timeout)]
+    return ChildSpec(COORDINATOR, tuple(argv), cfg.run_dir / "logs" / f"{COORDINATOR}.log",
+                     kind="coord", env=env)

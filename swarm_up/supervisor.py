@@ -39,7 +39,8 @@ class ChildSpec:
         name: unique short name, also the log's stem (``sim``, ``nav_Srobot3``, ``group_1``).
         argv: the command line.
         log_path: file that receives stdout and stderr (appended to).
-        kind: ``sim`` | ``nav`` | ``cmd`` | ``group`` (used for per-robot accounting).
+        kind: ``sim`` | ``coord`` | ``nav`` | ``cmd`` | ``group`` (used for per-robot
+            accounting: the simulator and the coordinator are not robots).
         robots: namespaces (without ``/``) this process serves.
         restart: restart it when it crashes (False: report its exit to the caller).
         env: environment (None: inherit the orchestrator's).
@@ -290,6 +291,7 @@ class ResourceSampler:
     _last_t: float = 0.0
     peak_robot_rss_b: int = 0
     peak_sim_rss_b: int = 0
+    peak_coord_rss_b: int = 0
     samples: int = 0
 
     def _tracked(self) -> list[tuple[psutil.Process, str]]:
@@ -343,6 +345,8 @@ class ResourceSampler:
             self._cpu_s[proc.pid] = max(self._cpu_s.get(proc.pid, 0.0), cpu.user + cpu.system)
             if kind == "sim":
                 sim_rss += rss
+            elif kind == "coord":
+                self.peak_coord_rss_b = max(self.peak_coord_rss_b, rss)
             else:
                 robot_rss += rss
         self.peak_robot_rss_b = max(self.peak_robot_rss_b, robot_rss)
