@@ -104,8 +104,10 @@ class CoordinatorNode(Node):
         # timers
         self._sync_timer = self.create_timer(SYNC_POLL_S, self._on_sync_poll, clock=self._steady)
         self._state_pub.publish(String(data=encode_state(core.epoch, len(core.robots))))
-        self._publish_events([CoordinatorEvent(EVENT_COORDINATOR, "", 0, {"state": "up"},
-                                               core.epoch)])
+        # Announced on /swarm/events with the first batch: a message published now, before
+        # discovery has matched the readers of a volatile topic, would be lost.
+        self._up_event: CoordinatorEvent | None = CoordinatorEvent(
+            EVENT_COORDINATOR, "", 0, {"state": "up"}, core.epoch)
         self.get_logger().info(f"up: epoch {core.epoch}, {len(core.robots)} robots, "
                                f"{len(core.stations)} workstations, {len(core.spots)} spots")
 
@@ -155,6 +157,11 @@ class CoordinatorNode(Node):
         if not batch:
             return
         assignments, events = self.core.handle(batch)
+        if self._up_event is not None:
+            t = min(r.stamp_ns for r in batch)
+            events.insert(0, CoordinatorEvent(EVENT_COORDINATOR, "", t, self._up_event.fields,
+                                              self.core.epoch))
+            self._up_event = None
         for a in assignments:
             self._assign_pubs[a.robot].publish(String(data=encode_assignment(a)))
         self._publish_events(events)
