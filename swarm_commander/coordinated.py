@@ -153,7 +153,10 @@ class CoordinatedRunner:
             return
         now = time.monotonic()
         if not self._started:
-            if self.nav.navigator_ready and self._epoch is not None:
+            # Ready once simulated time runs (the start gate opened: every robot's commander is
+            # there), so that every first request reaches the coordinator at once, not retried.
+            if self.nav.navigator_ready and self._epoch is not None \
+                    and self.nav.get_clock().now().nanoseconds > 0:
                 self._started = True
                 self._request("ready")
             elif now >= self._deadline and not self.nav.navigator_ready:

@@ -201,14 +201,18 @@ class CoordinatorCore:
             over to a waiting robot comes before the answer to the robot that freed it.
         """
         out = _Out()
+        answered = set()
         for req in self.order(requests):
             rob = self.robots.get(req.robot)
             if rob is None:
                 continue
             if req.kind != "report" and req.seq <= rob.last_seq:
-                if req.seq == rob.last_seq and rob.last_answer is not None:
+                if req.seq == rob.last_seq and rob.last_answer is not None \
+                        and req.robot not in answered:
                     out.assignments.append(rob.last_answer)  # a re-sent request
+                    answered.add(req.robot)
                 continue
+            answered.add(req.robot)
             if not rob.known:
                 rob.known = True
                 self._adopt(req, rob, out)

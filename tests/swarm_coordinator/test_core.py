@@ -105,6 +105,8 @@ def test_a_resent_request_gets_the_same_answer_again():
     first, _ = core.handle([ready("r1")])
     again, events = core.handle([ready("r1")])
     assert again == first and events == []
+    # copies within one batch are answered once
+    assert len(make_core({"r1": ["A"]}).handle([ready("r1"), ready("r1")])[0]) == 1
 
 
 def test_a_new_core_adopts_what_robots_report_and_queues_late_claims():
