@@ -375,6 +375,7 @@ def plot_measure(path: Path, summaries: list[dict], key: str, label: str, title:
         ax.fill_between(xs, [y - h for y, h in zip(ys, hw, strict=True)],
                         [y + h for y, h in zip(ys, hw, strict=True)],
                         color=line.get_color(), alpha=0.2)
+    ax.set_xticks(sorted({s["size"] for s in summaries if not s["fault"]}))
     ax.set_xlabel("swarm size [robots]")
     ax.set_ylabel(label)
     ax.set_title(title, fontsize=10)
