@@ -158,6 +158,8 @@ class ExperimentConfig:
     def cells(self) -> list[Cell]:
         """Every cell, in run order: sizes ascending with both modes per size, then faults."""
         out = [Cell(m, n, "", f"{m}-n{n}") for n in self.sizes for m in self.modes]
+        if self.faults and self.fault_size not in self.sizes:  # the fault runs' baseline
+            out += [Cell(m, self.fault_size, "", f"{m}-n{self.fault_size}") for m in self.modes]
         for k, spec in enumerate(self.faults, start=1):
             out += [Cell(m, self.fault_size, spec, f"{m}-n{self.fault_size}-f{k}")
                     for m in self.modes]

@@ -68,6 +68,10 @@ def test_defaults_and_cells(tmp_path):
     labels = [c.label for c in cfg.cells()]
     assert labels[:2] == ["decentralized-n5", "centralized-n5"]
     assert labels[-2:] == ["decentralized-n10-f1", "centralized-n10-f1"]
+    cfg = validate(build_parser().parse_args(["--output", str(tmp_path / "y"), "--sizes", "5",
+                                              "--fault-spec", "x at 10", "--fault-size", "7"]))
+    assert [c.label for c in cfg.cells()][2:] == [
+        "decentralized-n7", "centralized-n7", "decentralized-n7-f1", "centralized-n7-f1"]
 
 
 @pytest.mark.parametrize(("args", "flag"), [
