@@ -17,7 +17,8 @@ first to ask gets it, later askers are queued and parked at a waiting spot until
 - W reserved by another robot: the robot joins W's queue (first come, first served: ordered by
   the simulated time of its request, then by robot number) and is sent to a free waiting spot
   (``wait``), reserved for it: W's own holding spots first, then the parking spots nearest W.
-  No two robots are ever sent to one spot.
+  No two robots are ever sent to one spot. When a holding spot of W frees up, the first robot
+  of W's queue that waits at a parking spot moves up to it (the next hand-over is short).
 - A robot that reports ``done`` at W leaves it: W is released at the request's stamp t, and the
   first robot of W's queue gets W (its spot is released) with a goal stamped ``t + period``, so it
   moves off its spot at tick ``t + 2 period``, whatever the wall-clock latency, as long as the
@@ -295,12 +296,27 @@ class CoordinatorCore:
         ns = self.queues[name].pop(0)
         rob = self.robots[ns]
         start = t + self.cfg.period_ns
+        freed = self.spots.get(rob.spot)
         if rob.spot:
             self._release(ns, spot_resource(rob.spot), start, out)
             rob.spot = ""
         self._reserve(ns, workstation_resource(name), start, out)
         rob.workstation, rob.waits_for, rob.since_ns = name, "", 0
         self._send(ns, rob, "go", name, self.stations[name].pose, start, 0, "", out)
+        if freed is not None and freed.near == name:
+            self._move_up(name, freed, start, out)
+
+    def _move_up(self, name: str, freed: Spot, t: int, out: _Out) -> None:
+        """The first robot of ``name``'s queue that waits farther away (parking) moves up to
+        the workstation's freed holding spot, so the next hand-over is a short drive."""
+        for ns in self.queues[name]:
+            rob = self.robots[ns]
+            if rob.spot and self.spots[rob.spot].near != name:
+                self._release(ns, spot_resource(rob.spot), t, out)
+                self._reserve(ns, spot_resource(freed.id), t, out)
+                rob.spot = freed.id
+                self._send(ns, rob, "wait", freed.id, (*freed.xy, freed.yaw), t, 0, name, out)
+                return
 
     # ------------------------------------------------------------------------------ helpers
     def _enqueue(self, ns: str, name: str) -> None:

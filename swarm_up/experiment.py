@@ -506,12 +506,14 @@ def _verdicts(plain: list[dict]) -> list[str]:
             a, b = d[key], c[key]
             if a["mean"] is None or b["mean"] is None:
                 continue
-            overlap = (a["ci95"] is None or b["ci95"] is None
-                       or abs(a["mean"] - b["mean"]) <= a["ci95"] + b["ci95"])
             better = "decentralized" if (a["mean"] > b["mean"]) == higher else "centralized"
             rel = (100.0 * (b["mean"] - a["mean"]) / a["mean"]) if a["mean"] else float("nan")
-            verdict = "no claimed difference (intervals overlap)" if overlap else \
-                f"{better} better"
+            if a["ci95"] is None or b["ci95"] is None:
+                verdict = f"{better} better in this one run (no interval: no claim)"
+            elif abs(a["mean"] - b["mean"]) <= a["ci95"] + b["ci95"]:
+                verdict = "no claimed difference (intervals overlap)"
+            else:
+                verdict = f"{better} better (intervals do not overlap)"
             parts.append(f"{label} {a['mean']:.{digits}f} vs {b['mean']:.{digits}f} "
                          f"(centralized {rel:+.0f} %): {verdict}")
         lines.append(f"- **{n} robots** (decentralized vs centralized): " + "; ".join(parts))

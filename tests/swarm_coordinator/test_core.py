@@ -187,3 +187,16 @@ def test_the_contract_round_trips_and_names_bad_keys():
         decode_assignment('{"robot":"r","seq":1,"reply_to":0,"kind":"go","target":"A",'
                           '"x":NaN,"y":2,"yaw":0,"stamp":"1.000000000"}')
 
+
+
+def test_the_next_in_line_moves_up_to_the_freed_holding_spot():
+    core = make_core({"r1": ["A", "B"], "r2": ["A", "B"], "r3": ["A", "B"]})
+    _, first = core.handle([ready("r1"), ready("r2"), ready("r3")])  # r2 at A.0, r3 parked
+    out, events = core.handle([done("r1", "A", 40 * T, seq=2)])
+    events = first + events
+    assert [(a.robot, a.kind, a.target, a.stamp_ns) for a in out] == [
+        ("r2", "go", "A", 40 * T + T // 10),
+        ("r3", "wait", "A.0", 40 * T + T // 10),
+        ("r1", "go", "B", 40 * T)]
+    assert core.holder_of("spot:A.0") == "r3" and core.holder_of("spot:park3") is None
+    assert check_reservations(reservations(events)) == []
