@@ -15,7 +15,9 @@ coordinator to hand it the workstation.
 1. The robot finishes the goal it has; nothing on the way depends on the coordinator.
 2. Then it waits where it stands and sends its request again if no answer came within 1 s
    (wall), then after 2, 4, 8, 8, ... s (exponential backoff, capped at 8 s), until an answer
-   comes. A robot waiting at a spot has nothing to ask and keeps waiting.
+   comes. A robot waiting at a spot has nothing to ask and keeps waiting. (A robot's first
+   request, ``ready``, is first re-sent after 8 s: at the start the coordinator answers once
+   every robot is ready. Re-sends are not counted in the communication load.)
 3. Its navigator's next tick waits ``goal_wait_timeout`` (2.5 s wall) for a goal and then goes
    on without one: the robot stands still, the rest of the swarm keeps moving, and the run is
    marked not reproducible (``goal_wait_timeouts``).
@@ -40,6 +42,7 @@ from std_srvs.srv import Trigger
 from swarm_commander.robot_navigator import BasicNavigator, TaskResult
 from swarm_common.coordination import (
     ASSIGNMENT_TOPIC,
+    COORDINATOR_NODE,
     REQUEST_TOPIC,
     STATE_TOPIC,
     Assignment,
@@ -71,12 +74,15 @@ class CoordinatedConfig:
         wait_timeout: [s] wall: how long to wait for the navigator's first ``nav_status``.
         retry_first: [s] wall: first wait for an answer before the request is sent again.
         retry_max: [s] wall: the longest wait between two sends (the backoff doubles up to it).
+        retry_ready: [s] wall: first wait before the first request (``ready``) is sent again:
+            the coordinator answers it only once every robot is ready.
         poll_period: [s] wall: period of the runner's timer.
     """
 
     wait_timeout: float = 30.0
     retry_first: float = 1.0
     retry_max: float = 8.0
+    retry_ready: float = 8.0
     poll_period: float = 0.1
 
 
@@ -110,6 +116,7 @@ class CoordinatedRunner:
         self._current: Assignment | None = None
         self._unsent: Assignment | None = None
         self._applied = 0  # highest assignment seq applied in this epoch
+        self._resync = False  # a new coordinator is to be told what we hold
         self._first_start_ns: int | None = None
         navigator.on_task_complete = self._on_task_complete
         self._req_pub = navigator.create_publisher(String, REQUEST_TOPIC, REQUEST_QOS)
@@ -153,10 +160,8 @@ class CoordinatedRunner:
             return
         now = time.monotonic()
         if not self._started:
-            # Ready once simulated time runs (the start gate opened: every robot's commander is
-            # there), so that every first request reaches the coordinator at once, not retried.
             if self.nav.navigator_ready and self._epoch is not None \
-                    and self.nav.get_clock().now().nanoseconds > 0:
+                    and self._heard_by_coordinator():
                 self._started = True
                 self._request("ready")
             elif now >= self._deadline and not self.nav.navigator_ready:
@@ -167,6 +172,8 @@ class CoordinatedRunner:
                 self.finished.set_result(EXIT_BAD_INPUT if not self.nav.nav_status_received
                                          else EXIT_RUNTIME)
             return
+        if self._resync and self._heard_by_coordinator():
+            self._resync_now()
         if self._unsent is not None:
             self._drive(self._unsent)
         if self._pending is not None and now >= self._next_send:
@@ -186,16 +193,19 @@ class CoordinatedRunner:
         if epoch == self._epoch:
             return
         old, self._epoch, self._applied = self._epoch, epoch, 0
-        if old is None or not self._started:
-            return
-        # A new coordinator: re-send the open request now, or report what we hold.
+        if old is not None and self._started:
+            self._resync = True  # done by the timer once the new coordinator hears us
+
+    def _resync_now(self) -> None:
+        """A new coordinator: re-send the open request, or report what we hold."""
+        self._resync = False
         if self._pending is not None:
             old_req = self._pending
             self._pending = self._make(old_req.kind, old_req.outcome, old_req.target,
                                        seq=old_req.seq)
             self._send(self._pending)
-            self._backoff, self._next_send = self.cfg.retry_first, (
-                time.monotonic() + self.cfg.retry_first)
+            self._backoff = self.cfg.retry_first
+            self._next_send = time.monotonic() + self.cfg.retry_first
         else:
             self._send(self._make("report"))
 
@@ -277,7 +287,16 @@ class CoordinatedRunner:
         self._pending = self._make(kind, outcome, target)
         self._send(self._pending)
         self._backoff = self.cfg.retry_first
+        if kind == "ready":  # the coordinator answers once every robot is ready: wait longer
+            self._backoff = self.cfg.retry_ready
         self._next_send = time.monotonic() + self._backoff
+
+    def _heard_by_coordinator(self) -> bool:
+        """Whether our request publisher is matched with the coordinator's subscription (a
+        request published before discovery matched it would be lost)."""
+        infos = self.nav.get_subscriptions_info_by_topic(REQUEST_TOPIC)
+        return (any(i.node_name == COORDINATOR_NODE for i in infos)
+                and self._req_pub.get_subscription_count() >= len(infos))
 
     def _send(self, req: Request) -> None:
         self._req_pub.publish(String(data=encode_request(req)))

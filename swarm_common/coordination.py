@@ -31,6 +31,7 @@ REQUEST_TOPIC = "/swarm/coordinator/request"
 STATE_TOPIC = "/swarm/coordinator/state"
 ASSIGNMENT_TOPIC = "coordinator/assignment"  # relative: /<ns>/coordinator/assignment
 EVENTS_TOPIC = "/swarm/events"
+COORDINATOR_NODE = "swarm_coordinator"  # the coordinator's node name
 
 REQUEST_KINDS = ("ready", "done", "report")
 OUTCOMES = ("succeeded", "failed", "canceled", "")

@@ -44,6 +44,7 @@ from std_msgs.msg import String
 
 from swarm_common import cli
 from swarm_common.coordination import (
+    COORDINATOR_NODE,
     EVENT_COORDINATOR,
     EVENTS_TOPIC,
     REQUEST_TOPIC,
@@ -60,7 +61,7 @@ from swarm_common.stamps import NS_PER_S
 from swarm_coordinator.core import CoordinatorConfig, CoordinatorCore
 
 PROG = "swarm-coordinator"
-NODE_NAME = "swarm_coordinator"
+NODE_NAME = COORDINATOR_NODE
 REQUEST_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 ASSIGNMENT_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 STATE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,

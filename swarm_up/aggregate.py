@@ -43,8 +43,9 @@ Definitions (``docs/ARCHITECTURE.md``, ``/<ns>/nav_status``):
   ``odom``, ``scan``, ``cmd_vel``, ``ground_truth``: they stand for each robot's own sensors and
   motors), a robot's own ``goal_pose``/``nav_status``/``navigator/cancel`` (navigator and
   commander run on the same robot) and ``/swarm/events`` (instrumentation). DDS/RTPS headers,
-  discovery and acknowledgements are not counted. Per simulated second: divided by
-  ``sim_time_s``.
+  discovery and acknowledgements are not counted, nor re-sends (a byte-identical copy of a
+  request or an answer, whose number depends on wall-clock timing: ``comm.resent``). Per
+  simulated second: divided by ``sim_time_s``.
 """
 
 from __future__ import annotations
@@ -108,6 +109,7 @@ class RobotRecord:
     reached_at: dict[str, float] = field(default_factory=dict)  # goal id -> sim time [s] reached
     applied: set[str] = field(default_factory=set)  # goal ids seen applied
     late_goals: int = 0  # goals applied after the first tick after their stamp
+    late_goal_ids: list[str] = field(default_factory=list)  # "<goal id> applied at <t>" (first 10)
     tasks: list[tuple[float, float, str]] = field(default_factory=list)  # (t, duration [s], ws)
     comm_messages: int = 0  # messages to/from central nodes (coordinator, /map)
     comm_bytes: int = 0
@@ -138,6 +140,8 @@ class RunRecorder:
     coordinator_starts: int = 0
     comm_by_topic: dict[str, list[int]] = field(default_factory=dict)  # topic -> [msgs, bytes]
     map_bytes: int | None = None  # serialized size of the latest /map
+    comm_resent: int = 0  # byte-identical copies of requests and assignments (re-sends)
+    _comm_seen: set = field(default_factory=set, repr=False)
 
     def __post_init__(self) -> None:
         for ns in self.robots:
@@ -179,6 +183,10 @@ class RunRecorder:
                 applied = status.stamp_ns - round(status.navigation_time * NS_PER_S)
                 if applied - expected > NS_PER_S // 500:  # beyond the 3 decimals' rounding
                     rec.late_goals += 1
+                    if len(rec.late_goal_ids) < 10:
+                        rec.late_goal_ids.append(f"{goal} applied at {applied / NS_PER_S:.3f} "
+                                                 f"({state.value}, {status.stamp_ns}, "
+                                                 f"{status.navigation_time})")
         if state == NavState.SUCCEEDED and goal and goal not in rec.reached_at \
                 and status.stamp_ns is not None:
             rec.reached_at[goal] = status.stamp_ns / NS_PER_S
@@ -236,7 +244,7 @@ class RunRecorder:
         elif kind == EVENT_COORDINATOR:
             self.coordinator_starts += 1
 
-    def on_comm(self, topic: str, robot: str, nbytes: int) -> None:
+    def on_comm(self, topic: str, robot: str, nbytes: int, key: str | None = None) -> None:
         """One message between a robot and a central node (see *communication load*).
 
         Args:
@@ -244,7 +252,15 @@ class RunRecorder:
             robot: the robot it went to or came from; "" for a message every robot receives
                 (one copy per robot is counted).
             nbytes: its serialized size [bytes].
+            key: the message's text, if a byte-identical copy is a re-send (a request sent
+                again because no answer came in time, and the repeated answer): re-sends are
+                counted apart (``comm.resent``), as their number depends on wall-clock timing.
         """
+        if key is not None:
+            if (topic, key) in self._comm_seen:
+                self.comm_resent += 1
+                return
+            self._comm_seen.add((topic, key))
         entry = self.comm_by_topic.setdefault(topic, [0, 0])
         for ns in [robot] if robot else list(self.robots):
             rec = self.per_robot.get(ns)
@@ -335,6 +351,7 @@ def _robot_metrics(rec: RobotRecord, sim: RobotSummary) -> dict:
         "late_ticks": sim.late_ticks,
         "goal_wait_timeouts": rec.goal_wait_timeouts_total,
         "late_goals": rec.late_goals,
+        "late_goal_ids": list(rec.late_goal_ids),
         "ready_s": rec.ready_wall_s,
     }
 
@@ -409,6 +426,7 @@ def _comm(recorder: RunRecorder, map_deliveries: dict[str, int] | None,
         "per_robot": {ns: {"messages": m, "bytes": b, "messages_per_s": rate(m),
                            "bytes_per_s": rate(b)} for ns, (m, b) in per_robot.items()},
         "map_bytes": recorder.map_bytes,
+        "resent": recorder.comm_resent,
     }
 
 

@@ -124,16 +124,19 @@ class MetricsNode(Node):
                 self._recorder.on_event(status.name, {kv.key: kv.value for kv in status.values})
 
     def _on_request(self, raw: bytes) -> None:
+        text = cdr_string(raw)
         try:
-            robot = str(json.loads(cdr_string(raw)).get("robot", ""))
+            robot = str(json.loads(text).get("robot", ""))
         except (ValueError, AttributeError):
             robot = ""
         if robot:
-            self._on_comm("request", robot.strip("/"), raw)
+            with self._lock:
+                self._recorder.on_comm("request", robot.strip("/"), len(raw), key=text)
 
     def _on_comm(self, topic: str, robot: str, raw: bytes) -> None:
+        key = cdr_string(raw) if topic == "assignment" else None
         with self._lock:
-            self._recorder.on_comm(topic, robot, len(raw))
+            self._recorder.on_comm(topic, robot, len(raw), key=key)
 
     def _on_map(self, raw: bytes) -> None:
         with self._lock:
