@@ -58,7 +58,10 @@ from swarm_common.errors import EXIT_BAD_INPUT, EXIT_RUNTIME
 from swarm_common.geometry import yaw_to_quaternion
 from swarm_common.stamps import NS_PER_S
 
-REQUEST_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+# Transient local: a reader that matches late (the metrics node counting the communication
+# load) still gets the last requests; the coordinator reads them volatile (no stale requests).
+REQUEST_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
 ASSIGNMENT_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 STATE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.TRANSIENT_LOCAL)

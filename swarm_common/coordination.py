@@ -10,9 +10,12 @@ message is a ``std_msgs/String`` whose ``data`` is one JSON object (:func:`encod
 
 Topics (as ``ros2 topic list`` shows them)::
 
-    /swarm/coordinator/request     robots -> coordinator  std_msgs/String  reliable, depth 100
-    /<ns>/coordinator/assignment   coordinator -> robot   std_msgs/String  reliable, depth 10
+    /swarm/coordinator/request     robots -> coordinator  std_msgs/String  reliable
+    /<ns>/coordinator/assignment   coordinator -> robot   std_msgs/String  reliable
     /swarm/coordinator/state       coordinator -> robots  std_msgs/String  reliable, latched
+
+Writers of requests and assignments keep their last 10 messages (transient local) for readers
+that match late (the metrics node); the coordinator and the commanders read them volatile.
 
 Resources are named ``workstation:<name>`` and ``spot:<id>`` (:func:`workstation_resource`,
 :func:`spot_resource`). Stamps are simulated times in integer nanoseconds inside, and the

@@ -63,7 +63,10 @@ from swarm_coordinator.core import CoordinatorConfig, CoordinatorCore
 PROG = "swarm-coordinator"
 NODE_NAME = COORDINATOR_NODE
 REQUEST_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-ASSIGNMENT_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+# Transient local writer (a late-matching metrics reader still counts the first answers); the
+# commanders read volatile, so a restarted commander gets no stale assignment.
+ASSIGNMENT_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                            durability=DurabilityPolicy.TRANSIENT_LOCAL)
 STATE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
 EVENTS_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
