@@ -27,9 +27,9 @@ When a batch is complete (docs/ARCHITECTURE.md, "Coordination"):
 
 from __future__ import annotations
 
-import os
 import sys
 import time
+import uuid
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -268,7 +268,7 @@ def _run(argv: list[str]) -> int:
         raise InputError(f"--ros-args: {str(exc).splitlines()[0]}") from None
     opts = build_parser().parse_args(plain)
     robots = tuple(f"{opts.name_prefix}{i}" for i in range(1, opts.swarm_size + 1))
-    epoch = f"{os.getpid()}-{time.time_ns() // 1_000_000 % 10**9}"
+    epoch = uuid.uuid4().hex[:12]  # fixed length: message sizes do not depend on it
     core = build_core(opts.world, opts.seed, robots, opts.robot, opts.control_period, epoch)
     rclpy.init(args=[PROG, *argv])
     node = None
