@@ -135,7 +135,8 @@ def test_silent_then_killed_coordinator_follows_the_rule(tmp_path):
                     > tasks_before + 1, 120, run, "tasks after the coordinator woke up")
         # 2. killed: the supervisor restarts it; robots report; tasks go on.
         os.kill(coord.pid, signal.SIGKILL)
-        run.wait_for_stdout(r"coordinator exited with code -9; restarted", 30)
+        _wait_until(lambda: "coordinator exited with code -9; restarted" in run.stderr(), 30,
+                    run, "restart warning")
         _wait_until(lambda: (run.logs / "coordinator.log").read_text().count("up (epoch") == 2,
                     30, run, "a second coordinator")
         tasks_before = len(re.findall(r"task \d+: reached", _all_cmd_logs(run)))
