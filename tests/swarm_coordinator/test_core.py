@@ -31,7 +31,7 @@ SPOTS = [Spot("A.0", (0.0, -1.0), "A"), Spot("B.0", (10.0, -1.0), "B"),
 def make_core(routes: dict[str, list[str]], robots=None) -> CoordinatorCore:
     its = {ns: itertools.cycle(stops) for ns, stops in routes.items()}
     return CoordinatorCore(robots or list(routes), STATIONS, SPOTS, lambda ns: next(its[ns]),
-                           CoordinatorConfig(period_ns=T // 10), epoch="e1")
+                           CoordinatorConfig(period_ns=T // 10, handover_ticks=2), epoch="e1")
 
 
 def ready(ns, t=0, seq=1):
@@ -80,11 +80,11 @@ def test_done_releases_and_hands_over_one_tick_later_before_the_answer():
     # the hand-over to r2 comes first, stamped one tick after the release
     assert [(a.robot, a.kind, a.target, a.reply_to) for a in out] == [
         ("r2", "go", "A", 0), ("r1", "go", "B", 2)]
-    assert out[0].stamp_ns == t + T // 10 and out[1].stamp_ns == t
+    assert out[0].stamp_ns == t + 2 * T // 10 and out[1].stamp_ns == t
     res = [(e["robot"], e["action"], e["resource"], e["t"]) for e in reservations(events)]
     assert res == [("r1", "release", "workstation:A", "40.000000000"),
-                   ("r2", "release", "spot:A.0", "40.100000000"),
-                   ("r2", "reserve", "workstation:A", "40.100000000"),
+                   ("r2", "release", "spot:A.0", "40.200000000"),
+                   ("r2", "reserve", "workstation:A", "40.200000000"),
                    ("r1", "reserve", "workstation:B", "40.000000000")]
     tasks = [e.values() for e in events if e.kind == "task"]
     assert tasks == [{"robot": "r1", "t": "40.000000000", "epoch": "e1", "workstation": "A",
@@ -195,8 +195,8 @@ def test_the_next_in_line_moves_up_to_the_freed_holding_spot():
     out, events = core.handle([done("r1", "A", 40 * T, seq=2)])
     events = first + events
     assert [(a.robot, a.kind, a.target, a.stamp_ns) for a in out] == [
-        ("r2", "go", "A", 40 * T + T // 10),
-        ("r3", "wait", "A.0", 40 * T + T // 10),
+        ("r2", "go", "A", 40 * T + 2 * T // 10),
+        ("r3", "wait", "A.0", 40 * T + 2 * T // 10),
         ("r1", "go", "B", 40 * T)]
     assert core.holder_of("spot:A.0") == "r3" and core.holder_of("spot:park3") is None
     assert check_reservations(reservations(events)) == []
