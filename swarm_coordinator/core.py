@@ -88,7 +88,7 @@ class CoordinatorConfig:
         period_ns: [ns] the simulator's control tick.
         handover_ticks: a goal handed to a waiting robot is stamped this many ticks after the
             release (so it takes effect one tick later still, see the module doc); 2 leaves the
-            message two whole simulator ticks to arrive (1 was late once in 56 hand-overs at 20
+            message two whole simulator ticks to arrive (1 was late once in a 300 s run of 20
             robots on a loaded machine).
     """
 
