@@ -108,7 +108,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "largest size)")
     p.add_argument("--fault-time", type=cli.non_negative_float, default=None, metavar="SEC",
                    help="simulated time the faults start, marked on the fault curves "
-                   "(default: the first 'at T' in the spec, else none)")
+                   "(default: the first 'at T' or '@T' in the spec, else none)")
     p.add_argument("--warmup", type=cli.non_negative_float, default=120.0, metavar="SEC",
                    help="simulated seconds left out of the throughput (default: %(default)g)")
     p.add_argument("--output", type=Path, default=None, metavar="DIR",
@@ -196,7 +196,7 @@ def validate(args: argparse.Namespace) -> ExperimentConfig:
     fault_time = args.fault_time
     if fault_time is None:
         for spec in args.fault_spec:
-            m = re.search(r"\bat\s+(\d+(?:\.\d+)?)", spec)
+            m = re.search(r"(?:\bat\s+|@)(\d+(?:\.\d+)?)", spec)  # "at 300" or "@300"
             if m:
                 fault_time = float(m.group(1))
                 break

@@ -70,6 +70,9 @@ def test_defaults_and_cells(tmp_path):
     assert labels[-2:] == ["decentralized-n10-f1", "centralized-n10-f1"]
     cfg = validate(build_parser().parse_args(["--output", str(tmp_path / "y"), "--sizes", "5",
                                               "--fault-spec", "x at 10", "--fault-size", "7"]))
+    at = validate(build_parser().parse_args([
+        "--output", str(tmp_path / "z"), "--fault-spec", "kill-coordinator@50+5"]))
+    assert at.fault_time_s == 50
     assert [c.label for c in cfg.cells()][2:] == [
         "decentralized-n7", "centralized-n7", "decentralized-n7-f1", "centralized-n7-f1"]
 
