@@ -214,6 +214,24 @@ def _pose_msg(stop: RouteStop) -> PoseStamped:
     return msg
 
 
+def _wait_for_coordinator(ns: str, executor, timeout_s: float) -> None:
+    """Wait for the coordinator before the commander's node exists (its navigator's start
+    gate opens when a commander connects: the coordinator must be there by then)."""
+    from rclpy.node import Node
+
+    from swarm_commander.coordinated import wait_for_coordinator
+
+    watch = Node("coordinator_watch", namespace=ns)
+    executor.add_node(watch)
+    try:
+        if not wait_for_coordinator(watch, timeout_s,
+                                    lambda t: executor.spin_once(timeout_sec=t)):
+            _emit(f"[{ns}] no coordinator after {timeout_s:g} s; starting anyway")
+    finally:
+        executor.remove_node(watch)
+        watch.destroy_node()
+
+
 def _parser() -> argparse.ArgumentParser:
     p = cli.ArgumentParser(prog=PROG, description="Drive one robot through the world's "
                            "workstations (nav2 simple-commander style), looping, and print each "
@@ -236,6 +254,9 @@ def _parser() -> argparse.ArgumentParser:
                    help="wall seconds to wait for the navigator (default: %(default)s)")
     p.add_argument("--name-prefix", type=cli.ros_name, default="Srobot", metavar="PREFIX",
                    help="prefix of robot namespaces, for a numeric NS (default: %(default)s)")
+    p.add_argument("--coordinated", action="store_true",
+                   help="ask the coordinator (swarm-coordinator) for every task instead of "
+                   "following --route (swarm-up --coordination centralized)")
     return p
 
 
@@ -273,7 +294,7 @@ def _non_ros_args(argv: list[str]) -> list[str]:
 def _run(argv: list[str]) -> int:
     opts = _parser().parse_args(_non_ros_args(argv))
     ns = _namespace(opts.ns, opts.name_prefix)
-    route = build_route(opts.world, opts.seed, ns, opts.route)
+    route = None if opts.coordinated else build_route(opts.world, opts.seed, ns, opts.route)
     cfg = CommanderConfig(loops=opts.loops, wait_timeout=opts.wait_timeout)
 
     rclpy.init(args=[PROG, *argv])
@@ -282,10 +303,18 @@ def _run(argv: list[str]) -> int:
     executor = SingleThreadedExecutor()
     code = EXIT_OK
     try:
+        if opts.coordinated:
+            _wait_for_coordinator(ns, executor, opts.wait_timeout)
         node = BasicNavigator(node_name=NODE_NAME, namespace=ns)
         _use_sim_time_by_default(node)
         node.get_logger().set_level(LoggingSeverity.WARN)  # the task lines say what happens
-        runner = CommanderRunner(node, route, cfg, emit=_emit)
+        if opts.coordinated:
+            from swarm_commander.coordinated import CoordinatedConfig, CoordinatedRunner
+
+            runner = CoordinatedRunner(node, CoordinatedConfig(wait_timeout=opts.wait_timeout),
+                                       emit=_emit)
+        else:
+            runner = CommanderRunner(node, route, cfg, emit=_emit)
         executor.add_node(node)
         executor.spin_until_future_complete(runner.finished)
         code = runner.finished.result() if runner.finished.done() else EXIT_OK

@@ -151,6 +151,7 @@ class _Task:
     sample: tuple[float, float] | None = None  # (navigation time [s], distance [m]) last seen
     speed: float = 0.0  # [m/s] rate at which the distance remaining shrinks
     result: TaskResult | None = None
+    not_before_ns: int = 0  # [ns] no goal of this task is stamped earlier (go_to_pose_at)
     cancel_requested: bool = False
     cancel_future: object = None
 
@@ -370,6 +371,29 @@ class BasicNavigator(Node):
         """True once any ``nav_status`` was received from the navigator."""
         return self._nav_status_received
 
+    @property
+    def status_stamp_ns(self) -> int | None:
+        """[ns] simulated time of the navigator's latest ``nav_status`` (None before one)."""
+        return self._status_stamp_ns
+
+    def go_to_pose_at(self, pose, not_before_ns: int) -> bool:
+        """``goToPose`` whose goal is stamped no earlier than ``not_before_ns``.
+
+        The navigator applies a goal at its first control tick after the goal's stamp
+        (docs/ARCHITECTURE.md, goal handshake), so a goal stamped ahead takes effect at a known
+        simulated time when it arrives before that tick: how a coordinator hands a freed
+        workstation to a waiting robot reproducibly (:mod:`swarm_commander.coordinated`).
+
+        Args:
+            pose: ``geometry_msgs/PoseStamped`` in ``map``.
+            not_before_ns: [ns] simulated time; the goal's stamp is the later of this and the
+                usual one (the latest status's ``stamp``).
+
+        Returns:
+            As :meth:`goToPose`.
+        """
+        return self._start_task("goToPose", [pose], not_before_ns=int(not_before_ns))
+
     def task_complete(self) -> bool:
         """``isTaskComplete`` without waiting or spinning, for use inside callbacks."""
         with self._cond:
@@ -377,7 +401,7 @@ class BasicNavigator(Node):
 
     # ------------------------------------------------------------------ internals
 
-    def _start_task(self, kind, poses, behavior_tree=""):
+    def _start_task(self, kind, poses, behavior_tree="", not_before_ns=0):
         poses = list(poses)
         if behavior_tree:
             self.debug("behavior_tree is ignored: the swarm navigator has no behaviour trees")
@@ -395,7 +419,7 @@ class BasicNavigator(Node):
                 throttle_duration_sec=5.0)
             return False
         with self._cond:
-            self._task = _Task(kind, poses)
+            self._task = _Task(kind, poses, not_before_ns=not_before_ns)
             self._result = TaskResult.UNKNOWN
             self.feedback = None
             self._send_current()
@@ -420,7 +444,7 @@ class BasicNavigator(Node):
         base = self._status_stamp_ns
         if base is None:
             base = self.get_clock().now().nanoseconds
-        stamp_ns = max(base, self._last_stamp_ns + 1)
+        stamp_ns = max(base, self._last_stamp_ns + 1, task.not_before_ns)
         self._last_stamp_ns = stamp_ns
         sec, nanosec = divmod(stamp_ns, NS_PER_S)
         msg.header.stamp = Time(sec=sec, nanosec=nanosec)

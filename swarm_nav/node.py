@@ -135,6 +135,7 @@ class NavigatorNode(Node):
         self._goals: list[tuple[int, np.ndarray, str]] = []  # (stamp, pose, id) awaiting a tick
         self._terminal_ns: int | None = None  # tick at which the current terminal state began
         self._goal_wait_over: int | None = None  # tick whose wait for a goal ended without one
+        self._no_next_goal: int | None = None  # end tick of the goal after which none will come
         self._goal_timer = None
         self._goal_wait_started = 0.0  # [s] monotonic, when the current wait began
         self._goal_wait_timeout = float(self.get_parameter("goal_wait_timeout").value)
@@ -288,9 +289,11 @@ class NavigatorNode(Node):
                 return False
             return True
         # The first tick answered after the goal ended (normally the next one; a later one when
-        # that tick's odometry or scan was lost, e.g. to a drop fault) waits, once.
+        # that tick's odometry or scan was lost, e.g. to a drop fault) waits, once, unless the
+        # commander said no goal is coming (a cancel while no goal runs).
         return (self._terminal_ns is not None and t > self._terminal_ns
                 and (self._goal_wait_over is None or self._goal_wait_over <= self._terminal_ns)
+                and self._no_next_goal != self._terminal_ns
                 and self.count_publishers(self._goal_topic) > 0)
 
     def _on_goal_wait_poll(self, t: int) -> None:
@@ -337,6 +340,12 @@ class NavigatorNode(Node):
         active = self.core.state not in TERMINAL
         self.core.cancel(self._now_ns / NS_PER_S)
         self._publish_status(force=True)
+        if not active and self._terminal_ns is not None:
+            # A cancel with no goal running says "no next goal is coming": the first tick after
+            # the goal that ended need not wait for one (a coordinated commander whose robot
+            # reached its waiting spot). Answered at that same tick: reproducible.
+            self._no_next_goal = self._terminal_ns
+            self._release()
         response.success = active
         response.message = "canceled" if active else "no active goal"
         return response

@@ -30,6 +30,33 @@ Definitions (``docs/ARCHITECTURE.md``, ``/<ns>/nav_status``):
   ``drop`` faults. The simulator's own "stopped answering" events (a navigator that went silent)
   are ``unresponsive_events``. A restart caused by a fault does not make a run irreproducible
   (the schedule decides it); a fault the simulator had to go on without acknowledging does.
+- *task*: one workstation visit. Decentralized: one goal reached (every commander goal is a
+  workstation), so ``tasks_completed == goals_reached``. Centralized: one ``task`` event of the
+  coordinator (a robot reported it reached its reserved workstation); goals to waiting spots are
+  goals, not tasks. ``throughput_per_hour`` is tasks per simulated hour;
+  ``throughput_after_warmup_per_hour`` counts only tasks completed after the first
+  ``warmup_s`` (120 s) of simulated time, over the time after it (None for shorter runs).
+- *time to task* (``time_to_task_*``): decentralized, the goal's navigation time; centralized,
+  from the robot's request for the task to its arrival at the workstation, waiting at a spot
+  included (the coordinator's ``duration_s``): the time the robot needed for the task either way.
+- *waiting at spots* (``coordinator_wait_s``, centralized): simulated seconds robots held a
+  waiting spot (reserve to release, or to the end of the run).
+- *late goals*: goals a navigator applied later than the first control tick after the goal's
+  stamp (the tick it was applied at is the first status's ``stamp`` minus its
+  ``navigation_time_s``): the goal arrived after that tick, so wall-clock timing decided when
+  it took effect. Zero in a reproducible run; counted in *reproducible*.
+- *reservation conflicts*: the :func:`swarm_common.coordination.check_reservations` violations
+  in the coordinator's events (a resource reserved while another robot held it); must be 0.
+- *communication load* (``comm``): the messages, and their serialized (CDR) bytes, that cross
+  between a robot and a central node: the coordinator's three topics (every request, every
+  assignment, one ``state`` copy per robot per coordinator start) and the map distribution
+  (one latched ``/map`` per navigator start). Not counted: the simulator's topics (``/clock``,
+  ``odom``, ``scan``, ``cmd_vel``, ``ground_truth``: they stand for each robot's own sensors and
+  motors), a robot's own ``goal_pose``/``nav_status``/``navigator/cancel`` (navigator and
+  commander run on the same robot) and ``/swarm/events`` (instrumentation). DDS/RTPS headers,
+  discovery and acknowledgements are not counted, nor re-sends (a byte-identical copy of a
+  request or an answer, whose number depends on wall-clock timing: ``comm.resent``). Per
+  simulated second: divided by ``sim_time_s``.
 """
 
 from __future__ import annotations
@@ -39,9 +66,19 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from swarm_common.coordination import (
+    EVENT_COORDINATOR,
+    EVENT_RESERVATION,
+    EVENT_TASK,
+    check_reservations,
+)
 from swarm_common.faults import FaultEvent
 from swarm_common.nav_status import NavState, decode
 from swarm_common.sim_summary import RobotSummary, SimSummary, SimSummaryError
+from swarm_common.stamps import NS_PER_S, parse_stamp
+
+WARMUP_S = 120.0  # [s] simulated: the protocol's warm-up, left out of the warm-up throughput
+COMM_TOPICS = ("map", "request", "assignment", "state")
 
 SIM_SUMMARY_KEYS = (
     "ticks",
@@ -83,6 +120,13 @@ class RobotRecord:
     goal_wait_timeouts: int = 0  # the navigator's counter, as last published
     goal_wait_timeouts_before: int = 0  # the counters of earlier (restarted) navigator processes
     task_times: list[float] = field(default_factory=list)  # [s] sim time of each first SUCCEEDED
+    reached_at: dict[str, float] = field(default_factory=dict)  # goal id -> sim time [s] reached
+    applied: set[str] = field(default_factory=set)  # goal ids seen applied
+    late_goals: int = 0  # goals applied after the first tick after their stamp
+    late_goal_ids: list[str] = field(default_factory=list)  # "<goal id> applied at <t>" (first 10)
+    tasks: list[tuple[float, float, str]] = field(default_factory=list)  # (t, duration [s], ws)
+    comm_messages: int = 0  # messages to/from central nodes (coordinator, /map)
+    comm_bytes: int = 0
 
     @property
     def goal_wait_timeouts_total(self) -> int:
@@ -106,6 +150,13 @@ class RunRecorder:
     fault_events: int = 0  # the simulator's "stopped answering" / "answers again" events
     fault_log: list[FaultEvent] = field(default_factory=list)  # injected faults, in order
     spawn_events: int = 0
+    period_s: float = 0.1  # [s] the control tick (late goals)
+    reservation_events: list[dict[str, str]] = field(default_factory=list)
+    coordinator_starts: int = 0
+    comm_by_topic: dict[str, list[int]] = field(default_factory=dict)  # topic -> [msgs, bytes]
+    map_bytes: int | None = None  # serialized size of the latest /map
+    comm_resent: int = 0  # byte-identical copies of requests and assignments (re-sends)
+    _comm_seen: set = field(default_factory=set, repr=False)
 
     def __post_init__(self) -> None:
         for ns in self.robots:
@@ -137,6 +188,23 @@ class RunRecorder:
             rec.goal_wait_timeouts = waits
         if goal and status.holding_time is not None:
             rec.holding_s[goal] = status.holding_time
+        if goal and goal not in rec.applied and status.stamp_ns is not None \
+                and status.navigation_time is not None and state not in (None, NavState.IDLE):
+            rec.applied.add(goal)
+            goal_ns = parse_stamp(goal)
+            if goal_ns is not None:  # (a rejected goal's status is stamped before: not late)
+                period_ns = round(self.period_s * NS_PER_S)
+                expected = (goal_ns // period_ns + 1) * period_ns
+                applied = status.stamp_ns - round(status.navigation_time * NS_PER_S)
+                if applied - expected > NS_PER_S // 500:  # beyond the 3 decimals' rounding
+                    rec.late_goals += 1
+                    if len(rec.late_goal_ids) < 10:
+                        rec.late_goal_ids.append(f"{goal} applied at {applied / NS_PER_S:.3f} "
+                                                 f"({state.value}, {status.stamp_ns}, "
+                                                 f"{status.navigation_time})")
+        if state == NavState.SUCCEEDED and goal and goal not in rec.reached_at \
+                and status.stamp_ns is not None:
+            rec.reached_at[goal] = status.stamp_ns / NS_PER_S
         if state == NavState.SUCCEEDED:
             ttg = status.navigation_time
             if goal:
@@ -187,6 +255,42 @@ class RunRecorder:
                 self.fault_events += 1
             else:
                 self.fault_log.append(injected)
+        elif kind == EVENT_RESERVATION:
+            self.reservation_events.append(dict(values))
+        elif kind == EVENT_TASK:
+            t, start = parse_stamp(values.get("t", "")), parse_stamp(values.get("t_start", ""))
+            if rec is not None and t is not None and start is not None:
+                rec.tasks.append((t / NS_PER_S, (t - start) / NS_PER_S,
+                                  values.get("workstation", "")))
+        elif kind == EVENT_COORDINATOR:
+            self.coordinator_starts += 1
+
+    def on_comm(self, topic: str, robot: str, nbytes: int, key: str | None = None) -> None:
+        """One message between a robot and a central node (see *communication load*).
+
+        Args:
+            topic: one of :data:`COMM_TOPICS`.
+            robot: the robot it went to or came from; "" for a message every robot receives
+                (one copy per robot is counted).
+            nbytes: its serialized size [bytes].
+            key: the message's text, if a byte-identical copy is a re-send (a request sent
+                again because no answer came in time, and the repeated answer): re-sends are
+                counted apart (``comm.resent``), as their number depends on wall-clock timing.
+        """
+        if key is not None:
+            if (topic, key) in self._comm_seen:
+                self.comm_resent += 1
+                return
+            self._comm_seen.add((topic, key))
+        entry = self.comm_by_topic.setdefault(topic, [0, 0])
+        for ns in [robot] if robot else list(self.robots):
+            rec = self.per_robot.get(ns)
+            if rec is None:
+                continue
+            rec.comm_messages += 1
+            rec.comm_bytes += nbytes
+            entry[0] += 1
+            entry[1] += nbytes
 
     def on_clock(self, sim_time_s: float) -> None:
         """One ``/clock`` message [s]."""
@@ -267,8 +371,84 @@ def _robot_metrics(rec: RobotRecord, sim: RobotSummary) -> dict:
         "holding_time_s": sum(rec.holding_s.values()),
         "late_ticks": sim.late_ticks,
         "goal_wait_timeouts": rec.goal_wait_timeouts_total,
+        "late_goals": rec.late_goals,
+        "late_goal_ids": list(rec.late_goal_ids),
         "ready_s": rec.ready_wall_s,
         "task_times_s": sorted(rec.task_times),
+    }
+
+
+def task_records(recorder: RunRecorder, centralized: bool) -> list[tuple[float, float, str]]:
+    """Every task with a known time: ``(completed at [s] sim, time to task [s], robot)``,
+    sorted by completion time (see *task* and *time to task* in the module doc)."""
+    out = []
+    for ns in recorder.robots:
+        rec = recorder.per_robot[ns]
+        if centralized:
+            out += [(t, d, ns) for t, d, _ in rec.tasks]
+        else:
+            out += [(rec.reached_at[g], d, ns) for g, d in rec.reached.items()
+                    if g in rec.reached_at and d is not None]
+    return sorted(out)
+
+
+def _spot_wait_s(events: list[dict[str, str]], end_s: float | None) -> float:
+    """Simulated seconds robots held waiting spots (reserve to release, or to ``end_s``)."""
+    since: dict[tuple[str, str], float] = {}
+    total = 0.0
+    for ev in events:
+        res = ev.get("resource", "")
+        t = parse_stamp(ev.get("t", ""))
+        if not res.startswith("spot:") or t is None:
+            continue
+        key = (res, ev.get("robot", ""))
+        if ev.get("action") == "reserve":
+            since.setdefault(key, t / NS_PER_S)
+        elif key in since:
+            total += t / NS_PER_S - since.pop(key)
+    if end_s is not None:
+        total += sum(max(0.0, end_s - t0) for t0 in since.values())
+    return total
+
+
+def _percentile(values: list[float], q: float) -> float | None:
+    if not values:
+        return None
+    import numpy as np
+
+    return float(np.percentile(np.asarray(values, float), q))
+
+
+def _comm(recorder: RunRecorder, map_deliveries: dict[str, int] | None,
+          sim_time: float | None) -> dict:
+    """The ``comm`` entry (see *communication load*)."""
+    by_topic = {k: list(v) for k, v in recorder.comm_by_topic.items()}
+    per_robot = {ns: [recorder.per_robot[ns].comm_messages, recorder.per_robot[ns].comm_bytes]
+                 for ns in recorder.robots}
+    if recorder.map_bytes is not None:
+        deliveries = map_deliveries or {ns: 1 for ns in recorder.robots}
+        entry = by_topic.setdefault("map", [0, 0])
+        for ns, copies in deliveries.items():
+            if ns in per_robot:
+                per_robot[ns][0] += copies
+                per_robot[ns][1] += copies * recorder.map_bytes
+                entry[0] += copies
+                entry[1] += copies * recorder.map_bytes
+    messages = sum(m for m, _ in per_robot.values())
+    nbytes = sum(b for _, b in per_robot.values())
+
+    def rate(x):
+        return x / sim_time if sim_time else None
+
+    return {
+        "messages": messages, "bytes": nbytes,
+        "messages_per_s": rate(messages), "bytes_per_s": rate(nbytes),
+        "by_topic": {k: {"messages": m, "bytes": b, "messages_per_s": rate(m),
+                         "bytes_per_s": rate(b)} for k, (m, b) in sorted(by_topic.items())},
+        "per_robot": {ns: {"messages": m, "bytes": b, "messages_per_s": rate(m),
+                           "bytes_per_s": rate(b)} for ns, (m, b) in per_robot.items()},
+        "map_bytes": recorder.map_bytes,
+        "resent": recorder.comm_resent,
     }
 
 
@@ -304,6 +484,7 @@ def aggregate(
     restarts: int = 0,
     extra: dict | None = None,
     fault_restarts: int = 0,
+    map_deliveries: dict[str, int] | None = None,
 ) -> dict:
     """The ``--metrics`` dict of a run (SPEC §6).
 
@@ -323,6 +504,8 @@ def aggregate(
         restarts: restarts of navigators/commanders/groups.
         extra: more keys to add (run dir, process layout, ...).
         fault_restarts: those of ``restarts`` that injected faults caused.
+        map_deliveries: ``/map`` copies each robot's navigator received (one per process
+            start); None: one each.
 
     Returns:
         A JSON-serialisable dict with the keys of SPEC §6 (None where unknown).
@@ -356,6 +539,21 @@ def aggregate(
             by_kind[str(entry.get("kind"))] = by_kind.get(str(entry.get("kind")), 0) + 1
     ack_timeouts = (sim_faults or {}).get("ack_timeouts") or 0
     wall_restarts = restarts - fault_restarts
+    centralized = coordination == "centralized"
+    tasks = task_records(recorder, centralized)
+    tasks_completed = (sum(len(recorder.per_robot[ns].tasks) for ns in robots) if centralized
+                       else reached)
+    late_goals = sum(recorder.per_robot[ns].late_goals for ns in robots)
+    durations = [d for _, d, _ in tasks]
+    after = [t for t, _, _ in tasks if t > WARMUP_S]
+    warm_hours = (sim_time - WARMUP_S) / 3600.0 if sim_time and sim_time > WARMUP_S else None
+    comm = _comm(recorder, map_deliveries, sim_time)
+    for ns in robots:
+        entry = comm["per_robot"][ns]
+        per_robot[ns]["tasks"] = (len(recorder.per_robot[ns].tasks) if centralized
+                                  else per_robot[ns]["goals_reached"])
+        per_robot[ns]["comm_messages"] = entry["messages"]
+        per_robot[ns]["comm_bytes"] = entry["bytes"]
     metrics = {
         "robots": n,
         "world": world,
@@ -370,16 +568,33 @@ def aggregate(
         "spawn_to_ready_s": recorder.spawn_to_ready_s(),
         "goals_reached": reached,
         "goals_aborted": sum(r["goals_aborted"] for r in per_robot.values()),
-        "tasks_completed": reached,
-        "throughput_per_hour": (reached / hours) if hours else None,
+        "tasks_completed": tasks_completed,
+        "throughput_per_hour": (tasks_completed / hours) if hours else None,
+        "warmup_s": WARMUP_S,
+        "throughput_after_warmup_per_hour": (len(after) / warm_hours) if warm_hours else None,
+        "time_to_task_mean_s": (sum(durations) / len(durations)) if durations else None,
+        "time_to_task_median_s": _percentile(durations, 50.0),
+        "time_to_task_p95_s": _percentile(durations, 95.0),
+        "task_times_s": [round(t, 3) for t, _, _ in tasks],
         "collisions": _collisions(recorder, sim),
         "min_separation_m": _float(sim.min_separation_m),
         "mean_time_to_goal_s": (sum(ttgs) / len(ttgs)) if ttgs else None,
         "holding_time_s": sum((r["holding_time_s"] for r in per_robot.values()), 0.0),
         "late_ticks": late,
         "goal_wait_timeouts": waits,
+        "late_goals": late_goals,
         "reproducible": None if late is None else (
-            late == 0 and waits == 0 and wall_restarts == 0 and ack_timeouts == 0),
+            late == 0 and waits == 0 and wall_restarts == 0 and ack_timeouts == 0
+            and late_goals == 0),
+        "coordinator_wait_s": (_spot_wait_s(recorder.reservation_events, sim_time)
+                               if centralized else None),
+        "reservation_events": len(recorder.reservation_events),
+        "reservation_conflicts": (len(check_reservations(recorder.reservation_events))
+                                  if centralized else None),
+        "coordinator_starts": recorder.coordinator_starts,
+        "comm_messages_per_s": comm["messages_per_s"],
+        "comm_bytes_per_s": comm["bytes_per_s"],
+        "comm": comm,
         "cpu_percent": resources.get("cpu_percent"),
         "peak_rss_mb_per_robot": resources.get("peak_rss_mb_per_robot"),
         "sim_peak_rss_mb": resources.get("sim_peak_rss_mb"),
@@ -391,7 +606,6 @@ def aggregate(
                                        ).values()),
         "fault_ack_timeouts": ack_timeouts,
         "unresponsive_events": recorder.fault_events,
-        "task_times_s": sorted(t for ns in robots for t in recorder.per_robot[ns].task_times),
         "per_robot": per_robot,
     }
     if extra:

@@ -89,7 +89,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="start a commander for every robot (visits the workstations)")
     p.add_argument("--coordination", choices=("decentralized", "centralized"),
                    default="decentralized",
-                   help="decentralized (default) or centralized (not implemented yet: exits 2)")
+                   help="decentralized (default): every robot chooses its tasks; centralized: "
+                   "a coordinator (swarm-coordinator, child 'coordinator') assigns tasks and "
+                   "reserves workstations and waiting spots; needs --commanders")
     p.add_argument("--metrics", type=Path, default=None, metavar="PATH",
                    help="write the run's figures as JSON here at exit (always also "
                    "RUN/metrics.json)")
@@ -149,7 +151,7 @@ class RunConfig:
         rtf: real-time factor (0 = as fast as possible).
         duration: simulated seconds, or None (until Ctrl-C) [s].
         commanders: start commanders.
-        coordination: ``decentralized``.
+        coordination: ``decentralized`` | ``centralized`` (with commanders).
         metrics_path: ``--metrics`` file or None.
         groups: None for one process per robot, else the robots of every group process.
         gui: open the PyBullet window.
@@ -299,8 +301,9 @@ def validate(args: argparse.Namespace) -> RunConfig:
     Raises:
         InputError: the first bad flag or file (the one line shown, naming it).
     """
-    if args.coordination == "centralized":
-        raise InputError("--coordination: centralized is not implemented yet")
+    if args.coordination == "centralized" and not args.commanders:
+        raise InputError("--coordination: centralized needs --commanders (the coordinator "
+                         "assigns the commanders' tasks)")
     if args.dashboard is not None:
         from swarm_up.dashboard import check_port
 

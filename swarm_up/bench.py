@@ -145,6 +145,8 @@ class BenchConfig:
         floor: measure the floor.
         run_dir: absolute directory of the logs and runs.
         swarm_up: the ``swarm-up`` executable measured (absolute).
+        extra_args: more ``swarm-up`` flags for every run (``swarm-experiment``'s
+            ``--faults SPEC``).
     """
 
     sizes: tuple[int, ...]
@@ -159,6 +161,7 @@ class BenchConfig:
     floor: bool
     run_dir: Path
     swarm_up: Path
+    extra_args: tuple[str, ...] = ()
 
 
 def _check_file_flag(flag: str, path: Path, suffix: str | None = None) -> Path:
@@ -245,9 +248,11 @@ class BenchView:
 
     Args:
         tty: draw bars (True) or print lines (False).
+        prog: the prefix of plain lines (the command's name).
     """
 
-    def __init__(self, tty: bool):
+    def __init__(self, tty: bool, prog: str = PROG):
+        self._prog = prog
         self._progress = None
         self._task = None
         self._label = ""
@@ -265,7 +270,7 @@ class BenchView:
         if self._progress is not None:
             self._progress.console.print(line, markup=False, highlight=False)
         else:
-            print(f"{PROG}: {line}", flush=True)
+            print(f"{self._prog}: {line}", flush=True)
 
     def start(self, label: str, total_s: float) -> None:
         """A new run: ``label`` (size, run), ``total_s`` simulated seconds."""
@@ -328,7 +333,7 @@ def swarm_up_command(cfg: BenchConfig, n: int, seed: int, run_dir: Path,
             "--coordination", cfg.coordination]
     if cfg.processes is not None:
         argv += ["--processes", str(cfg.processes)]
-    return argv
+    return argv + list(cfg.extra_args)
 
 
 def _error_line(log: Path) -> str:

@@ -32,7 +32,8 @@ def faults_file(cfg: RunConfig) -> Path:
 
 
 def child_specs(cfg: RunConfig):
-    """The supervised processes of a run, in start order: simulator, navigators, commanders.
+    """The supervised processes of a run, in start order: simulator, coordinator (centralized
+    mode: the child named ``coordinator``), navigators, commanders.
 
     Returns:
         A list of :class:`swarm_up.supervisor.ChildSpec`.
@@ -62,6 +63,9 @@ def child_specs(cfg: RunConfig):
     specs = [ChildSpec("sim", tuple(sim), logs / "sim.log", kind="sim", restart=False, env=env)]
     if cfg.record_path is not None:  # started first: swarm-up waits for it before the rest
         specs.insert(0, recorder_spec(cfg, env))
+    coordinated = cfg.coordination == "centralized"
+    if coordinated:
+        specs.append(coordinator_spec(cfg, env))
 
     if cfg.groups is None:
         nav = command("swarm-nav", "swarm_nav.node")
@@ -75,6 +79,8 @@ def child_specs(cfg: RunConfig):
             for ns in cfg.robots:
                 argv = cmd + [ns, "--world", world, "--seed", str(cfg.seed),
                               "--wait-timeout", repr(cfg.ready_timeout)]
+                if coordinated:
+                    argv.append("--coordinated")
                 specs.append(ChildSpec(f"cmd_{ns}", tuple(argv), logs / f"cmd_{ns}.log",
                                        kind="cmd", robots=(ns,), env=env))
     else:
@@ -83,6 +89,8 @@ def child_specs(cfg: RunConfig):
                     "--params-dir", str(params)]
             if cfg.commanders:
                 argv += ["--commanders", "--world", world, "--seed", str(cfg.seed)]
+                if coordinated:
+                    argv += ["--coordinated", "--coordinator-timeout", repr(cfg.ready_timeout)]
             if cfg.faults:
                 argv.append("--faults")
             specs.append(ChildSpec(f"group_{g}", tuple(argv), logs / f"group_{g}.log",
@@ -118,3 +126,18 @@ def recorder_spec(cfg: RunConfig, env: dict[str, str]):
         argv += ["--topics", cfg.record_topics]
     return ChildSpec("record", tuple(argv), cfg.run_dir / "logs" / "record.log", kind="record",
                      restart=False, env=env)
+COORDINATOR = "coordinator"
+"""The child name of the coordinator (``RUN/logs/coordinator.log``); fault injection finds it by
+this name in the supervisor (``Supervisor.pid(COORDINATOR)``)."""
+
+
+def coordinator_spec(cfg: RunConfig, env: dict):
+    """The coordinator's :class:`~swarm_up.supervisor.ChildSpec` (restarted when it crashes)."""
+    from swarm_up.supervisor import ChildSpec
+
+    argv = command("swarm-coordinator", "swarm_coordinator.node") + [
+        "--swarm-size", str(len(cfg.robots)), "--name-prefix", cfg.name_prefix,
+        "--world", str(cfg.world_path), "--seed", str(cfg.seed), "--robot", cfg.robot,
+        "--start-timeout", repr(cfg.ready_timeout)]
+    return ChildSpec(COORDINATOR, tuple(argv), cfg.run_dir / "logs" / f"{COORDINATOR}.log",
+                     kind="coord", env=env)

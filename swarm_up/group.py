@@ -48,6 +48,11 @@ def build_parser() -> cli.ArgumentParser:
     p.add_argument("--faults", action="store_true",
                    help="carry out the kill-nav and kill-robot faults of /swarm/events for "
                    "these robots in-process (swarm_up.faults.GroupFaults)")
+    p.add_argument("--coordinated", action="store_true",
+                   help="the commanders ask the coordinator for their tasks "
+                   "(swarm-up --coordination centralized)")
+    p.add_argument("--coordinator-timeout", type=cli.positive_float, default=120.0,
+                   help="wall seconds to wait for the coordinator before the commanders start")
     return p
 
 
@@ -59,7 +64,7 @@ def _run(argv: list[str]) -> int:
     if missing:
         raise InputError(f"--params-dir: no params file {missing[0]}")
     routes = {}
-    if opts.commanders:
+    if opts.commanders and not opts.coordinated:
         from swarm_commander.route import build_route
 
         routes = {ns: build_route(opts.world, opts.seed, ns) for ns in names}
@@ -79,7 +84,10 @@ def _run(argv: list[str]) -> int:
             executor.add_node(node)
             nodes.append(node)
             navigators[ns] = node
-        if opts.commanders:
+        if opts.commanders and opts.coordinated:
+            _add_coordinated_commanders(names, executor, nodes, runners, commanders,
+                                        opts.coordinator_timeout)
+        elif opts.commanders:
             from rclpy.logging import LoggingSeverity
 
             from swarm_commander.cli import CommanderConfig, CommanderRunner
@@ -131,6 +139,38 @@ def _run(argv: list[str]) -> int:
             node.destroy_node()
         rclpy.try_shutdown()
     return 0
+
+
+def _add_coordinated_commanders(names, executor, nodes, runners, commanders: dict,
+                                timeout_s: float) -> None:
+    """Wait (spinning the navigators) for the coordinator, then add a coordinated commander
+    per robot: the navigators' start gate opens only once the coordinator is there.
+    ``commanders`` (ns -> (node, runner), what faults may kill) gets each."""
+    from rclpy.logging import LoggingSeverity
+    from rclpy.node import Node
+
+    from swarm_commander.coordinated import CoordinatedRunner, wait_for_coordinator
+    from swarm_commander.robot_navigator import BasicNavigator
+
+    watch = Node("coordinator_watch", namespace=names[0])
+    executor.add_node(watch)
+    try:
+        if not wait_for_coordinator(watch, timeout_s,
+                                    lambda t: executor.spin_once(timeout_sec=t)):
+            print(f"{PROG}: no coordinator after {timeout_s:g} s; commanders start anyway",
+                  flush=True)
+    finally:
+        executor.remove_node(watch)
+        watch.destroy_node()
+    sim_time = rclpy.parameter.Parameter("use_sim_time", rclpy.parameter.Parameter.Type.BOOL,
+                                         True)
+    for ns in names:
+        nav = BasicNavigator(node_name="commander", namespace=ns, parameter_overrides=[sim_time])
+        nav.get_logger().set_level(LoggingSeverity.WARN)
+        runners.append(CoordinatedRunner(nav, emit=lambda line: print(line, flush=True)))
+        executor.add_node(nav)
+        nodes.append(nav)
+        commanders[ns] = (nav, runners[-1])
 
 
 def main(args: list[str] | None = None) -> int:

@@ -3,8 +3,10 @@
 It subscribes to ``/<ns>/nav_status`` of every robot (``diagnostic_msgs/DiagnosticStatus``,
 reliable + transient local, depth 1), ``/swarm/events`` (``diagnostic_msgs/DiagnosticArray``,
 reliable, depth 100) and ``/clock``, converts each message to plain values and hands them to the
-pure recorder (``swarm_up.aggregate``).  It spins in a background thread with its own executor
-and context, so the orchestrator's main thread keeps supervising.
+pure recorder (``swarm_up.aggregate``). For the communication load it also takes, serialized
+(``raw``: only their size and sender are read), the coordinator's topics
+(:mod:`swarm_common.coordination`) and the latched ``/map``.  It spins in a background thread
+with its own executor and context, so the orchestrator's main thread keeps supervising.
 
 The executor is rclpy's ``EventsExecutor``, looped on ``spin_once`` as the group processes do
 (``docs/ARCHITECTURE.md``, Executors).  ``SingleThreadedExecutor`` rebuilds its wait set in Python
@@ -16,6 +18,7 @@ while the EventsExecutor spins) cannot arise.
 
 from __future__ import annotations
 
+import json
 import queue
 import threading
 import time
@@ -23,12 +26,15 @@ from collections.abc import Callable
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from nav_msgs.msg import OccupancyGrid
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
+from std_msgs.msg import String
 
+from swarm_common.coordination import REQUEST_TOPIC, STATE_TOPIC, assignment_topic
 from swarm_up.aggregate import RunRecorder
 
 STATUS_QOS = QoSProfile(
@@ -46,6 +52,24 @@ EVENTS_QOS = QoSProfile(
 CLOCK_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.BEST_EFFORT
 )
+# Transient local, as the coordination writers are: requests and answers published before
+# this reader matched are delivered from the writers' history (depth 10) when it matches.
+COMM_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
+                      reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
+LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+                         reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def cdr_string(raw: bytes) -> str:
+    """The text of a serialized ``std_msgs/String`` (CDR: 4-byte header, uint32 length with
+    the NUL, the bytes); ``""`` if malformed."""
+    if len(raw) < 8:
+        return ""
+    order = "little" if raw[1] & 1 else "big"
+    n = int.from_bytes(raw[4:8], order)
+    return raw[8:8 + max(0, n - 1)].decode("utf-8", errors="replace")
 
 
 class MetricsNode(Node):
@@ -80,6 +104,20 @@ class MetricsNode(Node):
             self.create_subscription(DiagnosticArray, "/swarm/events", self._on_events, EVENTS_QOS)
         )
         self._subs.append(self.create_subscription(Clock, "/clock", self._on_clock, CLOCK_QOS))
+        # communication load: the coordinator's topics and the map, serialized
+        self._subs.append(self.create_subscription(String, REQUEST_TOPIC, self._on_request,
+                                                   COMM_QOS, raw=True))
+        self._subs += [
+            self.create_subscription(String, assignment_topic(ns),
+                                     lambda raw, ns=ns: self._on_comm("assignment", ns, raw),
+                                     COMM_QOS, raw=True)
+            for ns in recorder.robots
+        ]
+        self._subs.append(self.create_subscription(
+            String, STATE_TOPIC, lambda raw: self._on_comm("state", "", raw), LATCHED_QOS,
+            raw=True))
+        self._subs.append(self.create_subscription(OccupancyGrid, "/map", self._on_map,
+                                                   LATCHED_QOS, raw=True))
 
     def _on_nav_status(self, ns: str, msg: DiagnosticStatus) -> None:
         values = {kv.key: kv.value for kv in msg.values}
@@ -93,6 +131,25 @@ class MetricsNode(Node):
         with self._lock:
             for status in msg.status:
                 self._recorder.on_event(status.name, {kv.key: kv.value for kv in status.values})
+
+    def _on_request(self, raw: bytes) -> None:
+        text = cdr_string(raw)
+        try:
+            robot = str(json.loads(text).get("robot", ""))
+        except (ValueError, AttributeError):
+            robot = ""
+        if robot:
+            with self._lock:
+                self._recorder.on_comm("request", robot.strip("/"), len(raw), key=text)
+
+    def _on_comm(self, topic: str, robot: str, raw: bytes) -> None:
+        key = cdr_string(raw) if topic == "assignment" else None
+        with self._lock:
+            self._recorder.on_comm(topic, robot, len(raw), key=key)
+
+    def _on_map(self, raw: bytes) -> None:
+        with self._lock:
+            self._recorder.map_bytes = len(raw)
 
     def _on_clock(self, msg: Clock) -> None:
         sim_s = msg.clock.sec + msg.clock.nanosec * 1e-9

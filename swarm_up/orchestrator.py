@@ -255,6 +255,15 @@ class Orchestrator:
             self._acks.close()
         return wall
 
+    def _map_deliveries(self) -> dict[str, int]:
+        """``/map`` copies each robot's navigator received: one per start of its process."""
+        out = {ns: 1 for ns in self.cfg.robots}
+        for state in self.sup.children.values():
+            if state.spec.kind in ("nav", "group"):
+                for ns in state.spec.robots:
+                    out[ns] = max(1, state.starts)
+        return out
+
     def report(self, outcome: Outcome, wall_s: float) -> dict:
         """Merge the simulator's summary, write the metrics files, print the summary table."""
         from swarm_up.aggregate import aggregate, load_sim_summary
@@ -270,6 +279,7 @@ class Orchestrator:
                 coordination=cfg.coordination, wall_time_s=wall_s,
                 resources=self.sampler.result(), restarts=self.sup.restarts,
                 fault_restarts=self.faults.fault_restarts if self.faults is not None else 0,
+                map_deliveries=self._map_deliveries(),
                 extra={"ended_by": outcome.ended_by, "run_dir": str(cfg.run_dir),
                        "processes": PER_ROBOT if cfg.groups is None else len(cfg.groups),
                        "commanders": cfg.commanders, "rtf_requested": cfg.rtf,

@@ -104,10 +104,17 @@ def print_summary(metrics: dict, metrics_files: list[Path]) -> None:
         ("min separation", _fmt(metrics.get("min_separation_m"), "m")),
         ("mean time to goal", _fmt(metrics.get("mean_time_to_goal_s"), "s", 1)),
         ("time holding", _fmt(metrics.get("holding_time_s"), "s", 1)),
+        *([("waiting at coordinator's spots", _fmt(metrics.get("coordinator_wait_s"), "s", 1)),
+           ("reservation conflicts", _fmt(metrics.get("reservation_conflicts")))]
+          if metrics.get("coordination") == "centralized" else []),
         ("late ticks", _fmt(metrics.get("late_ticks"))),
-        ("goal-wait timeouts", _fmt(metrics.get("goal_wait_timeouts"))),
+        ("goal-wait timeouts / late goals",
+         f"{_fmt(metrics.get('goal_wait_timeouts'))} / {_fmt(metrics.get('late_goals'))}"),
         ("reproducible (seed alone decides)", {True: "yes", False: "no", None: "unknown"}.get(
             metrics.get("reproducible"), "unknown")),
+        ("communication load (central)",
+         f"{_fmt(metrics.get('comm_messages_per_s'), 'msg/s', 2)}, "
+         f"{_fmt(metrics.get('comm_bytes_per_s'), 'B/s', 0)}"),
         ("CPU (100 % = one core)", _fmt(metrics.get("cpu_percent"), "%", 0)),
         ("peak RSS per robot", _fmt(metrics.get("peak_rss_mb_per_robot"), "MB", 1)),
         ("restarts", _fmt(metrics.get("restarts"))),

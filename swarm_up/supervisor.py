@@ -39,7 +39,8 @@ class ChildSpec:
         name: unique short name, also the log's stem (``sim``, ``nav_Srobot3``, ``group_1``).
         argv: the command line.
         log_path: file that receives stdout and stderr (appended to).
-        kind: ``sim`` | ``nav`` | ``cmd`` | ``group`` | ``record`` (used for per-robot accounting).
+        kind: ``sim`` | ``coord`` | ``nav`` | ``cmd`` | ``group`` | ``record`` (used for per-robot
+            accounting: the simulator, the coordinator and the recorder are not robots).
         robots: namespaces (without ``/``) this process serves.
         restart: restart it when it crashes (False: report its exit to the caller).
         env: environment (None: inherit the orchestrator's).
@@ -339,6 +340,7 @@ class ResourceSampler:
     _last_t: float = 0.0
     peak_robot_rss_b: int = 0
     peak_sim_rss_b: int = 0
+    peak_coord_rss_b: int = 0
     samples: int = 0
 
     def _tracked(self) -> list[tuple[psutil.Process, str]]:
@@ -394,6 +396,8 @@ class ResourceSampler:
                 sim_rss += rss
             elif kind == "record":
                 pass  # the recorder is no robot's: its CPU counts, its memory not per robot
+            elif kind == "coord":
+                self.peak_coord_rss_b = max(self.peak_coord_rss_b, rss)
             else:
                 robot_rss += rss
         self.peak_robot_rss_b = max(self.peak_robot_rss_b, robot_rss)

@@ -14,7 +14,7 @@ ROS_SHELLS = {"node.py"}
 
 def _pure_modules():
     mods = sorted((ROOT / "swarm_common").glob("*.py"))
-    for pkg in ("swarm_sim", "swarm_nav"):
+    for pkg in ("swarm_sim", "swarm_nav", "swarm_coordinator"):
         mods += [p for p in sorted((ROOT / pkg).glob("*.py")) if p.name not in ROS_SHELLS]
     return mods
 

@@ -165,3 +165,26 @@ def test_a_commander_that_never_answers_costs_one_timeout_and_is_counted(probe):
     t2 = t1 + TICK_NS
     probe.tick(t2)
     assert probe.answer(t2, 5.0) < 0.25
+
+
+@pytest.mark.parametrize("probe", [5.0], indirect=True)
+def test_a_cancel_with_no_goal_running_says_no_next_goal_is_coming(probe):
+    """A coordinated commander whose robot reached its waiting spot (issue 11): the tick after
+    the goal ended is answered at once, without a goal-wait timeout."""
+    from std_srvs.srv import Trigger
+
+    client = probe.node.create_client(Trigger, "/hs/navigator/cancel")
+    spin_until(probe.executor, client.service_is_ready, 10.0, "the cancel service")
+    t0 = 10 * TICK_NS
+    probe.tick(t0)
+    probe.answer(t0, 10.0)
+    spin_until(probe.executor, lambda: probe.status.get("stamp") == "1.000000000", 5.0,
+               "the status of the first tick")
+    future = client.call_async(Trigger.Request())  # before the next tick comes
+    spin_until(probe.executor, future.done, 5.0, "the cancel's answer")
+    assert future.result().success is False  # nothing was running
+    t1 = t0 + TICK_NS
+    probe.tick(t1)
+    assert probe.answer(t1, 5.0) < 0.5, "the tick waited for a goal after all"
+    assert probe.answers[t1] == (0.0, 0.0)
+    assert probe.status["goal_wait_timeouts"] == "0"

@@ -241,3 +241,63 @@ def test_aggregate_module_is_pure():
         elif isinstance(node, ast.ImportFrom) and node.module:
             imported.add(node.module.split(".")[0])
     assert not {m for m in imported if m == "rclpy" or m.endswith("_msgs")}
+
+
+# -------------------------------------------------------------- issue 11: tasks, comm, late goals
+def _st(state, goal, stamp, nav_time):
+    return {"state": state, "goal_id": goal, "stamp": stamp, "navigation_time_s": nav_time}
+
+
+def test_late_goals_are_those_applied_after_the_tick_after_their_stamp():
+    rec = RunRecorder(robots=("r1",))
+    rec.on_status("r1", _st("DRIVING", "10.000000000", "10.100000000", "0.000"), 1.0)  # on time
+    rec.on_status("r1", _st("DRIVING", "20.100000000", "20.200000000", "0.000"), 1.0)  # on time
+    rec.on_status("r1", _st("DRIVING", "30.000000000", "30.400000000", "0.100"), 1.0)  # 30.3: late
+    rec.on_status("r1", _st("DRIVING", "30.000000000", "30.900000000", "0.600"), 1.0)  # seen
+    rec.on_status("r1", _st("SUCCEEDED", "30.000000000", "41.000000000", "10.700"), 1.0)
+    assert rec.per_robot["r1"].late_goals == 1
+    assert rec.per_robot["r1"].reached_at["30.000000000"] == 41.0
+    m = aggregate(rec, SimSummary(), world="w", seed=0, coordination="decentralized",
+                  wall_time_s=1.0)
+    assert m["late_goals"] == 1 and m["task_times_s"] == [41.0]
+    assert m["time_to_task_mean_s"] == pytest.approx(10.7)
+
+
+def test_centralized_tasks_waiting_conflicts_and_communication_load():
+    rec = RunRecorder(robots=("r1", "r2"))
+    rec.on_clock(200.0)
+    ev = [("reservation", {"robot": "r1", "action": "reserve", "resource": "workstation:A",
+                           "t": "0.000000000", "epoch": "e"}),
+          ("reservation", {"robot": "r2", "action": "reserve", "resource": "spot:A.0",
+                           "t": "0.000000000", "epoch": "e"}),
+          ("task", {"robot": "r1", "workstation": "A", "t_start": "0.000000000",
+                    "t": "130.000000000", "duration_s": "130.000", "epoch": "e"}),
+          ("reservation", {"robot": "r1", "action": "release", "resource": "workstation:A",
+                           "t": "130.000000000", "epoch": "e"}),
+          ("reservation", {"robot": "r2", "action": "release", "resource": "spot:A.0",
+                           "t": "130.100000000", "epoch": "e"}),
+          ("reservation", {"robot": "r2", "action": "reserve", "resource": "workstation:A",
+                           "t": "130.100000000", "epoch": "e"}),
+          ("reservation", {"robot": "r1", "action": "reserve", "resource": "spot:B.0",
+                           "t": "150.000000000", "epoch": "e"}),
+          ("coordinator", {"state": "up", "t": "0.000000000", "epoch": "e"})]
+    for kind, values in ev:
+        rec.on_event(kind, values)
+    rec.on_comm("request", "r1", 200)
+    rec.on_comm("assignment", "r2", 220)
+    rec.on_comm("state", "", 60)  # one copy per robot
+    rec.map_bytes = 1000
+    m = aggregate(rec, SimSummary(), world="w", seed=0, coordination="centralized",
+                  wall_time_s=1.0, map_deliveries={"r1": 1, "r2": 2})
+    assert m["tasks_completed"] == 1 and m["goals_reached"] == 0
+    assert m["task_times_s"] == [130.0] and m["time_to_task_mean_s"] == 130.0
+    assert m["throughput_after_warmup_per_hour"] == pytest.approx(1 / (80 / 3600))
+    assert m["coordinator_wait_s"] == pytest.approx(130.1 + 50.0)  # r1's spot open to the end
+    assert m["reservation_conflicts"] == 0 and m["coordinator_starts"] == 1
+    c = m["comm"]
+    assert (c["messages"], c["bytes"]) == (1 + 1 + 2 + 3, 200 + 220 + 120 + 3000)
+    assert c["by_topic"]["map"] == {"messages": 3, "bytes": 3000, "messages_per_s": 0.015,
+                                    "bytes_per_s": 15.0}
+    assert c["per_robot"]["r2"]["bytes"] == 220 + 60 + 2000
+    assert m["comm_bytes_per_s"] == pytest.approx(3540 / 200.0)
+    assert m["per_robot"]["r1"]["tasks"] == 1 and m["per_robot"]["r2"]["comm_messages"] == 4

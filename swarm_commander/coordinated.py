@@ -1,0 +1,337 @@
+"""A commander that asks the coordinator for its tasks (``swarm-up --coordination centralized``).
+
+:class:`CoordinatedRunner` drives one robot's :class:`~swarm_commander.robot_navigator.
+BasicNavigator` like :class:`swarm_commander.cli.CommanderRunner`, but it does not choose: when
+its robot is ready, and whenever a workstation goal ends, it sends a request on
+``/swarm/coordinator/request`` and drives to what the coordinator answers on
+``/<ns>/coordinator/assignment`` (:mod:`swarm_common.coordination`): a workstation (``go``) or a
+waiting spot (``wait``). At a waiting spot it tells its navigator that no next goal is coming
+(a cancel with no goal running, so the navigator's next tick does not wait) and waits for the
+coordinator to hand it the workstation.
+
+**When the coordinator is silent** (the documented rule, tested in
+``tests/test_e2e_coordination.py``):
+
+1. The robot finishes the goal it has; nothing on the way depends on the coordinator.
+2. Then it waits where it stands and sends its request again if no answer came within 1 s
+   (wall), then after 2, 4, 8, 8, ... s (exponential backoff, capped at 8 s), until an answer
+   comes. A robot waiting at a spot has nothing to ask and keeps waiting. (A robot's first
+   request, ``ready``, is first re-sent after 8 s: at the start the coordinator answers once
+   every robot is ready. Re-sends are not counted in the communication load.)
+3. Its navigator's next tick waits ``goal_wait_timeout`` (2.5 s wall) for a goal and then goes
+   on without one: the robot stands still, the rest of the swarm keeps moving, and the run is
+   marked not reproducible (``goal_wait_timeouts``).
+4. A coordinator that comes (back) up publishes a new epoch on ``/swarm/coordinator/state``;
+   every commander then reports what it holds and waits for (or re-sends its open request), and
+   the coordinator rebuilds its tables from these reports before it answers anyone.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from geometry_msgs.msg import PoseStamped
+from rclpy.clock import Clock, ClockType
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.task import Future
+from std_msgs.msg import String
+from std_srvs.srv import Trigger
+
+from swarm_commander.robot_navigator import BasicNavigator, TaskResult
+from swarm_common.coordination import (
+    ASSIGNMENT_TOPIC,
+    COORDINATOR_NODE,
+    REQUEST_TOPIC,
+    STATE_TOPIC,
+    Assignment,
+    ContractError,
+    Request,
+    decode_assignment,
+    decode_state,
+    encode_request,
+    spot_resource,
+    workstation_resource,
+)
+from swarm_common.errors import EXIT_BAD_INPUT, EXIT_RUNTIME
+from swarm_common.geometry import yaw_to_quaternion
+from swarm_common.stamps import NS_PER_S
+
+# Transient local: a reader that matches late (the metrics node counting the communication
+# load) still gets the last requests; the coordinator reads them volatile (no stale requests).
+REQUEST_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+ASSIGNMENT_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+STATE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
+_OUTCOME = {TaskResult.SUCCEEDED: "succeeded", TaskResult.FAILED: "failed",
+            TaskResult.CANCELED: "canceled"}
+
+
+@dataclass(frozen=True)
+class CoordinatedConfig:
+    """Settings of a coordinated commander.
+
+    Attributes:
+        wait_timeout: [s] wall: how long to wait for the navigator's first ``nav_status``.
+        retry_first: [s] wall: first wait for an answer before the request is sent again.
+        retry_max: [s] wall: the longest wait between two sends (the backoff doubles up to it).
+        retry_ready: [s] wall: first wait before the first request (``ready``) is sent again:
+            the coordinator answers it only once every robot is ready.
+        poll_period: [s] wall: period of the runner's timer.
+    """
+
+    wait_timeout: float = 30.0
+    retry_first: float = 1.0
+    retry_max: float = 8.0
+    retry_ready: float = 8.0
+    poll_period: float = 0.1
+
+
+class CoordinatedRunner:
+    """One robot's commander in centralized mode (see the module doc).
+
+    Args:
+        navigator: the robot's :class:`BasicNavigator`; the runner adds its publishers,
+            subscriptions, a service client and a wall-clock timer to it.
+        cfg: the settings.
+        emit: called with each output line (a task's outcome, a retry, the summary).
+    """
+
+    def __init__(self, navigator: BasicNavigator, cfg: CoordinatedConfig = CoordinatedConfig(),
+                 emit: Callable[[str], None] = print):
+        self.nav = navigator
+        self.cfg = cfg
+        self.emit = emit
+        self.label = navigator.get_namespace().strip("/") or navigator.get_name()
+        self.tasks = self.reached = self.failed = self.canceled = 0
+        self.retries = 0
+        self.error: str | None = None
+        self.finished = Future()
+        self._started = False
+        self._deadline = time.monotonic() + cfg.wait_timeout
+        self._epoch: str | None = None
+        self._seq = 0
+        self._pending: Request | None = None
+        self._next_send = 0.0
+        self._backoff = cfg.retry_first
+        self._current: Assignment | None = None
+        self._unsent: Assignment | None = None
+        self._applied = 0  # highest assignment seq applied in this epoch
+        self._resync = False  # a new coordinator is to be told what we hold
+        self._first_start_ns: int | None = None
+        navigator.on_task_complete = self._on_task_complete
+        self._req_pub = navigator.create_publisher(String, REQUEST_TOPIC, REQUEST_QOS)
+        self._subs = [
+            navigator.create_subscription(String, ASSIGNMENT_TOPIC, self._on_assignment,
+                                          ASSIGNMENT_QOS),
+            navigator.create_subscription(String, STATE_TOPIC, self._on_state, STATE_QOS),
+        ]
+        self._decline = navigator.create_client(Trigger, "navigator/cancel")
+        self._timer = navigator.create_timer(
+            cfg.poll_period, self._on_timer, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    # -- public -----------------------------------------------------------------------------
+    @property
+    def started(self) -> bool:
+        """True once the robot asked for its first task."""
+        return self._started
+
+    @property
+    def coordinator_seen(self) -> bool:
+        """True once a coordinator's ``state`` was received."""
+        return self._epoch is not None
+
+    def stop(self) -> None:
+        """Stop driving: cancel the timer and detach from the navigator."""
+        self._timer.cancel()
+        if self.nav.on_task_complete == self._on_task_complete:
+            self.nav.on_task_complete = None
+
+    def summary(self) -> str:
+        """The summary line (tasks, outcomes, re-sent requests)."""
+        now = self.nav.status_stamp_ns or 0
+        elapsed = (now - self._first_start_ns) / NS_PER_S if self._first_start_ns else 0.0
+        return (f"[{self.label}] summary: {self.tasks} tasks: {self.reached} reached, "
+                f"{self.failed} failed, {self.canceled} canceled in {elapsed:.1f} s (sim); "
+                f"{self.retries} requests re-sent")
+
+    # -- callbacks --------------------------------------------------------------------------
+    def _on_timer(self) -> None:
+        if self.finished.done():
+            return
+        now = time.monotonic()
+        if not self._started:
+            if self.nav.navigator_ready and self._epoch is not None \
+                    and self._heard_by_coordinator():
+                self._started = True
+                self._request("ready")
+            elif now >= self._deadline and not self.nav.navigator_ready:
+                status = self.nav.get_namespace().rstrip("/") + "/nav_status"
+                self.error = (f"{self.label}: no navigator answered on {status} within "
+                              f"{self.cfg.wait_timeout:g} s")
+                self.stop()
+                self.finished.set_result(EXIT_BAD_INPUT if not self.nav.nav_status_received
+                                         else EXIT_RUNTIME)
+            return
+        if self._resync and self._heard_by_coordinator():
+            self._resync_now()
+        if self._unsent is not None:
+            self._drive(self._unsent)
+        if self._pending is not None and now >= self._next_send:
+            self.retries += 1
+            self.emit(f"[{self.label}] no answer from the coordinator to request "
+                      f"{self._pending.seq} ({self._pending.kind}); sending it again "
+                      f"(next try in {min(2 * self._backoff, self.cfg.retry_max):g} s)")
+            self._send(self._pending)
+            self._backoff = min(2 * self._backoff, self.cfg.retry_max)
+            self._next_send = now + self._backoff
+
+    def _on_state(self, msg: String) -> None:
+        try:
+            epoch = decode_state(msg.data)
+        except ContractError:
+            return
+        if epoch == self._epoch:
+            return
+        old, self._epoch, self._applied = self._epoch, epoch, 0
+        if old is not None and self._started:
+            self._resync = True  # done by the timer once the new coordinator hears us
+
+    def _resync_now(self) -> None:
+        """A new coordinator: re-send the open request, or report what we hold."""
+        self._resync = False
+        if self._pending is not None:
+            old_req = self._pending
+            self._pending = self._make(old_req.kind, old_req.outcome, old_req.target,
+                                       seq=old_req.seq)
+            self._send(self._pending)
+            self._backoff = self.cfg.retry_first
+            self._next_send = time.monotonic() + self.cfg.retry_first
+        else:
+            self._send(self._make("report"))
+
+    def _on_assignment(self, msg: String) -> None:
+        try:
+            a = decode_assignment(msg.data)
+        except ContractError as exc:
+            self.nav.get_logger().warning(f"dropped a malformed assignment: {exc}",
+                                          throttle_duration_sec=5.0)
+            return
+        if a.robot != self.label:
+            return
+        if a.epoch != self._epoch:  # its state message may still be on the way
+            self._epoch, self._applied = a.epoch, 0
+        if a.seq <= self._applied:
+            return
+        self._applied = a.seq
+        if self._pending is not None and a.reply_to == self._pending.seq:
+            self._pending = None
+        if self._first_start_ns is None:
+            self._first_start_ns = a.task_start_ns
+        self._drive(a)
+
+    def _on_task_complete(self, result: TaskResult) -> None:
+        cur = self._current
+        if cur is None:
+            return
+        if cur.kind == "wait":
+            # At the spot (or not reachable): no next goal until the coordinator hands over.
+            if self._decline.service_is_ready():
+                self._decline.call_async(Trigger.Request())
+            return
+        self.tasks += 1
+        now = self.nav.status_stamp_ns or 0
+        took = (now - cur.task_start_ns) / NS_PER_S
+        head = f"[{self.label}] task {self.tasks}:"
+        if result == TaskResult.SUCCEEDED:
+            self.reached += 1
+            self.emit(f"{head} reached {cur.target} in {took:.1f} s (sim)")
+        else:
+            feedback = self.nav.getFeedback()
+            reason = feedback.reason if feedback is not None and feedback.reason else "no reason"
+            if result == TaskResult.CANCELED:
+                self.canceled += 1
+            else:
+                self.failed += 1
+            self.emit(f"{head} failed to reach {cur.target} after {took:.1f} s (sim): {reason}")
+        self._request("done", _OUTCOME.get(result, "failed"), cur.target)
+
+    # -- helpers ----------------------------------------------------------------------------
+    def _drive(self, a: Assignment) -> None:
+        self._current = a
+        if self.nav.go_to_pose_at(_pose_msg(a.pose), a.stamp_ns):
+            self._unsent = None
+        else:  # the navigator is gone for now: the timer tries again
+            self._unsent = a
+
+    def _holdings(self) -> tuple[tuple[str, ...], str, int]:
+        a = self._current
+        if a is None:
+            return (), "", 0
+        if a.kind == "go":
+            return (workstation_resource(a.target),), "", 0
+        return (spot_resource(a.target),), a.waits_for, a.stamp_ns
+
+    def _make(self, kind: str, outcome: str = "", target: str = "",
+              seq: int | None = None) -> Request:
+        if seq is None:
+            self._seq += 1
+            seq = self._seq
+        holds, waits_for, since = self._holdings()
+        a = self._current
+        return Request(robot=self.label, seq=seq, kind=kind,
+                       stamp_ns=self.nav.status_stamp_ns or 0, outcome=outcome, target=target,
+                       holds=holds, waits_for=waits_for, since_ns=since,
+                       task_start_ns=a.task_start_ns if a is not None else 0)
+
+    def _request(self, kind: str, outcome: str = "", target: str = "") -> None:
+        self._pending = self._make(kind, outcome, target)
+        self._send(self._pending)
+        self._backoff = self.cfg.retry_first
+        if kind == "ready":  # the coordinator answers once every robot is ready: wait longer
+            self._backoff = self.cfg.retry_ready
+        self._next_send = time.monotonic() + self._backoff
+
+    def _heard_by_coordinator(self) -> bool:
+        """Whether our request publisher is matched with the coordinator's subscription (a
+        request published before discovery matched it would be lost)."""
+        infos = self.nav.get_subscriptions_info_by_topic(REQUEST_TOPIC)
+        return (any(i.node_name == COORDINATOR_NODE for i in infos)
+                and self._req_pub.get_subscription_count() >= len(infos))
+
+    def _send(self, req: Request) -> None:
+        self._req_pub.publish(String(data=encode_request(req)))
+
+
+def _pose_msg(pose: tuple[float, float, float]) -> PoseStamped:
+    msg = PoseStamped()
+    msg.header.frame_id = "map"
+    msg.pose.position.x, msg.pose.position.y = float(pose[0]), float(pose[1])
+    o = msg.pose.orientation
+    o.x, o.y, o.z, o.w = yaw_to_quaternion(float(pose[2]))
+    return msg
+
+
+def wait_for_coordinator(node, timeout_s: float, spin_once: Callable[[float], None]) -> bool:
+    """Spin until a coordinator's latched ``state`` is received (before commanders exist, so
+    that the simulator's start gate opens only with the coordinator there).
+
+    Args:
+        node: a node to create the temporary subscription on.
+        timeout_s: [s] wall.
+        spin_once: spins the executor that holds ``node`` once, with a timeout [s].
+
+    Returns:
+        True once seen, False after ``timeout_s``.
+    """
+    seen = []
+    sub = node.create_subscription(String, STATE_TOPIC, lambda m: seen.append(m), STATE_QOS)
+    deadline = time.monotonic() + timeout_s
+    try:
+        while not seen and time.monotonic() < deadline:
+            spin_once(0.1)
+    finally:
+        node.destroy_subscription(sub)
+    return bool(seen)

@@ -1,0 +1,365 @@
+"""The coordinator's logic: task assignment and first-come-first-served reservations (pure).
+
+No ROS here (STYLE.md rule 1): :class:`CoordinatorCore` takes decoded
+:class:`~swarm_common.coordination.Request` records and returns the
+:class:`~swarm_common.coordination.Assignment` records to send and the
+:class:`~swarm_common.coordination.CoordinatorEvent` records to publish; the node
+(:mod:`swarm_coordinator.node`) only converts messages and decides when a batch is complete.
+
+The model is Open-RMF's reservation node (``rmf_reservation``: a robot asks for a resource, the
+first to ask gets it, later askers are queued and parked at a waiting spot until it frees up):
+
+- Every robot has its own route: the same seeded order of workstations the decentralized
+  commander would visit (:func:`swarm_commander.route.build_route`), so both modes do the same
+  tasks. When a robot asks for its next task (``ready`` or ``done``) the core takes the next
+  workstation W of its route.
+- W free: W is reserved for the robot, which is sent there (``go``).
+- W reserved by another robot: the robot joins W's queue (first come, first served: ordered by
+  the simulated time of its request, then by robot number) and is sent to a free waiting spot
+  (``wait``), reserved for it: W's own holding spots first, then the parking spots nearest W.
+  No two robots are ever sent to one spot. When a holding spot of W frees up, the first robot
+  of W's queue that waits at a parking spot moves up to it (the next hand-over is short).
+- A robot that reports ``done`` at W leaves it: W is released at the request's stamp t, and the
+  first robot of W's queue gets W (its spot is released) with a goal stamped ``t + 2 period``
+  (``handover_ticks``), so it moves off its spot at tick ``t + 3 period``, whatever the
+  wall-clock latency, as long as the message arrives before that tick (it is sent before the
+  answer that lets the simulator go on, and the simulator must then complete two more ticks).
+- A goal that failed or was canceled releases its workstation too; the robot moves on to the next
+  stop of its route (as the decentralized commander does).
+- A robot the core has not heard from (a coordinator restarted with empty tables) is taken at its
+  word: the resources it reports are reserved for it if free; a workstation held by another robot
+  meanwhile sends it to a waiting spot instead.
+
+Requests of one batch are handled in order of (stamp, robot number), never in arrival order, so
+one batch gives the same answers whatever order its messages came in.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from swarm_common.coordination import (
+    EVENT_RESERVATION,
+    EVENT_TASK,
+    Assignment,
+    CoordinatorEvent,
+    Request,
+    spot_resource,
+    workstation_resource,
+)
+from swarm_common.stamps import NS_PER_S, format_stamp_ns
+
+
+@dataclass(frozen=True)
+class Station:
+    """A workstation: its name and docking pose (3,) x [m], y [m], yaw [rad] in ``map``."""
+
+    name: str
+    pose: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class Spot:
+    """A waiting spot.
+
+    Attributes:
+        id: ``<workstation>.<i>`` for the i-th holding point of a workstation, ``park<k>`` for a
+            parking spot.
+        xy: (x [m], y [m]) in ``map``.
+        near: the workstation whose holding spot it is, or ``""`` for a parking spot.
+        yaw: [rad] heading to park with (a holding spot faces its workstation).
+    """
+
+    id: str
+    xy: tuple[float, float]
+    near: str = ""
+    yaw: float = 0.0
+
+
+@dataclass(frozen=True)
+class CoordinatorConfig:
+    """Settings of the coordinator's core.
+
+    Attributes:
+        period_ns: [ns] the simulator's control tick.
+        handover_ticks: a goal handed to a waiting robot is stamped this many ticks after the
+            release (so it takes effect one tick later still, see the module doc); 2 leaves the
+            message two whole simulator ticks to arrive (1 was late once in a 300 s run of 20
+            robots on a loaded machine).
+    """
+
+    period_ns: int = NS_PER_S // 10
+    handover_ticks: int = 2  # [ticks] a handed-over goal's stamp after the release
+
+
+def spots_from_poi(poi, parking: np.ndarray | None = None) -> tuple[Spot, ...]:
+    """The waiting spots of a world: every holding point of every workstation, then parking.
+
+    Args:
+        poi: a :class:`swarm_common.poi.PointsOfInterest` (workstations with ``holding``).
+        parking: (K, 2) or (K, 3) parking places x, y [, yaw] in ``map`` (e.g. the spawn grid:
+            free of walls by construction), or None.
+
+    Returns:
+        The spots, holding spots first (``loader1.0`` ...), then ``park1`` ... ``parkK``.
+    """
+    spots = []
+    for w in poi.workstations:
+        wx, wy = float(w.pose[0]), float(w.pose[1])
+        for i, (x, y) in enumerate(np.asarray(w.holding, float).reshape(-1, 2)):
+            spots.append(Spot(f"{w.name}.{i}", (float(x), float(y)), w.name,
+                              math.atan2(wy - y, wx - x)))
+    if parking is not None:
+        for k, row in enumerate(np.asarray(parking, float), start=1):
+            yaw = float(row[2]) if len(row) > 2 else 0.0
+            spots.append(Spot(f"park{k}", (float(row[0]), float(row[1])), "", yaw))
+    return tuple(spots)
+
+
+@dataclass
+class _Robot:
+    index: int
+    known: bool = False  # heard from since this core started
+    workstation: str = ""  # reserved workstation
+    spot: str = ""  # reserved spot
+    waits_for: str = ""
+    since_ns: int = 0
+    task_start_ns: int = 0
+    last_seq: int = 0  # last request answered
+    last_answer: Assignment | None = None
+    sent: int = 0  # assignments sent
+
+
+@dataclass
+class _Out:
+    assignments: list[Assignment] = field(default_factory=list)
+    events: list[CoordinatorEvent] = field(default_factory=list)
+
+
+class CoordinatorCore:
+    """Assignments and reservations for one swarm (see the module doc).
+
+    Args:
+        robots: the namespaces without ``/``, in robot order (ties are broken by this order).
+        stations: the workstations.
+        spots: the waiting spots (:func:`spots_from_poi`); there should be at least as many as
+            robots, or a robot may find no spot (it then waits where it is, see
+            :meth:`handle`).
+        next_stop: ``next_stop(robot)`` -> the name of the robot's next workstation.
+        cfg: the settings.
+        epoch: this coordinator's run id, copied into its messages.
+
+    Raises:
+        ValueError: no workstations, or duplicate names.
+    """
+
+    def __init__(self, robots: Sequence[str], stations: Sequence[Station],
+                 spots: Sequence[Spot], next_stop: Callable[[str], str],
+                 cfg: CoordinatorConfig = CoordinatorConfig(), epoch: str = ""):
+        if not stations:
+            raise ValueError("the coordinator needs at least one workstation")
+        self.stations: dict[str, Station] = {s.name: s for s in stations}
+        self.spots: dict[str, Spot] = {s.id: s for s in spots}
+        if len(self.stations) != len(stations) or len(self.spots) != len(spots):
+            raise ValueError("duplicate workstation or spot names")
+        self.robots: dict[str, _Robot] = {ns: _Robot(i) for i, ns in enumerate(robots)}
+        self.cfg = cfg
+        self.epoch = epoch
+        self._next_stop = next_stop
+        self.holder: dict[str, str] = {}  # resource -> robot
+        self.queues: dict[str, list[str]] = {name: [] for name in self.stations}
+
+    # ------------------------------------------------------------------------------ queries
+    def holder_of(self, resource: str) -> str | None:
+        """The robot holding ``resource`` (``workstation:W`` / ``spot:S``), or None."""
+        return self.holder.get(resource)
+
+    def queue(self, workstation: str) -> tuple[str, ...]:
+        """The robots waiting for ``workstation``, first in line first."""
+        return tuple(self.queues.get(workstation, ()))
+
+    @property
+    def heard(self) -> set[str]:
+        """The robots heard from since this core started."""
+        return {ns for ns, r in self.robots.items() if r.known}
+
+    # ------------------------------------------------------------------------------ input
+    def order(self, requests: Sequence[Request]) -> list[Request]:
+        """The order a batch is handled in: stamp, then robot number, then sequence."""
+        big = len(self.robots)
+        return sorted(requests, key=lambda r: (
+            r.stamp_ns, self.robots[r.robot].index if r.robot in self.robots else big,
+            r.robot, r.seq))
+
+    def handle(self, requests: Sequence[Request]) -> tuple[list[Assignment],
+                                                           list[CoordinatorEvent]]:
+        """Handle one batch of requests.
+
+        Args:
+            requests: decoded requests, in any order; unknown robots are ignored.
+
+        Returns:
+            ``(assignments, events)`` in the order they must be sent: a workstation handed
+            over to a waiting robot comes before the answer to the robot that freed it.
+        """
+        out = _Out()
+        answered = set()
+        for req in self.order(requests):
+            rob = self.robots.get(req.robot)
+            if rob is None:
+                continue
+            if req.kind != "report" and req.seq <= rob.last_seq:
+                if req.seq == rob.last_seq and rob.last_answer is not None \
+                        and req.robot not in answered:
+                    out.assignments.append(rob.last_answer)  # a re-sent request
+                    answered.add(req.robot)
+                continue
+            answered.add(req.robot)
+            if not rob.known:
+                rob.known = True
+                self._adopt(req, rob, out)
+            if req.kind == "report":
+                continue
+            rob.last_seq = req.seq
+            if req.kind == "done":
+                self._done(req, rob, out)
+            self._next_task(req.robot, rob, req.stamp_ns, req.seq, out)
+        return out.assignments, out.events
+
+    # ------------------------------------------------------------------------------ steps
+    def _adopt(self, req: Request, rob: _Robot, out: _Out) -> None:
+        """Take over what a robot we have not heard from says it holds."""
+        t = req.stamp_ns
+        rob.task_start_ns = req.task_start_ns
+        for res in req.holds:
+            kind, _, name = res.partition(":")
+            if kind == "workstation" and name in self.stations:
+                if self.holder.get(res) in (None, req.robot):
+                    self._reserve(req.robot, res, t, out)
+                    rob.workstation = name
+                elif req.kind == "report":  # someone got it meanwhile: wait for it
+                    self._queue_or_go(req.robot, rob, name, t, 0, out)
+            elif kind == "spot" and name in self.spots:
+                if self.holder.get(res) in (None, req.robot):
+                    self._reserve(req.robot, res, t, out)
+                    rob.spot = name
+        want = req.waits_for
+        if want in self.stations and not rob.workstation and req.robot not in self.queues[want]:
+            rob.waits_for, rob.since_ns = want, req.since_ns
+            self._enqueue(req.robot, want)
+            if self.holder.get(workstation_resource(want)) is None:
+                self._hand_over(want, t, out)
+
+    def _done(self, req: Request, rob: _Robot, out: _Out) -> None:
+        """A task's goal ended: count the task, release the workstation, hand it over."""
+        t = req.stamp_ns
+        name = req.target
+        if rob.workstation and rob.workstation == name:
+            if req.outcome == "succeeded":
+                out.events.append(CoordinatorEvent(EVENT_TASK, req.robot, t, {
+                    "workstation": name, "t_start": format_stamp_ns(rob.task_start_ns),
+                    "duration_s": f"{(t - rob.task_start_ns) / NS_PER_S:.3f}"}, self.epoch))
+            self._release(req.robot, workstation_resource(name), t, out)
+            rob.workstation = ""
+            if self.queues[name]:
+                self._hand_over(name, t, out)
+
+    def _next_task(self, ns: str, rob: _Robot, t: int, reply_to: int, out: _Out) -> None:
+        name = self._next_stop(ns)
+        if name not in self.stations:
+            raise ValueError(f"route of {ns} names an unknown workstation {name!r}")
+        rob.task_start_ns = t
+        self._queue_or_go(ns, rob, name, t, reply_to, out)
+
+    def _queue_or_go(self, ns: str, rob: _Robot, name: str, t: int, reply_to: int,
+                     out: _Out) -> None:
+        res = workstation_resource(name)
+        if self.holder.get(res) in (None, ns) and not self.queues[name]:
+            if self.holder.get(res) is None:
+                self._reserve(ns, res, t, out)
+            rob.workstation = name
+            self._send(ns, rob, "go", name, self.stations[name].pose, t, reply_to, "", out)
+            return
+        rob.waits_for, rob.since_ns = name, t
+        self._enqueue(ns, name)
+        spot = self._free_spot(name)
+        if spot is None:  # no spot left: the robot waits where it stands (no goal)
+            rob.last_answer = None
+            return
+        self._reserve(ns, spot_resource(spot.id), t, out)
+        rob.spot = spot.id
+        self._send(ns, rob, "wait", spot.id, (*spot.xy, spot.yaw), t, reply_to, name, out)
+
+    def _hand_over(self, name: str, t: int, out: _Out) -> None:
+        """Give a free workstation to the first robot of its queue (goal one tick later)."""
+        if not self.queues[name]:
+            return
+        ns = self.queues[name].pop(0)
+        rob = self.robots[ns]
+        start = t + self.cfg.handover_ticks * self.cfg.period_ns
+        freed = self.spots.get(rob.spot)
+        if rob.spot:
+            self._release(ns, spot_resource(rob.spot), start, out)
+            rob.spot = ""
+        self._reserve(ns, workstation_resource(name), start, out)
+        rob.workstation, rob.waits_for, rob.since_ns = name, "", 0
+        self._send(ns, rob, "go", name, self.stations[name].pose, start, 0, "", out)
+        if freed is not None and freed.near == name:
+            self._move_up(name, freed, start, out)
+
+    def _move_up(self, name: str, freed: Spot, t: int, out: _Out) -> None:
+        """The first robot of ``name``'s queue that waits farther away (parking) moves up to
+        the workstation's freed holding spot, so the next hand-over is a short drive."""
+        for ns in self.queues[name]:
+            rob = self.robots[ns]
+            if rob.spot and self.spots[rob.spot].near != name:
+                self._release(ns, spot_resource(rob.spot), t, out)
+                self._reserve(ns, spot_resource(freed.id), t, out)
+                rob.spot = freed.id
+                self._send(ns, rob, "wait", freed.id, (*freed.xy, freed.yaw), t, 0, name, out)
+                return
+
+    # ------------------------------------------------------------------------------ helpers
+    def _enqueue(self, ns: str, name: str) -> None:
+        q = self.queues[name]
+        if ns in q:
+            return
+        q.append(ns)
+        q.sort(key=lambda r: (self.robots[r].since_ns, self.robots[r].index))
+
+    def _free_spot(self, name: str) -> Spot | None:
+        free = [s for s in self.spots.values() if spot_resource(s.id) not in self.holder]
+        own = [s for s in free if s.near == name]
+        if own:
+            return own[0]
+        parking = [s for s in free if not s.near]
+        if not parking:
+            return None
+        wx, wy = self.stations[name].pose[:2]
+        return min(parking, key=lambda s: (math.hypot(s.xy[0] - wx, s.xy[1] - wy), s.id))
+
+    def _reserve(self, ns: str, res: str, t: int, out: _Out) -> None:
+        self.holder[res] = ns
+        out.events.append(CoordinatorEvent(EVENT_RESERVATION, ns, t, {
+            "action": "reserve", "resource": res}, self.epoch))
+
+    def _release(self, ns: str, res: str, t: int, out: _Out) -> None:
+        if self.holder.get(res) == ns:
+            del self.holder[res]
+            out.events.append(CoordinatorEvent(EVENT_RESERVATION, ns, t, {
+                "action": "release", "resource": res}, self.epoch))
+
+    def _send(self, ns: str, rob: _Robot, kind: str, target: str, pose, t: int, reply_to: int,
+              waits_for: str, out: _Out) -> None:
+        rob.sent += 1
+        a = Assignment(robot=ns, seq=rob.sent, reply_to=reply_to, kind=kind, target=target,
+                       pose=tuple(float(v) for v in pose), stamp_ns=t, waits_for=waits_for,
+                       task_start_ns=rob.task_start_ns, epoch=self.epoch)
+        if reply_to:
+            rob.last_answer = a
+        out.assignments.append(a)
+

@@ -1,0 +1,202 @@
+"""The coordinator's pure core: first come first served, waiting spots, hand-over, order."""
+
+import itertools
+import random
+
+import pytest
+
+from swarm_common.coordination import (
+    Request,
+    check_reservations,
+    decode_assignment,
+    decode_request,
+    encode_assignment,
+    encode_request,
+)
+from swarm_common.stamps import NS_PER_S
+from swarm_coordinator.core import (
+    CoordinatorConfig,
+    CoordinatorCore,
+    Spot,
+    Station,
+    spots_from_poi,
+)
+
+T = NS_PER_S  # 1 s
+STATIONS = [Station("A", (0.0, 0.0, 0.0)), Station("B", (10.0, 0.0, 0.0))]
+SPOTS = [Spot("A.0", (0.0, -1.0), "A"), Spot("B.0", (10.0, -1.0), "B"),
+         Spot("park1", (5.0, 5.0)), Spot("park2", (9.0, 5.0)), Spot("park3", (1.0, 5.0))]
+
+
+def make_core(routes: dict[str, list[str]], robots=None) -> CoordinatorCore:
+    its = {ns: itertools.cycle(stops) for ns, stops in routes.items()}
+    return CoordinatorCore(robots or list(routes), STATIONS, SPOTS, lambda ns: next(its[ns]),
+                           CoordinatorConfig(period_ns=T // 10, handover_ticks=2), epoch="e1")
+
+
+def ready(ns, t=0, seq=1):
+    return Request(ns, seq, "ready", t)
+
+
+def done(ns, target, t, seq, outcome="succeeded"):
+    return Request(ns, seq, "done", t, outcome=outcome, target=target)
+
+
+def reservations(events):
+    return [e.values() for e in events if e.kind == "reservation"]
+
+
+def test_first_come_first_served_in_robot_order_and_waiting_spots():
+    core = make_core({"r1": ["A"], "r2": ["A"], "r3": ["A"], "r4": ["A"]})
+    out, events = core.handle([ready("r3"), ready("r1"), ready("r4"), ready("r2")])
+    by = {a.robot: a for a in out}
+    assert by["r1"].kind == "go" and by["r1"].target == "A"
+    # the others wait: A's own holding spot first, then the parking spots nearest A
+    assert [by[r].kind for r in ("r2", "r3", "r4")] == ["wait"] * 3
+    assert [by[r].target for r in ("r2", "r3", "r4")] == ["A.0", "park3", "park1"]
+    assert all(by[r].waits_for == "A" for r in ("r2", "r3", "r4"))
+    assert core.queue("A") == ("r2", "r3", "r4")
+    assert core.holder_of("workstation:A") == "r1"
+    assert len({a.target for a in out}) == 4  # no two robots to one place
+    assert check_reservations(reservations(events)) == []
+
+
+def test_a_batch_gives_the_same_answers_in_any_arrival_order():
+    reqs = [ready(f"r{i}") for i in range(1, 6)]
+    answers = set()
+    for seed in range(5):
+        random.Random(seed).shuffle(reqs)
+        core = make_core({f"r{i}": ["A", "B"] for i in range(1, 6)})
+        out, _ = core.handle(reqs)
+        answers.add(tuple(sorted(encode_assignment(a) for a in out)))
+    assert len(answers) == 1
+
+
+def test_done_releases_and_hands_over_one_tick_later_before_the_answer():
+    core = make_core({"r1": ["A", "B"], "r2": ["A", "B"]})
+    core.handle([ready("r1"), ready("r2")])
+    t = 40 * T
+    out, events = core.handle([done("r1", "A", t, seq=2)])
+    # the hand-over to r2 comes first, stamped one tick after the release
+    assert [(a.robot, a.kind, a.target, a.reply_to) for a in out] == [
+        ("r2", "go", "A", 0), ("r1", "go", "B", 2)]
+    assert out[0].stamp_ns == t + 2 * T // 10 and out[1].stamp_ns == t
+    res = [(e["robot"], e["action"], e["resource"], e["t"]) for e in reservations(events)]
+    assert res == [("r1", "release", "workstation:A", "40.000000000"),
+                   ("r2", "release", "spot:A.0", "40.200000000"),
+                   ("r2", "reserve", "workstation:A", "40.200000000"),
+                   ("r1", "reserve", "workstation:B", "40.000000000")]
+    tasks = [e.values() for e in events if e.kind == "task"]
+    assert tasks == [{"robot": "r1", "t": "40.000000000", "epoch": "e1", "workstation": "A",
+                      "t_start": "0.000000000", "duration_s": "40.000"}]
+
+
+def test_a_failed_goal_releases_without_counting_a_task():
+    core = make_core({"r1": ["A", "B"]})
+    core.handle([ready("r1")])
+    out, events = core.handle([done("r1", "A", 5 * T, seq=2, outcome="failed")])
+    assert [e.kind for e in events if e.kind == "task"] == []
+    assert core.holder_of("workstation:A") is None
+    assert out[0].target == "B"
+
+
+def test_a_resent_request_gets_the_same_answer_again():
+    core = make_core({"r1": ["A", "B"]})
+    first, _ = core.handle([ready("r1")])
+    again, events = core.handle([ready("r1")])
+    assert again == first and events == []
+    # copies within one batch are answered once
+    assert len(make_core({"r1": ["A"]}).handle([ready("r1"), ready("r1")])[0]) == 1
+
+
+def test_a_new_core_adopts_what_robots_report_and_queues_late_claims():
+    core = make_core({"r1": ["B"], "r2": ["B"], "r3": ["A"]})
+    # r1 drives to A (reserved by the old coordinator), r2 waits at B.0 for B
+    out, events = core.handle([
+        Request("r1", 0, "report", 50 * T, holds=("workstation:A",)),
+        Request("r2", 0, "report", 50 * T, holds=("spot:B.0",), waits_for="B", since_ns=T),
+    ])
+    assert core.holder_of("workstation:A") == "r1"
+    assert core.holder_of("spot:B.0") is None  # B was free: r2 got it at once
+    assert core.holder_of("workstation:B") == "r2"
+    assert [(a.robot, a.kind, a.target) for a in out] == [("r2", "go", "B")]
+    # r3 claims A too (its report came late): it is sent to wait for A instead
+    out, _ = core.handle([Request("r3", 0, "report", 51 * T, holds=("workstation:A",))])
+    assert [(a.robot, a.kind, a.waits_for) for a in out] == [("r3", "wait", "A")]
+    assert check_reservations(reservations(events)) == []
+
+
+def test_check_reservations_finds_double_holders():
+    ev = [{"robot": "r1", "action": "reserve", "resource": "workstation:A", "epoch": "1"},
+          {"robot": "r2", "action": "reserve", "resource": "workstation:A", "epoch": "1"},
+          {"robot": "r2", "action": "reserve", "resource": "workstation:A", "epoch": "2"}]
+    assert check_reservations(ev) == ["workstation:A reserved by r2 while r1 holds it"]
+
+
+def test_long_random_run_never_double_books():
+    rng = random.Random(3)
+    robots = [f"r{i}" for i in range(1, 9)]
+    routes = {ns: itertools.cycle(rng.sample(["A", "B"] * 3, 6)) for ns in robots}
+    parking = [Spot(f"park{k}", (float(k), 5.0)) for k in range(1, 9)]  # a spot per robot
+    core = CoordinatorCore(robots, STATIONS, SPOTS[:2] + parking, lambda ns: next(routes[ns]))
+    out, events = core.handle([ready(ns) for ns in robots])
+    all_events = list(events)
+    current = {a.robot: a for a in out}
+    seq = dict.fromkeys(robots, 1)
+    t = 0
+    for _ in range(200):
+        t += T
+        goers = [ns for ns, a in current.items() if a.kind == "go"]
+        ns = rng.choice(goers)
+        seq[ns] += 1
+        out, events = core.handle([done(ns, current[ns].target, t, seq[ns])])
+        all_events += events
+        current.update({a.robot: a for a in out})
+        places = [(a.kind, a.target) for a in current.values()]
+        assert len(set(places)) == len(places)
+    assert check_reservations(reservations(all_events)) == []
+
+
+def test_spots_from_poi_on_slim_blockage():
+    from swarm_common.paths import WORLDS_DIR
+    from swarm_common.poi import load_poi
+
+    spots = spots_from_poi(load_poi(WORLDS_DIR / "slim_blockage.yaml"),
+                           [[0.0, 0.0, 3.14], [1.0, 0.0, 3.14]])
+    assert [s.id for s in spots][:2] == ["loader1.0", "loader2.0"]
+    assert [s.id for s in spots][-2:] == ["park1", "park2"]
+    hold = spots[0]
+    assert hold.near == "loader1" and hold.yaw == pytest.approx(1.5707963, abs=1e-6)
+
+
+def test_the_contract_round_trips_and_names_bad_keys():
+    from swarm_common.coordination import ContractError
+
+    req = Request("Srobot2", 7, "done", 12 * T + 5, "succeeded", "loader3",
+                  ("workstation:loader3",), "", 0, 3 * T)
+    assert decode_request(encode_request(req)) == req
+    a = decode_assignment(encode_assignment(
+        decode_assignment('{"robot":"r","seq":1,"reply_to":0,"kind":"go","target":"A",'
+                          '"x":1,"y":2,"yaw":0.5,"stamp":"1.000000000"}')))
+    assert a.pose == (1.0, 2.0, 0.5) and a.stamp_ns == T
+    with pytest.raises(ContractError, match="kind"):
+        decode_request('{"robot":"r","seq":1,"kind":"hello","stamp":"0.000000000"}')
+    with pytest.raises(ContractError, match="stamp"):
+        decode_request('{"robot":"r","seq":1,"kind":"ready","stamp":"1.5"}')
+    with pytest.raises(ContractError, match="x"):
+        decode_assignment('{"robot":"r","seq":1,"reply_to":0,"kind":"go","target":"A",'
+                          '"x":NaN,"y":2,"yaw":0,"stamp":"1.000000000"}')
+
+
+
+def test_the_next_in_line_moves_up_to_the_freed_holding_spot():
+    core = make_core({"r1": ["A", "B"], "r2": ["A", "B"], "r3": ["A", "B"]})
+    _, first = core.handle([ready("r1"), ready("r2"), ready("r3")])  # r2 at A.0, r3 parked
+    out, events = core.handle([done("r1", "A", 40 * T, seq=2)])
+    events = first + events
+    assert [(a.robot, a.kind, a.target, a.stamp_ns) for a in out] == [
+        ("r2", "go", "A", 40 * T + 2 * T // 10),
+        ("r3", "wait", "A.0", 40 * T + 2 * T // 10),
+        ("r1", "go", "B", 40 * T)]
+    assert core.holder_of("spot:A.0") == "r3" and core.holder_of("spot:park3") is None
+    assert check_reservations(reservations(events)) == []
