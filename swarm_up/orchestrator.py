@@ -17,10 +17,12 @@ import re
 import signal
 import sys
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
 from swarm_common.errors import EXIT_BAD_INPUT, EXIT_OK, EXIT_RUNTIME
+from swarm_common.faults import KILL_NAV
 from swarm_up import PROG
 from swarm_up.args import PER_ROBOT, RunConfig
 from swarm_up.children import child_specs
@@ -255,13 +257,21 @@ class Orchestrator:
             self._acks.close()
         return wall
 
-    def _map_deliveries(self) -> dict[str, int]:
-        """``/map`` copies each robot's navigator received: one per start of its process."""
+    def _map_deliveries(self, summary) -> dict[str, int]:
+        """``/map`` copies each robot's navigator received: one per start of its process, and
+        in a group process one more per navigator a ``kill-nav`` fault recreated in-process (a
+        per-robot process killed by one is restarted, so its starts count it)."""
         out = {ns: 1 for ns in self.cfg.robots}
         for state in self.sup.children.values():
             if state.spec.kind in ("nav", "group"):
                 for ns in state.spec.robots:
                     out[ns] = max(1, state.starts)
+        if self.cfg.groups is not None:
+            faults = summary.extras.get("faults") if isinstance(summary.extras, Mapping) else None
+            for entry in (faults or {}).get("log") or []:
+                if (isinstance(entry, Mapping) and entry.get("kind") == KILL_NAV
+                        and entry.get("phase") == "start" and entry.get("robot") in out):
+                    out[entry["robot"]] += 1
         return out
 
     def report(self, outcome: Outcome, wall_s: float) -> dict:
@@ -279,7 +289,7 @@ class Orchestrator:
                 coordination=cfg.coordination, wall_time_s=wall_s,
                 resources=self.sampler.result(), restarts=self.sup.restarts,
                 fault_restarts=self.faults.fault_restarts if self.faults is not None else 0,
-                map_deliveries=self._map_deliveries(),
+                map_deliveries=self._map_deliveries(summary),
                 extra={"ended_by": outcome.ended_by, "run_dir": str(cfg.run_dir),
                        "processes": PER_ROBOT if cfg.groups is None else len(cfg.groups),
                        "commanders": cfg.commanders, "rtf_requested": cfg.rtf,

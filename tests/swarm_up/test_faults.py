@@ -116,8 +116,10 @@ def test_metrics_count_faults_by_kind_and_keep_fault_restarts_reproducible():
                _ev(2, "freeze", "start", "Srobot2", 20.0, 5.0)):
         rec.on_event("fault", ev.encode())
     rec.on_event("fault", {"robot": "Srobot2", "x": "0", "y": "0", "t": "3"})  # unresponsive
-    for ns, stamp in (("Srobot1", "30.500000000"), ("Srobot2", "14.200000000")):
-        rec.on_status(ns, {"state": "SUCCEEDED", "goal_id": "1.000000000", "stamp": stamp,
+    # goals applied at the first tick after their stamp (stamp + 0.1 s), reached 5 s later
+    for ns, goal, stamp in (("Srobot1", "25.400000000", "30.500000000"),
+                            ("Srobot2", "9.100000000", "14.200000000")):
+        rec.on_status(ns, {"state": "SUCCEEDED", "goal_id": goal, "stamp": stamp,
                            "navigation_time_s": "5.0"}, 1.0)
     summary = SimSummary(sim_time_s=60.0, late_ticks=0, extras={"faults": {
         "injected": ["kill-nav:Srobot1@10+2", "freeze:Srobot2@20+5", "drop:Srobot2/scan:0.5@1"],
