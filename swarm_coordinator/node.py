@@ -140,11 +140,18 @@ class CoordinatorNode(Node):
             return
         heard = self.core.heard | {r.robot for r in self._pending}
         late = self._sync_deadline is not None and time.monotonic() >= self._sync_deadline
-        if heard >= set(self.core.robots) or late:
-            if late:
+        # The first batch carries the "up" event; /swarm/events is volatile, so it waits until
+        # discovery has matched a reader (the metrics), or the sync deadline passes.
+        watched = self._events_pub.get_subscription_count() > 0
+        heard_all = heard >= set(self.core.robots)
+        if (heard_all and watched) or late:
+            if not heard_all:
                 missing = sorted(set(self.core.robots) - heard)
                 self.get_logger().warning(f"sync: no word from {len(missing)} robot(s) "
                                           f"({', '.join(missing[:5])}); going on without them")
+            if not watched:
+                self.get_logger().warning(f"sync: nobody reads {EVENTS_TOPIC}; this start "
+                                          "and the first answers go unrecorded")
             self._syncing = False
             self.destroy_timer(self._sync_timer)
             self._flush()

@@ -1,0 +1,83 @@
+"""The coordinator's ROS shell: its first answers wait until the metrics can hear its start."""
+
+import json
+import time
+
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.node import Node
+from std_msgs.msg import String
+
+from swarm_common.coordination import (
+    EVENT_COORDINATOR,
+    EVENTS_TOPIC,
+    REQUEST_TOPIC,
+    Request,
+    assignment_topic,
+    encode_request,
+)
+from swarm_coordinator.node import (
+    ASSIGNMENT_QOS,
+    EVENTS_QOS,
+    REQUEST_QOS,
+    CoordinatorNode,
+)
+from tests.support.ros import ros_context, spin_until
+from tests.swarm_coordinator.test_core import make_core
+
+
+def _spin_for(executor, seconds: float) -> None:
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.05)
+
+
+def test_first_answers_wait_for_a_reader_of_the_events():
+    """A restarted coordinator's first batch came out before discovery had matched the metrics'
+    reader of the volatile /swarm/events, and its "up" event was lost (CI, session 13)."""
+    with ros_context() as (ctx, executor):
+        coordinator = CoordinatorNode(make_core({"r1": ["A"], "r2": ["B"]}), context=ctx)
+        robot = Node("fake_robots", context=ctx)
+        events: list[DiagnosticArray] = []
+        answers: list[str] = []
+        requests = robot.create_publisher(String, REQUEST_TOPIC, REQUEST_QOS)
+        for ns in ("r1", "r2"):
+            robot.create_subscription(String, assignment_topic(ns),
+                                      lambda m: answers.append(m.data), ASSIGNMENT_QOS)
+        for node in (coordinator, robot):
+            executor.add_node(node)
+        spin_until(executor, lambda: requests.get_subscription_count() > 0, 10.0,
+                   "the coordinator's request reader")
+        for ns in ("r1", "r2"):
+            requests.publish(String(data=encode_request(Request(ns, 1, "ready", 0))))
+        # every robot is heard, but nobody reads /swarm/events yet: no answer goes out
+        _spin_for(executor, 1.5)
+        assert answers == []
+        robot.create_subscription(DiagnosticArray, EVENTS_TOPIC, events.append, EVENTS_QOS)
+        spin_until(executor, lambda: len(answers) == 2 and events, 10.0,
+                   "the answers and the events")
+        kinds = [s.name for msg in events for s in msg.status]
+        assert kinds[0] == EVENT_COORDINATOR
+        assert {json.loads(a)["robot"] for a in answers} == {"r1", "r2"}
+        for node in (coordinator, robot):
+            executor.remove_node(node)
+            node.destroy_node()
+
+
+def test_without_a_reader_of_the_events_the_sync_deadline_still_answers():
+    with ros_context() as (ctx, executor):
+        coordinator = CoordinatorNode(make_core({"r1": ["A"]}), start_timeout=1.0, context=ctx)
+        robot = Node("fake_robot", context=ctx)
+        answers: list[str] = []
+        requests = robot.create_publisher(String, REQUEST_TOPIC, REQUEST_QOS)
+        robot.create_subscription(String, assignment_topic("r1"),
+                                  lambda m: answers.append(m.data), ASSIGNMENT_QOS)
+        for node in (coordinator, robot):
+            executor.add_node(node)
+        spin_until(executor, lambda: requests.get_subscription_count() > 0, 10.0,
+                   "the coordinator's request reader")
+        requests.publish(String(data=encode_request(Request("r1", 1, "ready", 0))))
+        spin_until(executor, lambda: answers, 10.0, "the answer after the deadline")
+        assert json.loads(answers[0])["robot"] == "r1"
+        for node in (coordinator, robot):
+            executor.remove_node(node)
+            node.destroy_node()
