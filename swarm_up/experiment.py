@@ -4,7 +4,7 @@
 
     swarm-experiment [--sizes 5,10,20,40] [--duration 300] [--runs 3] [--seed 0]
                      [--world slim_blockage] [--modes decentralized,centralized]
-                     [--fault-spec SPEC ...] [--fault-size N] [--warmup 120]
+                     [--fault-spec SPEC ... | --no-faults] [--fault-size N] [--warmup 120]
                      [--output DIR] [--processes per-robot|K] [--swarm-up PATH]
 
 For every mode M, size N and run r (seed S + r, the same seeds in both modes) it runs, with
@@ -14,8 +14,11 @@ tree, the metrics file)::
     swarm-up --swarm-size N --world W --seed S+r --commanders --rtf 0 --duration D
              --coordination M [--faults SPEC]
 
-and, for every ``--fault-spec SPEC``, the same at ``--fault-size`` with ``--faults SPEC``
-passed through to ``swarm-up`` as given. It then writes the report directory (``--output``):
+and, for every ``--fault-spec SPEC`` (default :data:`DEFAULT_FAULTS`: robot 3 dies at 180 s;
+the coordinator dies at 180 s and is restarted 30 s later), the same at ``--fault-size`` with
+``--faults SPEC`` passed through to ``swarm-up`` as given, plus the no-fault runs at that size
+to compare with. A spec that kills the coordinator runs only in the modes that have one
+(centralized). It then writes the report directory (``--output``):
 
 - ``report.md``: the exact commands, git commit, machine, settings, what "reproducible" means
   and how many runs were, one table per measure (mean and 95 % interval across the seeds,
@@ -44,7 +47,6 @@ import argparse
 import datetime
 import math
 import os
-import re
 import signal
 import sys
 from dataclasses import dataclass
@@ -52,11 +54,16 @@ from pathlib import Path
 
 from swarm_common import cli
 from swarm_common.errors import EXIT_OK, EXIT_RUNTIME, InputError, run_cli
+from swarm_common.faults import KILL_COORDINATOR
 from swarm_up.args import default_run_dir, processes_arg
 
 PROG = "swarm-experiment"
 MODES = ("decentralized", "centralized")
 WINDOW_S = 30.0  # [s] simulated: fault-curve window
+DEFAULT_FAULTS = ("kill-robot:3@180", "kill-coordinator@180+30")
+"""The protocol's fault kinds that decide the comparison (experiment_protocol.md, "Faults"): a
+whole robot dead, and the coordinator dead then restarted by its supervisor; both after the
+default 120 s warm-up, leaving 120 s of a 300 s run to see the recovery."""
 SCHEMA_VERSION = 1
 
 
@@ -100,15 +107,19 @@ def build_parser() -> argparse.ArgumentParser:
                    help="world (default: %(default)s)")
     p.add_argument("--modes", type=_modes, default=MODES, metavar="M,M",
                    help="coordination modes (default: decentralized,centralized)")
-    p.add_argument("--fault-spec", type=_fault_spec, action="append", default=[],
+    p.add_argument("--fault-spec", type=_fault_spec, action="append", default=None,
                    metavar="SPEC", help="a fault scenario, passed to swarm-up as --faults SPEC "
-                   "(repeatable; each is one more cell per mode at --fault-size; default: none)")
+                   "(repeatable; each is one more cell per mode at --fault-size; a spec that "
+                   "kills the coordinator runs only in centralized mode; default: "
+                   f"{' and '.join(DEFAULT_FAULTS)})")
+    p.add_argument("--no-faults", action="store_true",
+                   help="run no fault cells (only the sizes)")
     p.add_argument("--fault-size", type=cli.positive_int, default=None, metavar="N",
                    help="swarm size of the fault runs (default: 10 if in --sizes, else the "
                    "largest size)")
     p.add_argument("--fault-time", type=cli.non_negative_float, default=None, metavar="SEC",
                    help="simulated time the faults start, marked on the fault curves "
-                   "(default: the first 'at T' or '@T' in the spec, else none)")
+                   "(default: each spec's earliest fault)")
     p.add_argument("--warmup", type=cli.non_negative_float, default=120.0, metavar="SEC",
                    help="simulated seconds left out of the throughput (default: %(default)g)")
     p.add_argument("--output", type=Path, default=None, metavar="DIR",
@@ -149,7 +160,8 @@ class ExperimentConfig:
     modes: tuple[str, ...]
     faults: tuple[str, ...]
     fault_size: int | None
-    fault_time_s: float | None
+    fault_times: tuple[float, ...]  # [s] simulated, one per spec of ``faults``
+    fault_modes: tuple[tuple[str, ...], ...]  # the modes each spec runs in
     warmup_s: float
     output: Path
     processes: str | int | None
@@ -160,9 +172,10 @@ class ExperimentConfig:
         out = [Cell(m, n, "", f"{m}-n{n}") for n in self.sizes for m in self.modes]
         if self.faults and self.fault_size not in self.sizes:  # the fault runs' baseline
             out += [Cell(m, self.fault_size, "", f"{m}-n{self.fault_size}") for m in self.modes]
-        for k, spec in enumerate(self.faults, start=1):
+        for k, (spec, modes) in enumerate(zip(self.faults, self.fault_modes, strict=True),
+                                          start=1):
             out += [Cell(m, self.fault_size, spec, f"{m}-n{self.fault_size}-f{k}")
-                    for m in self.modes]
+                    for m in modes]
         return out
 
 
@@ -190,21 +203,43 @@ def validate(args: argparse.Namespace) -> ExperimentConfig:
     if not out.expanduser().resolve().parent.is_dir():
         raise InputError(f"--output: directory '{out.expanduser().resolve().parent}' "
                          "does not exist")
+    if args.no_faults and args.fault_spec:
+        raise InputError("--no-faults: not together with --fault-spec")
+    specs = () if args.no_faults else tuple(args.fault_spec or DEFAULT_FAULTS)
     fault_size = args.fault_size
-    if args.fault_spec and fault_size is None:
+    if specs and fault_size is None:
         fault_size = 10 if 10 in args.sizes else max(args.sizes)
-    fault_time = args.fault_time
-    if fault_time is None:
-        for spec in args.fault_spec:
-            m = re.search(r"(?:\bat\s+|@)(\d+(?:\.\d+)?)", spec)  # "at 300" or "@300"
-            if m:
-                fault_time = float(m.group(1))
-                break
+    times, modes = [], []
+    for spec in specs:
+        faults = _parse_spec(spec, fault_size, args.duration)
+        times.append(args.fault_time if args.fault_time is not None
+                     else min(f.at for f in faults))
+        central = any(f.kind == KILL_COORDINATOR for f in faults)
+        modes.append(tuple(m for m in args.modes if m == "centralized" or not central))
+        if not modes[-1]:
+            raise InputError(f"--fault-spec: '{spec}' kills the coordinator, which only "
+                             "--modes centralized has")
     return ExperimentConfig(
         sizes=args.sizes, duration_s=args.duration, runs=args.runs, seed=args.seed,
-        world=world, modes=args.modes, faults=tuple(args.fault_spec), fault_size=fault_size,
-        fault_time_s=fault_time, warmup_s=args.warmup, output=out.expanduser().resolve(),
-        processes=args.processes, swarm_up=swarm_up_path(args.swarm_up))
+        world=world, modes=args.modes, faults=specs, fault_size=fault_size,
+        fault_times=tuple(times), fault_modes=tuple(modes), warmup_s=args.warmup,
+        output=out.expanduser().resolve(), processes=args.processes,
+        swarm_up=swarm_up_path(args.swarm_up))
+
+
+def _parse_spec(spec: str, size: int, duration: float):
+    """The faults of one ``--fault-spec`` for a swarm of ``size`` (swarm-up's own parser).
+
+    Raises:
+        InputError: the spec is malformed or does not fit the run (names ``--fault-spec``).
+    """
+    from swarm_common.faults import parse_faults
+
+    robots = tuple(f"Srobot{i}" for i in range(1, size + 1))  # swarm-up's default prefix
+    try:
+        return parse_faults(spec, robots, duration=duration)
+    except InputError as exc:
+        raise InputError(f"--fault-spec: {exc}") from None
 
 
 # ------------------------------------------------------------------------------------ figures
@@ -549,11 +584,15 @@ def _littles_law(doc: dict, cfg: ExperimentConfig) -> list[str]:
 
 def _fault_section(cfg: ExperimentConfig, doc: dict) -> list[str]:
     lines = ["## Faults", ""]
-    fault_s = cfg.fault_time_s
-    for k, spec in enumerate(cfg.faults, start=1):
+    for k, (spec, fault_s, modes) in enumerate(
+            zip(cfg.faults, cfg.fault_times, cfg.fault_modes, strict=True), start=1):
         lines += [f"### `--faults {spec}` at {cfg.fault_size} robots", ""]
+        skipped = [m for m in cfg.modes if m not in modes]
+        if skipped:
+            lines += [f"- {', '.join(skipped)}: not run (no coordinator to kill); its runs go "
+                      "on as without the fault", ""]
         curves = {}
-        for mode in cfg.modes:
+        for mode in modes:
             for label, name in ((f"{mode}-n{cfg.fault_size}", f"{mode}, no fault"),
                                 (f"{mode}-n{cfg.fault_size}-f{k}", f"{mode}, fault")):
                 recs = [r for r in doc["records"] if r.get("cell") == label]
@@ -568,7 +607,7 @@ def _fault_section(cfg: ExperimentConfig, doc: dict) -> list[str]:
             effects = [fault_effect(base[s]["task_times"], hit[s]["task_times"], fault_s,
                                     cfg.duration_s)
                        for s in sorted(set(base) & set(hit))
-                       if base[s] and hit[s] and fault_s is not None]
+                       if base[s] and hit[s]]
             if effects:
                 lost = t_interval([e["tasks_lost"] for e in effects])
                 rec = [e["recovery_s"] for e in effects]
@@ -576,8 +615,6 @@ def _fault_section(cfg: ExperimentConfig, doc: dict) -> list[str]:
                 lines.append(f"- {mode}: tasks lost against the no-fault run of the same seed "
                              f"{_fmt({'mean': lost[0], 'ci95': lost[1]}, 1)}; back within "
                              f"10 % of the no-fault rate after: {rec_text}")
-            elif fault_s is None:
-                lines.append(f"- {mode}: no fault time known (--fault-time): no dip computed")
         png = f"fault_{k}.png"
         plot_fault(cfg.output / png, curves, fault_s,
                    f"tasks per {WINDOW_S:g} s, {cfg.fault_size} robots, faults: {spec}")
@@ -626,7 +663,8 @@ def experiment(cfg: ExperimentConfig, argv: list[str]) -> int:
         "settings": {"sizes": cfg.sizes, "duration_s": cfg.duration_s, "runs": cfg.runs,
                      "seed": cfg.seed, "world": cfg.world, "modes": cfg.modes,
                      "faults": cfg.faults, "fault_size": cfg.fault_size,
-                     "fault_time_s": cfg.fault_time_s, "warmup_s": cfg.warmup_s,
+                     "fault_times_s": cfg.fault_times, "fault_modes": cfg.fault_modes,
+                     "warmup_s": cfg.warmup_s,
                      "processes": cfg.processes, "swarm_up": str(cfg.swarm_up)},
         "interrupted": False, "exit_code": None, "records": [], "summary": [],
     }

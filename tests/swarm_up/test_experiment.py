@@ -61,20 +61,27 @@ def test_run_figures_of_a_record():
 
 
 def test_defaults_and_cells(tmp_path):
-    cfg = validate(build_parser().parse_args(["--output", str(tmp_path / "x"),
-                                              "--fault-spec", "kill_robot Srobot2 at 300"]))
+    cfg = validate(build_parser().parse_args(["--output", str(tmp_path / "x")]))
     assert cfg.sizes == (5, 10, 20, 40) and cfg.runs == 3 and cfg.duration_s == 300.0
-    assert cfg.warmup_s == 120.0 and cfg.fault_size == 10 and cfg.fault_time_s == 300.0
+    assert cfg.warmup_s == 120.0 and cfg.fault_size == 10
+    # by default a robot dies, and the coordinator dies (and is restarted), after the warm-up
+    assert cfg.faults == ("kill-robot:3@180", "kill-coordinator@180+30")
+    assert cfg.fault_times == (180.0, 180.0)
     labels = [c.label for c in cfg.cells()]
     assert labels[:2] == ["decentralized-n5", "centralized-n5"]
-    assert labels[-2:] == ["decentralized-n10-f1", "centralized-n10-f1"]
+    # the coordinator's death runs only where there is a coordinator
+    assert labels[8:] == ["decentralized-n10-f1", "centralized-n10-f1", "centralized-n10-f2"]
     cfg = validate(build_parser().parse_args(["--output", str(tmp_path / "y"), "--sizes", "5",
-                                              "--fault-spec", "x at 10", "--fault-size", "7"]))
-    at = validate(build_parser().parse_args([
-        "--output", str(tmp_path / "z"), "--fault-spec", "kill-coordinator@50+5"]))
-    assert at.fault_time_s == 50
+                                              "--fault-spec", "freeze:2@10+5",
+                                              "--fault-size", "7"]))
     assert [c.label for c in cfg.cells()][2:] == [
         "decentralized-n7", "centralized-n7", "decentralized-n7-f1", "centralized-n7-f1"]
+    assert cfg.fault_times == (10.0,)
+    at = validate(build_parser().parse_args([
+        "--output", str(tmp_path / "z"), "--fault-spec", "kill-nav:2@90,kill-robot:1@50"]))
+    assert at.fault_times == (50.0,)  # the spec's earliest fault
+    none = validate(build_parser().parse_args(["--output", str(tmp_path / "w"), "--no-faults"]))
+    assert none.faults == () and [c.label for c in none.cells()][-1] == "centralized-n40"
 
 
 @pytest.mark.parametrize(("args", "flag"), [
@@ -84,6 +91,11 @@ def test_defaults_and_cells(tmp_path):
     (["--world", "nowhere"], "--world"),
     (["--warmup", "400"], "--warmup"),
     (["--fault-spec", " "], "--fault-spec"),
+    (["--fault-spec", "kill_robot Srobot2 at 300"], "--fault-spec"),
+    (["--fault-spec", "kill-robot:11@60"], "--fault-spec"),  # 10 robots in the fault runs
+    (["--fault-spec", "kill-robot:3@400"], "--fault-spec"),  # after the 300 s run
+    (["--fault-spec", "kill-coordinator@60", "--modes", "decentralized"], "--fault-spec"),
+    (["--fault-spec", "kill-robot:3@60", "--no-faults"], "--no-faults"),
     (["--bogus"], "--bogus"),
 ])
 def test_bad_flag_exits_2_with_one_line(args, flag, tmp_path):
@@ -104,17 +116,23 @@ def test_help_exits_0():
 def test_tiny_sweep_writes_the_report(tmp_path):
     out = tmp_path / "report"
     argv = [str(SWARM_EXPERIMENT), "--sizes", "2,3", "--duration", "15", "--runs", "2",
-            "--warmup", "5", "--output", str(out)]
+            "--warmup", "5", "--output", str(out), "--fault-spec", "kill-coordinator@8+3",
+            "--fault-size", "2"]
     res = subprocess.run(argv, capture_output=True, text=True, cwd=tmp_path, timeout=1500)
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
     doc = json.loads((out / "experiment.json").read_text())
-    assert len(doc["records"]) == 8 and doc["exit_code"] == 0
+    assert len(doc["records"]) == 10 and doc["exit_code"] == 0
     assert {r["cell"] for r in doc["records"]} == {"decentralized-n2", "centralized-n2",
-                                                   "decentralized-n3", "centralized-n3"}
+                                                   "decentralized-n3", "centralized-n3",
+                                                   "centralized-n2-f1"}
     assert [r["seed"] for r in doc["records"][:2]] == [0, 1]
     assert all(r["metrics"]["coordination"] == r["mode"] for r in doc["records"])
-    assert len(doc["summary"]) == 4 and all(s["runs_ok"] == 2 for s in doc["summary"])
+    faulted = [r["metrics"] for r in doc["records"] if r["cell"] == "centralized-n2-f1"]
+    assert all(m["faults"] == 1 and m["restarts"] == 1 for m in faulted)  # killed, restarted
+    assert len(doc["summary"]) == 5 and all(s["runs_ok"] == 2 for s in doc["summary"])
     report = (out / "report.md").read_text()
+    assert "decentralized: not run (no coordinator to kill)" in report
+    assert "centralized: tasks lost against the no-fault run of the same seed" in report
     assert "swarm-experiment --sizes 2,3" in report and doc["git"]["commit"] in report
     for png in ("throughput.png", "ttt_mean.png", "comm_bytes.png", "cpu_per_robot_ms.png"):
         assert (out / png).read_bytes()[:8] == PNG_MAGIC
