@@ -35,6 +35,7 @@ STATE_TOPIC = "/swarm/coordinator/state"
 ASSIGNMENT_TOPIC = "coordinator/assignment"  # relative: /<ns>/coordinator/assignment
 EVENTS_TOPIC = "/swarm/events"
 COORDINATOR_NODE = "swarm_coordinator"  # the coordinator's node name
+METRICS_NODE = "swarm_up_metrics"  # swarm-up's node that records /swarm/events for the metrics
 
 REQUEST_KINDS = ("ready", "done", "report")
 OUTCOMES = ("succeeded", "failed", "canceled", "")

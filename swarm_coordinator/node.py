@@ -47,6 +47,7 @@ from swarm_common.coordination import (
     COORDINATOR_NODE,
     EVENT_COORDINATOR,
     EVENTS_TOPIC,
+    METRICS_NODE,
     REQUEST_TOPIC,
     STATE_TOPIC,
     ContractError,
@@ -140,9 +141,7 @@ class CoordinatorNode(Node):
             return
         heard = self.core.heard | {r.robot for r in self._pending}
         late = self._sync_deadline is not None and time.monotonic() >= self._sync_deadline
-        # The first batch carries the "up" event; /swarm/events is volatile, so it waits until
-        # discovery has matched a reader (the metrics), or the sync deadline passes.
-        watched = self._events_pub.get_subscription_count() > 0
+        watched = self._metrics_matched()
         heard_all = heard >= set(self.core.robots)
         if (heard_all and watched) or late:
             if not heard_all:
@@ -150,11 +149,25 @@ class CoordinatorNode(Node):
                 self.get_logger().warning(f"sync: no word from {len(missing)} robot(s) "
                                           f"({', '.join(missing[:5])}); going on without them")
             if not watched:
-                self.get_logger().warning(f"sync: nobody reads {EVENTS_TOPIC}; this start "
-                                          "and the first answers go unrecorded")
+                self.get_logger().warning(f"sync: the metrics' reader of {EVENTS_TOPIC} is "
+                                          "not matched; this start and the first answers may "
+                                          "go unrecorded")
             self._syncing = False
             self.destroy_timer(self._sync_timer)
             self._flush()
+
+    def _metrics_matched(self) -> bool:
+        """Whether the metrics' reader of ``/swarm/events`` is discovered and matched.
+
+        The first batch carries the "up" event and the reservations rebuilt after a restart;
+        ``/swarm/events`` is volatile, so what goes out before discovery has matched the metrics'
+        reader is lost to it (and its conflict check would see releases of unknown reservations).
+        Other readers (the fault nodes of the group processes, a recorder) may match first, so
+        the metrics node is looked for by name, and every reader the graph knows must be matched.
+        """
+        readers = self.get_subscriptions_info_by_topic(EVENTS_TOPIC)
+        return (any(r.node_name == METRICS_NODE for r in readers)
+                and self._events_pub.get_subscription_count() >= len(readers))
 
     def _on_batch_timer(self) -> None:
         if self._batch_timer is not None:

@@ -34,7 +34,12 @@ from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
-from swarm_common.coordination import REQUEST_TOPIC, STATE_TOPIC, assignment_topic
+from swarm_common.coordination import (
+    METRICS_NODE,
+    REQUEST_TOPIC,
+    STATE_TOPIC,
+    assignment_topic,
+)
 from swarm_up.aggregate import RunRecorder
 
 STATUS_QOS = QoSProfile(
@@ -84,7 +89,7 @@ class MetricsNode(Node):
 
     def __init__(self, recorder: RunRecorder, lock: threading.Lock, t0: float, context=None,
                  status_hooks: tuple[Callable[[str, dict, str], None], ...] = ()):
-        super().__init__("swarm_up_metrics", context=context)
+        super().__init__(METRICS_NODE, context=context)
         # state
         self._recorder = recorder
         self._lock = lock
