@@ -568,7 +568,10 @@ def _verdicts(plain: list[dict]) -> list[str]:
 def _littles_law(doc: dict, cfg: ExperimentConfig) -> list[str]:
     lines = ["## Sanity check: Little's law", "",
              "Every robot always has a task, so the robots busy (N) should match throughput × "
-             "mean time to task (over the whole run, warm-up included).", "",
+             "mean time to task (over the whole run, warm-up included). Only tasks completed "
+             "within the run count, and the tasks still open at its end are the longest ones "
+             "(censored), so λ·W falls below N by more the longer the tasks are against the "
+             "run; a dead robot's task never ends.", "",
              "| cell | N | λ·W (mean over runs) |", "|---|---|---|"]
     for s in doc["summary"]:
         recs = [r for r in doc["records"] if r.get("cell") == s["label"]]
@@ -583,7 +586,12 @@ def _littles_law(doc: dict, cfg: ExperimentConfig) -> list[str]:
 
 
 def _fault_section(cfg: ExperimentConfig, doc: dict) -> list[str]:
-    lines = ["## Faults", ""]
+    lines = ["## Faults", "",
+             "Tasks lost: tasks the no-fault run of the same seed completed after the fault "
+             "time minus the faulted run's. Back within 10 %: from the fault to the first "
+             f"{WINDOW_S:g} s window from which every window completes at least 90 % of the "
+             "no-fault run's mean rate after the fault (\"never\": some window to the end of the "
+             "run falls short; with a few tasks per window one slow window is enough).", ""]
     for k, (spec, fault_s, modes) in enumerate(
             zip(cfg.faults, cfg.fault_times, cfg.fault_modes, strict=True), start=1):
         lines += [f"### `--faults {spec}` at {cfg.fault_size} robots", ""]
