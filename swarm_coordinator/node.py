@@ -72,6 +72,7 @@ STATE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
 EVENTS_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 SYNC_POLL_S = 0.05  # [s] wall
+METRICS_MATCH_GRACE_S = 2.0  # [s] wall: discovery matches a reader well within this
 
 
 class CoordinatorNode(Node):
@@ -96,6 +97,7 @@ class CoordinatorNode(Node):
         self._pending = []
         self._syncing = True
         self._sync_deadline: float | None = None
+        self._metrics_seen: float | None = None  # time.monotonic() the metrics' reader appeared
         self._batch_timer = None
         self._warned = 0.0
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
@@ -163,11 +165,17 @@ class CoordinatorNode(Node):
         ``/swarm/events`` is volatile, so what goes out before discovery has matched the metrics'
         reader is lost to it (and its conflict check would see releases of unknown reservations).
         Other readers (the fault nodes of the group processes, a recorder) may match first, so
-        the metrics node is looked for by name, and every reader the graph knows must be matched.
+        the metrics node is looked for by name, and every reader the graph knows must be matched;
+        a reader that never matches (incompatible QoS, e.g. a transient-local ``ros2 topic
+        echo``) is given up on :data:`METRICS_MATCH_GRACE_S` after the metrics' reader appeared.
         """
         readers = self.get_subscriptions_info_by_topic(EVENTS_TOPIC)
-        return (any(r.node_name == METRICS_NODE for r in readers)
-                and self._events_pub.get_subscription_count() >= len(readers))
+        if not any(r.node_name == METRICS_NODE for r in readers):
+            return False
+        if self._metrics_seen is None:
+            self._metrics_seen = time.monotonic()
+        return (self._events_pub.get_subscription_count() >= len(readers)
+                or time.monotonic() - self._metrics_seen >= METRICS_MATCH_GRACE_S)
 
     def _on_batch_timer(self) -> None:
         if self._batch_timer is not None:
