@@ -149,8 +149,10 @@ def test_record_topics_narrows_the_file(tmp_path):
     with SwarmUp(args, tmp_path) as run:
         assert run.wait(READY_TIMEOUT_S + EXIT_SLACK_S) == 0, run.diagnostics()
     types, _, msgs = _read(out)
-    assert types == {"/Srobot1/odom": "nav_msgs/msg/Odometry", "/tf": "tf2_msgs/msg/TFMessage"}
-    assert len(msgs["/tf"]) == 2 * 29  # both robots' transforms: odom and ground truth are read
+    diag = run.diagnostics()  # includes logs/record.log: CI once found this file empty
+    assert types == {"/Srobot1/odom": "nav_msgs/msg/Odometry",
+                     "/tf": "tf2_msgs/msg/TFMessage"}, diag
+    assert len(msgs["/tf"]) == 2 * 29, diag  # both robots' transforms: odom and ground truth
 
 
 def test_a_sigkilled_recorder_leaves_a_readable_file(tmp_path):
