@@ -21,15 +21,18 @@ least weighted cost wins; the critics (DWB's names) are
   footprint and the obstacle points along the rollout (0 beyond ``influence_distance``);
 - ``Speed``: ``(max_vel_x - v) / max_vel_x``, Fox et al.'s velocity term.
 
-Collision checks are vectorised over all rollout poses at once: a distance transform of the
-obstacle points on a local 2.5 cm grid gives, for every pose, a lower bound of its distance to the
-nearest point; only poses that bound cannot clear are checked exactly against the points (the
-footprint box's signed Chebyshev gap, a lower bound of the Euclidean gap, so the check is
-conservative), and only against the points near enough to those poses to fail the check.
+Collision checks are cheap first: a distance transform of the obstacle points on a local 2.5 cm
+grid gives, for every rollout pose, a lower bound of its distance to the nearest point; only poses
+that bound cannot clear are checked exactly against the points (the footprint box's signed
+Chebyshev gap, a lower bound of the Euclidean gap, so the check is conservative), candidate by
+candidate in order of cost until one is admissible.
 
 The samples form a grid of ``vx x vtheta`` pairs and a rollout's headings depend on its rotational
 speed alone, so headings and their sines and cosines are computed once per ``vtheta`` sample and
-shared by all ``vx`` samples (the same floating-point values as computing them per rollout).
+shared by all ``vx`` samples (the same floating-point values as computing them per rollout).  The
+loops over rollout poses and points are compiled (:mod:`swarm_nav.dwa_kernels`) and give the same
+answers to the last bit as the numpy expressions they replaced (``tests/swarm_nav/
+test_dwa_equivalence.py`` checks them against the first implementation).
 """
 
 from __future__ import annotations
@@ -41,10 +44,10 @@ import numpy as np
 from scipy import ndimage
 
 from swarm_common.geometry import Path2D, Points2D, wrap_angle
+from swarm_nav import dwa_kernels as kernels
 from swarm_nav.config import DwaConfig
 
 _GRID = 0.025  # [m/cell] resolution of the local distance grid
-_BATCH = 40    # rollouts checked exactly at a time, cheapest first (after the cheapest alone)
 
 
 @dataclass(frozen=True)
@@ -185,52 +188,6 @@ def rollout(pose, v, w, times) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return x, y, th
 
 
-@dataclass(frozen=True)
-class _Fan:
-    """The rollouts of a grid of velocity samples: rollout ``k`` has ``v = vs[k // len(ws)]`` and
-    ``w = ws[k % len(ws)]``.  Poses are those of :func:`rollout`, bit for bit; headings (and
-    their cosines and sines) are stored once per ``w`` sample.
-
-    Attributes:
-        x: (S, T) x [m] in ``map``, ``S = len(vs) * len(ws)``.
-        y: (S, T) y [m] in ``map``.
-        th: (W, T) yaw [rad] (not wrapped) of the rollouts with ``w = ws[j]``.
-        cos: (W, T) ``cos(th)``.
-        sin: (W, T) ``sin(th)``.
-    """
-
-    x: np.ndarray
-    y: np.ndarray
-    th: np.ndarray
-    cos: np.ndarray
-    sin: np.ndarray
-
-    def heading(self, k) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(th, cos, sin)`` of the rollouts ``k`` (an index or an index array), (..., T)."""
-        j = np.asarray(k) % len(self.th)
-        return self.th[j], self.cos[j], self.sin[j]
-
-
-def _fan(pose: np.ndarray, vs: np.ndarray, ws: np.ndarray, times: np.ndarray) -> _Fan:
-    """The rollouts of every pair of ``vs`` x ``ws`` (see :class:`_Fan`), with the operations of
-    :func:`rollout` applied in the same order to the same operands."""
-    x0, y0, th0 = (float(c) for c in pose)
-    nv, nw, nt = len(vs), len(ws), len(times)
-    th = th0 + ws[:, None] * times[None, :]
-    straight = np.abs(ws) < 1e-6
-    w_safe = np.where(straight, 1.0, ws)
-    s0, c0 = math.sin(th0), math.cos(th0)
-    sin_th, cos_th = np.sin(th), np.cos(th)
-    k = (vs[:, None] / w_safe[None, :])[:, :, None]  # v / w, (V, W, 1)
-    x = x0 + k * (sin_th - s0)
-    y = y0 - k * (cos_th - c0)
-    if straight.any():
-        vt = vs[:, None] * times[None, :]  # (V, T)
-        x[:, straight] = (x0 + vt * c0)[:, None, :]
-        y[:, straight] = (y0 + vt * s0)[:, None, :]
-    return _Fan(x.reshape(nv * nw, nt), y.reshape(nv * nw, nt), th, cos_th, sin_th)
-
-
 def footprint_gaps(x, y, yaw, points: Points2D, footprint: Footprint) -> np.ndarray:
     """Signed gap [m] between the footprint box at each pose and the nearest obstacle point.
 
@@ -336,8 +293,14 @@ def dwa_command(state: RobotState, path: Path2D, obstacles: Points2D, cfg: DwaCo
     n = max(1, math.ceil(reach_v * horizon / cfg.sim_granularity),
             math.ceil(reach_w * horizon / cfg.angular_sim_granularity))
     times = horizon * np.arange(1, n + 1) / n
-    fan = _fan(pose, vs, ws, times)
-    x, y = fan.x, fan.y
+    x0, y0, th0 = (float(c) for c in pose)
+    th = th0 + ws[:, None] * times[None, :]  # (W, T) headings, shared by every v
+    straight = np.abs(ws) < 1e-6
+    cos_th, sin_th = np.cos(th), np.sin(th)
+    cx, cy = footprint.centre
+    x, y, bx, by, box_bounds = kernels.rollout_boxes(
+        x0, y0, math.sin(th0), math.cos(th0), vs, np.where(straight, 1.0, ws), straight, times,
+        cos_th, sin_th, cx, cy)
 
     local = _local_points(obstacles, pose, reach_v * horizon + footprint.radius
                           + cfg.footprint_padding + 2 * _GRID)
@@ -346,14 +309,9 @@ def dwa_command(state: RobotState, path: Path2D, obstacles: Points2D, cfg: DwaCo
     # between two checked poses no point of the box moves more than `step`, so the gap can dip
     # at most half of it below the checked values: demand that much more (a continuous guarantee)
     step = (np.abs(V) + np.abs(W) * footprint.radius) * (horizon / n)
-    need_s = (need + 0.5 * step)[:, None]
-    # box centres, computed per (v, w) pair from the headings shared by each w
-    nv, nw, nt = len(vs), len(ws), len(times)
-    bx, by = (b.reshape(nv * nw, nt) for b in _box_centres(
-        x.reshape(nv, nw, nt), y.reshape(nv, nw, nt), fan.cos, fan.sin, footprint))
-    lower, upper_min, est_min = _gap_bounds(bx, by, local, footprint)
-    sure_bad = upper_min < need_s[:, 0]   # some pose surely too near: inadmissible
-    unsure = lower < need_s               # poses only an exact check can clear
+    need_s = need + 0.5 * step
+    lower, upper_min, est_min, unsure = _gap_bounds(bx, by, box_bounds, local, footprint, need_s)
+    sure_bad = upper_min < need_s   # some pose surely too near: inadmissible
     moving = (np.abs(V) > 1e-9) | (np.abs(W) > 1e-9)
 
     dxy = path - pose[:2]
@@ -361,7 +319,7 @@ def dwa_command(state: RobotState, path: Path2D, obstacles: Points2D, cfg: DwaCo
     i0 = int(np.argmin(to_path))
     carrot, tangent = _lookahead(path, pose[:2], cfg.lookahead_dist, i0)
     ex, ey = x[:, -1], y[:, -1]
-    eth = np.tile(fan.th[:, -1], nv)
+    eth = np.tile(th[:, -1], len(vs))
     tx, ty = carrot[0] - ex, carrot[1] - ey  # rollout end -> carrot
     goal_dist = np.hypot(tx, ty)
     path_dist = _path_dist(ex, ey, path, pose, to_path, i0)
@@ -376,65 +334,17 @@ def dwa_command(state: RobotState, path: Path2D, obstacles: Points2D, cfg: DwaCo
     # check the candidates exactly in order of cost; the first admissible wins
     order = np.flatnonzero(moving & ~sure_bad)
     order = order[np.argsort(cost[order], kind="stable")]
-    best = _first_admissible(order, unsure, need_s[:, 0], bx, by, fan, local, footprint)
-    if best is not None:
-        th_b, c_b, s_b = fan.heading(best)
-        gaps = lower[best].copy()
-        m = unsure[best]
-        if m.any():  # the exact gaps of the poses the bounds did not clear
-            gaps[m] = _gaps(bx[best, m], by[best, m], c_b[m], s_b[m], local,
-                            footprint).min(axis=-1)
-        traj = np.column_stack((x[best], y[best], wrap_angle(th_b)))
-        return Command(float(V[best]), float(W[best]), True, float(cost[best]),
-                       float(gaps.min()), traj)
-    return _fallback(pose, carrot, tangent, local, footprint, cfg, (w_lo, w_hi))
-
-
-def _first_admissible(order: np.ndarray, unsure: np.ndarray, need: np.ndarray, bx: np.ndarray,
-                      by: np.ndarray, fan: _Fan, pts: np.ndarray, footprint: Footprint
-                      ) -> int | None:
-    """The first rollout of ``order`` whose unsure poses all keep the footprint gap [m] to every
-    point at least its ``need``, or ``None``.
-
-    The cheapest candidate is checked alone (it usually wins), then the others ``_BATCH`` at a
-    time.  A point fails a pose's check only inside its box grown by that pose's need, so only
-    points within ``hypot(hx + need, hy + need)`` of some unsure pose's box centre are compared:
-    the verdicts are those of comparing every point.
-
-    Args:
-        order: (K,) candidate rollouts, cheapest first.
-        unsure: (S, T) poses whose gap the bounds could not clear.
-        need: (S,) the gap [m] each rollout must keep.
-        bx: (S, T) box centres x [m] in ``map``.
-        by: (S, T) box centres y [m] in ``map``.
-        fan: the rollouts (for the headings).
-        pts: (M, 2) obstacle points x, y [m] in ``map``.
-        footprint: the footprint box.
-    """
     hx, hy = footprint.half_size
-    k = 0
-    while k < len(order):
-        idx = order[k:k + (1 if k == 0 else _BATCH)]
-        k += len(idx)
-        mask = unsure[idx]
-        if not mask.any():
-            return int(idx[0])
-        ok = np.ones(len(idx), dtype=bool)
-        rows, cols = np.nonzero(mask)
-        sel = idx[rows]
-        _, c, s = fan.heading(sel)
-        c, s = c[np.arange(len(sel)), cols], s[np.arange(len(sel)), cols]
-        need_p = need[sel]
-        pbx, pby = bx[sel, cols], by[sel, cols]
-        grown = float(need_p.max())
-        reach = math.hypot(hx + grown, hy + grown) + 1e-6
-        near = pts[(pts[:, 0] >= pbx.min() - reach) & (pts[:, 0] <= pbx.max() + reach)
-                   & (pts[:, 1] >= pby.min() - reach) & (pts[:, 1] <= pby.max() + reach)]
-        if len(near):
-            ok[rows[_gaps(pbx, pby, c, s, near, footprint).min(axis=1) < need_p]] = False
-        if ok.any():
-            return int(idx[np.argmax(ok)])
-    return None
+    px, py = np.ascontiguousarray(local[:, 0]), np.ascontiguousarray(local[:, 1])
+    best = kernels.first_admissible(order, unsure, need_s, bx, by, cos_th, sin_th, px, py, hx,
+                                    hy)
+    if best >= 0:
+        min_gap = kernels.rollout_min_gap(best, lower, unsure, bx, by, cos_th, sin_th, px, py,
+                                          hx, hy)
+        traj = np.column_stack((x[best], y[best], wrap_angle(th[best % len(ws)])))
+        return Command(float(V[best]), float(W[best]), True, float(cost[best]),
+                       float(min_gap), traj)
+    return _fallback(pose, carrot, tangent, local, footprint, cfg, (w_lo, w_hi))
 
 
 def rotation_is_safe(pose, angle: float, obstacles: Points2D, footprint: Footprint,
@@ -491,16 +401,13 @@ def _path_dist(ex: np.ndarray, ey: np.ndarray, path: np.ndarray, pose: np.ndarra
     """
     reach = float(np.hypot(ex - pose[0], ey - pose[1]).max())
     rest = path[i0:][to_path[i0:] <= 2.0 * reach + to_path[i0] + 1e-6]
-    dx = ex[:, None] - rest[:, 0]
-    dx *= dx
-    dy = ey[:, None] - rest[:, 1]
-    dy *= dy
-    dx += dy
-    return np.sqrt(dx.min(axis=1))
+    return kernels.nearest_path_dist(ex, ey, np.ascontiguousarray(rest[:, 0]),
+                                     np.ascontiguousarray(rest[:, 1]))
 
 
-def _gap_bounds(bx: np.ndarray, by: np.ndarray, pts: np.ndarray, footprint: Footprint
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _gap_bounds(bx: np.ndarray, by: np.ndarray, box_bounds: np.ndarray, pts: np.ndarray,
+                footprint: Footprint, need: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Cheap bounds of the gaps [m] between the footprint at the rollout poses and the points.
 
     A distance transform of the points on a local grid gives every box centre's distance ``d`` to
@@ -511,33 +418,35 @@ def _gap_bounds(bx: np.ndarray, by: np.ndarray, pts: np.ndarray, footprint: Foot
     Args:
         bx: (S, T) box centres x [m] in ``map`` at the rollout poses.
         by: (S, T) box centres y [m].
+        box_bounds: (4,) the least and greatest ``bx`` and ``by`` [m]: ``(bx_min, bx_max,
+            by_min, by_max)``.
         pts: (M, 2) obstacle points x, y [m] in ``map``.
         footprint: the footprint box.
+        need: (S,) the gap [m] each rollout must keep.
 
     Returns:
-        (S, T) lower bounds; (S,) per rollout the least upper bound over its poses; and (S,) per
+        (S, T) lower bounds; (S,) per rollout the least upper bound over its poses; (S,) per
         rollout the least estimate for the BaseObstacle critic (``d`` minus the mean of ``r`` and
-        ``R``); all ``inf`` without points.  (Rounding is monotonic, so the minimum of ``d + c``
-        over a rollout is ``min(d) + c``, bit for bit.)
+        ``R``), all ``inf`` without points; and (S, T) bool, the poses whose lower bound is below
+        their rollout's ``need`` (only an exact check can clear them).  (Rounding is monotonic,
+        so the minimum of ``d + c`` over a rollout is ``min(d) + c``, bit for bit.)
     """
     if len(pts) == 0:
-        return np.full(bx.shape, np.inf), np.full(len(bx), np.inf), np.full(len(bx), np.inf)
+        inf = np.full(len(bx), np.inf)
+        return np.full(bx.shape, np.inf), inf, inf.copy(), np.zeros(bx.shape, dtype=bool)
     hx, hy = footprint.half_size
     r_out, r_in = math.hypot(hx, hy), min(hx, hy)
     px, py = pts[:, 0], pts[:, 1]
-    lo_x = min(float(bx.min()), float(px.min())) - 2 * _GRID
-    lo_y = min(float(by.min()), float(py.min())) - 2 * _GRID
-    hi_x = max(float(bx.max()), float(px.max())) + 2 * _GRID
-    hi_y = max(float(by.max()), float(py.max())) + 2 * _GRID
+    lo_x = min(float(box_bounds[0]), float(px.min())) - 2 * _GRID
+    lo_y = min(float(box_bounds[2]), float(py.min())) - 2 * _GRID
+    hi_x = max(float(box_bounds[1]), float(px.max())) + 2 * _GRID
+    hi_y = max(float(box_bounds[3]), float(py.max())) + 2 * _GRID
     free = np.ones((math.ceil((hi_y - lo_y) / _GRID) + 1, math.ceil((hi_x - lo_x) / _GRID) + 1),
                    dtype=bool)
     free[((py - lo_y) / _GRID).astype(int), ((px - lo_x) / _GRID).astype(int)] = False
     dist = ndimage.distance_transform_edt(free) * _GRID
-    cell = ((by - lo_y) / _GRID).astype(int) * free.shape[1] + ((bx - lo_x) / _GRID).astype(int)
-    d = dist.ravel()[cell]
-    d_min = d.min(axis=1)
-    err = _GRID * math.sqrt(2.0)
-    return d - err - r_out, d_min + err - r_in, d_min - 0.5 * (r_in + r_out)
+    return kernels.gap_bounds(bx, by, dist, lo_x, lo_y, _GRID, _GRID * math.sqrt(2.0), r_out,
+                              r_in, need)
 
 
 def _lookahead(path: np.ndarray, xy: np.ndarray, dist: float, i0: int

@@ -15,6 +15,7 @@ import pytest
 from scipy import ndimage
 
 from swarm_common.geometry import wrap_angle
+from swarm_nav import dwa_kernels
 from swarm_nav.config import DwaConfig
 from swarm_nav.dwa import (
     _GRID,
@@ -22,7 +23,6 @@ from swarm_nav.dwa import (
     Footprint,
     RobotState,
     _fallback,
-    _fan,
     _local_points,
     dwa_command,
     dynamic_window,
@@ -258,18 +258,24 @@ def test_gap_functions_equal_the_reference(seed):
 
 
 @pytest.mark.parametrize("seed", range(3))
-def test_fan_equals_rollout_per_pair(seed):
-    """The shared-heading rollouts are those of rollout() for every (v, w) pair, bit for bit."""
+def test_compiled_rollouts_equal_rollout_per_pair(seed):
+    """The compiled shared-heading rollouts and box centres are those of rollout() for every
+    (v, w) pair, bit for bit."""
     rng = np.random.default_rng(200 + seed)
+    cx, cy = FP.centre
     for _ in range(30):
         pose = rng.uniform([-5, -5, -4], [5, 5, 4])
         vs = np.sort(rng.uniform(-0.1, 0.3, size=rng.integers(1, 8)))
         ws = np.concatenate((rng.uniform(-1.0, 1.0, size=rng.integers(1, 8)), [0.0, 5e-7]))
         times = 1.7 * np.arange(1, 18) / 17
-        fan = _fan(pose, vs, ws, times)
-        x, y, th = rollout(pose, np.repeat(vs, len(ws)), np.tile(ws, len(vs)), times)
-        assert np.array_equal(fan.x, x) and np.array_equal(fan.y, y)
-        k = np.arange(len(x))
-        assert np.array_equal(fan.heading(k)[0], th)
-        assert np.array_equal(fan.heading(k)[1], np.cos(th))
-        assert np.array_equal(fan.heading(k)[2], np.sin(th))
+        th_w = pose[2] + ws[:, None] * times[None, :]
+        straight = np.abs(ws) < 1e-6
+        x, y, bx, by, bounds = dwa_kernels.rollout_boxes(
+            pose[0], pose[1], math.sin(pose[2]), math.cos(pose[2]), vs,
+            np.where(straight, 1.0, ws), straight, times, np.cos(th_w), np.sin(th_w), cx, cy)
+        rx, ry, th = rollout(pose, np.repeat(vs, len(ws)), np.tile(ws, len(vs)), times)
+        assert np.array_equal(x, rx) and np.array_equal(y, ry)
+        c, s = np.cos(th), np.sin(th)
+        assert np.array_equal(bx, rx + c * cx - s * cy)
+        assert np.array_equal(by, ry + s * cx + c * cy)
+        assert np.array_equal(bounds, [bx.min(), bx.max(), by.min(), by.max()])
