@@ -41,7 +41,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 
 from swarm_common.geometry import Path2D, Points2D, wrap_angle
 from swarm_nav import dwa_kernels as kernels
@@ -284,8 +283,6 @@ def dwa_command(state: RobotState, path: Path2D, obstacles: Points2D, cfg: DwaCo
     ws = np.linspace(w_lo, w_hi, cfg.vtheta_samples) if w_hi > w_lo else np.array([w_lo])
     if w_lo < 0.0 < w_hi and not (ws == 0.0).any():
         ws = np.append(ws, 0.0)  # always offer driving straight
-    V = np.repeat(vs, len(ws))  # rollout k: vs[k // len(ws)], ws[k % len(ws)]
-    W = np.tile(ws, len(vs))
     reach_v = max(abs(v_lo), abs(v_hi))
     reach_w = max(abs(w_lo), abs(w_hi))
     # the rollout must cover one period plus the braking distance (Fox et al.'s admissibility)
@@ -293,47 +290,37 @@ def dwa_command(state: RobotState, path: Path2D, obstacles: Points2D, cfg: DwaCo
     n = max(1, math.ceil(reach_v * horizon / cfg.sim_granularity),
             math.ceil(reach_w * horizon / cfg.angular_sim_granularity))
     times = horizon * np.arange(1, n + 1) / n
+    local = _local_points(obstacles, pose, reach_v * horizon + footprint.radius
+                          + cfg.footprint_padding + 2 * _GRID)
+    need = min(cfg.footprint_padding, _gap_now(pose, local, footprint))
+
+    # rollout k has vs[k // len(ws)], ws[k % len(ws)]; its headings are those of ws[k % len(ws)]
     x0, y0, th0 = (float(c) for c in pose)
-    th = th0 + ws[:, None] * times[None, :]  # (W, T) headings, shared by every v
+    th = th0 + ws[:, None] * times[None, :]  # (W, T)
     straight = np.abs(ws) < 1e-6
     cos_th, sin_th = np.cos(th), np.sin(th)
     cx, cy = footprint.centre
-    x, y, bx, by, box_bounds = kernels.rollout_boxes(
-        x0, y0, math.sin(th0), math.cos(th0), vs, np.where(straight, 1.0, ws), straight, times,
-        cos_th, sin_th, cx, cy)
-
-    local = _local_points(obstacles, pose, reach_v * horizon + footprint.radius
-                          + cfg.footprint_padding + 2 * _GRID)
-    gap0 = _gap_now(pose, local, footprint)
-    need = min(cfg.footprint_padding, gap0)
     # between two checked poses no point of the box moves more than `step`, so the gap can dip
-    # at most half of it below the checked values: demand that much more (a continuous guarantee)
-    step = (np.abs(V) + np.abs(W) * footprint.radius) * (horizon / n)
-    need_s = need + 0.5 * step
+    # at most half of it below the checked values: each rollout must keep that much more than
+    # `need` (a continuous guarantee)
+    x, y, bx, by, box_bounds, need_s = kernels.rollout_boxes(
+        x0, y0, math.sin(th0), math.cos(th0), vs, ws, np.where(straight, 1.0, ws), straight,
+        times, cos_th, sin_th, cx, cy, footprint.radius, horizon / n, need)
     lower, upper_min, est_min, unsure = _gap_bounds(bx, by, box_bounds, local, footprint, need_s)
-    sure_bad = upper_min < need_s   # some pose surely too near: inadmissible
-    moving = (np.abs(V) > 1e-9) | (np.abs(W) > 1e-9)
 
     dxy = path - pose[:2]
     to_path = np.hypot(dxy[:, 0], dxy[:, 1])  # (N,) [m] from the robot to each path point
     i0 = int(np.argmin(to_path))
     carrot, tangent = _lookahead(path, pose[:2], cfg.lookahead_dist, i0)
-    ex, ey = x[:, -1], y[:, -1]
-    eth = np.tile(th[:, -1], len(vs))
-    tx, ty = carrot[0] - ex, carrot[1] - ey  # rollout end -> carrot
-    goal_dist = np.hypot(tx, ty)
-    path_dist = _path_dist(ex, ey, path, pose, to_path, i0)
-    aim = np.where(goal_dist > 0.15, np.arctan2(ty, tx), tangent)
-    align = np.abs(wrap_angle(eth - aim))
-    infl = cfg.obstacle_influence
-    obst = np.clip((infl - est_min) / infl, 0.0, 1.0) ** 2
-    speed = (cfg.max_vel_x - V) / cfg.max_vel_x
-    cost = (cfg.path_dist_scale * path_dist + cfg.goal_dist_scale * goal_dist
-            + cfg.path_align_scale * align + cfg.obstacle_scale * obst + cfg.speed_scale * speed)
+    aim = np.arctan2(carrot[1] - y[:, -1], carrot[0] - x[:, -1])  # rollout end -> carrot
+    cost, order = kernels.score_rollouts(
+        x, y, aim, th[:, -1], vs, ws, x0, y0, float(carrot[0]), float(carrot[1]), tangent,
+        np.ascontiguousarray(path[:, 0]), np.ascontiguousarray(path[:, 1]), to_path, i0,
+        est_min, upper_min, need_s, cfg.max_vel_x, cfg.obstacle_influence, np.array(
+            [cfg.path_dist_scale, cfg.goal_dist_scale, cfg.path_align_scale, cfg.obstacle_scale,
+             cfg.speed_scale]))
 
     # check the candidates exactly in order of cost; the first admissible wins
-    order = np.flatnonzero(moving & ~sure_bad)
-    order = order[np.argsort(cost[order], kind="stable")]
     hx, hy = footprint.half_size
     px, py = np.ascontiguousarray(local[:, 0]), np.ascontiguousarray(local[:, 1])
     best = kernels.first_admissible(order, unsure, need_s, bx, by, cos_th, sin_th, px, py, hx,
@@ -341,9 +328,10 @@ def dwa_command(state: RobotState, path: Path2D, obstacles: Points2D, cfg: DwaCo
     if best >= 0:
         min_gap = kernels.rollout_min_gap(best, lower, unsure, bx, by, cos_th, sin_th, px, py,
                                           hx, hy)
-        traj = np.column_stack((x[best], y[best], wrap_angle(th[best % len(ws)])))
-        return Command(float(V[best]), float(W[best]), True, float(cost[best]),
-                       float(min_gap), traj)
+        th_best = th[best % len(ws)]
+        traj = np.column_stack((x[best], y[best], wrap_angle(th_best)))
+        return Command(float(vs[best // len(ws)]), float(ws[best % len(ws)]), True,
+                       float(cost[best]), float(min_gap), traj)
     return _fallback(pose, carrot, tangent, local, footprint, cfg, (w_lo, w_hi))
 
 
@@ -389,22 +377,6 @@ def _gap_now(pose: np.ndarray, pts: np.ndarray, footprint: Footprint) -> float:
     return float(point_gaps(pose, pts, footprint).min())
 
 
-def _path_dist(ex: np.ndarray, ey: np.ndarray, path: np.ndarray, pose: np.ndarray,
-               to_path: np.ndarray, i0: int) -> np.ndarray:
-    """(S,) distance [m] from each rollout end ``ex, ey`` to the nearest point of the path from
-    the point ``i0`` nearest the robot on (``to_path``: (N,) each path point's distance [m] to the
-    robot).
-
-    Only path points that can be the nearest to some end are compared: with every end within
-    ``reach`` of the robot, a point farther than ``2 reach + to_path[i0]`` from the robot is
-    farther from every end than the point ``i0``.
-    """
-    reach = float(np.hypot(ex - pose[0], ey - pose[1]).max())
-    rest = path[i0:][to_path[i0:] <= 2.0 * reach + to_path[i0] + 1e-6]
-    return kernels.nearest_path_dist(ex, ey, np.ascontiguousarray(rest[:, 0]),
-                                     np.ascontiguousarray(rest[:, 1]))
-
-
 def _gap_bounds(bx: np.ndarray, by: np.ndarray, box_bounds: np.ndarray, pts: np.ndarray,
                 footprint: Footprint, need: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -435,18 +407,9 @@ def _gap_bounds(bx: np.ndarray, by: np.ndarray, box_bounds: np.ndarray, pts: np.
         inf = np.full(len(bx), np.inf)
         return np.full(bx.shape, np.inf), inf, inf.copy(), np.zeros(bx.shape, dtype=bool)
     hx, hy = footprint.half_size
-    r_out, r_in = math.hypot(hx, hy), min(hx, hy)
-    px, py = pts[:, 0], pts[:, 1]
-    lo_x = min(float(box_bounds[0]), float(px.min())) - 2 * _GRID
-    lo_y = min(float(box_bounds[2]), float(py.min())) - 2 * _GRID
-    hi_x = max(float(box_bounds[1]), float(px.max())) + 2 * _GRID
-    hi_y = max(float(box_bounds[3]), float(py.max())) + 2 * _GRID
-    free = np.ones((math.ceil((hi_y - lo_y) / _GRID) + 1, math.ceil((hi_x - lo_x) / _GRID) + 1),
-                   dtype=bool)
-    free[((py - lo_y) / _GRID).astype(int), ((px - lo_x) / _GRID).astype(int)] = False
-    dist = ndimage.distance_transform_edt(free) * _GRID
-    return kernels.gap_bounds(bx, by, dist, lo_x, lo_y, _GRID, _GRID * math.sqrt(2.0), r_out,
-                              r_in, need)
+    return kernels.gap_bounds(bx, by, box_bounds, np.ascontiguousarray(pts[:, 0]),
+                              np.ascontiguousarray(pts[:, 1]), _GRID, math.hypot(hx, hy),
+                              min(hx, hy), need)
 
 
 def _lookahead(path: np.ndarray, xy: np.ndarray, dist: float, i0: int

@@ -22,8 +22,10 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True)
-def rollout_boxes(x0, y0, s0, c0, vs, ws_safe, straight, times, cos_th, sin_th, cx, cy):
-    """Poses and footprint-box centres of the rollouts of every ``vs`` x ``ws`` pair.
+def rollout_boxes(x0, y0, s0, c0, vs, ws, ws_safe, straight, times, cos_th, sin_th, cx, cy,
+                  radius, dt_check, need):
+    """Poses and footprint-box centres of the rollouts of every ``vs`` x ``ws`` pair, and the
+    gap each rollout must keep.
 
     The arithmetic of ``dwa._fan`` and ``dwa._box_centres``: for a turning rollout ``x = x0 + v /
     w (sin th - s0)``, ``y = y0 - v / w (cos th - c0)``; for a straight one ``x = x0 + v t c0``,
@@ -35,28 +37,36 @@ def rollout_boxes(x0, y0, s0, c0, vs, ws_safe, straight, times, cos_th, sin_th, 
         s0: sin of the start yaw.
         c0: cos of the start yaw.
         vs: (V,) forward speeds [m/s].
-        ws_safe: (W,) rotational speeds [rad/s], 1.0 where ``straight``.
+        ws: (W,) rotational speeds [rad/s].
+        ws_safe: (W,) ``ws``, 1.0 where ``straight``.
         straight: (W,) bool, ``|w| < 1e-6``.
         times: (T,) times [s] after the start.
         cos_th: (W, T) cos of the yaw of rollout ``w`` at each time.
         sin_th: (W, T) sin of that yaw.
         cx: box centre x [m] in ``base_footprint``.
         cy: box centre y [m] in ``base_footprint``.
+        radius: the box's circumscribed radius [m] about ``base_footprint``.
+        dt_check: time [s] between two checked poses.
+        need: the gap [m] to keep at the checked poses.
 
     Returns:
-        ``(x, y, bx, by, bounds)``: (V * W, T) poses x, y [m] and box centres bx, by [m] in
-        ``map`` (rollout ``k`` has ``vs[k // W]``, ``ws[k % W]``), and (4,) the least and
-        greatest ``bx``, ``by``: ``(bx_min, bx_max, by_min, by_max)``.
+        ``(x, y, bx, by, bounds, need_s)``: (V * W, T) poses x, y [m] and box centres bx, by [m]
+        in ``map`` (rollout ``k`` has ``vs[k // W]``, ``ws[k % W]``); (4,) the least and
+        greatest ``bx``, ``by``: ``(bx_min, bx_max, by_min, by_max)``; and (V * W,) the gap
+        [m] each rollout must keep at its checked poses, ``need + step / 2`` with ``step = (|v| +
+        |w| radius) dt_check`` the farthest a point of the box moves between two of them.
     """
     nv, nw, nt = vs.shape[0], ws_safe.shape[0], times.shape[0]
     x = np.empty((nv * nw, nt))
     y = np.empty((nv * nw, nt))
     bx = np.empty((nv * nw, nt))
     by = np.empty((nv * nw, nt))
+    need_s = np.empty(nv * nw)
     bx_lo, bx_hi, by_lo, by_hi = math.inf, -math.inf, math.inf, -math.inf
     for i in range(nv):
         for j in range(nw):
             k = i * nw + j
+            need_s[k] = need + 0.5 * ((abs(vs[i]) + abs(ws[j]) * radius) * dt_check)
             kk = vs[i] / ws_safe[j]
             for t in range(nt):
                 if straight[j]:
@@ -78,33 +88,114 @@ def rollout_boxes(x0, y0, s0, c0, vs, ws_safe, straight, times, cos_th, sin_th, 
                 bx_hi = max(bx_hi, bxi)
                 by_lo = min(by_lo, byi)
                 by_hi = max(by_hi, byi)
-    return x, y, bx, by, np.array([bx_lo, bx_hi, by_lo, by_hi])
+    return x, y, bx, by, np.array([bx_lo, bx_hi, by_lo, by_hi]), need_s
 
 
 @njit(cache=True, nogil=True)
-def gap_bounds(bx, by, dist, lo_x, lo_y, grid, err, r_out, r_in, need):
-    """The bounds of ``dwa._gap_bounds`` from a distance grid, and which poses they cannot clear.
+def _squared_edt_1d(f, n, out, v, z):
+    """The exact 1-D squared distance transform of ``f[:n]`` (``inf``: no feature) into ``out``
+    (the lower envelope of parabolas of Felzenszwalb and Huttenlocher 2012, over the finite
+    entries only); ``v``, ``z`` are work arrays of ``n`` and ``n + 1``."""
+    k = -1
+    for q in range(n):
+        if f[q] == math.inf:
+            continue
+        fq = f[q] + q * q
+        while k >= 0:
+            p = v[k]
+            s = (fq - (f[p] + p * p)) / (2 * q - 2 * p)
+            if s <= z[k]:
+                k -= 1
+            else:
+                break
+        if k < 0:
+            k = 0
+            z[0] = -math.inf
+        else:
+            p = v[k]
+            k += 1
+            z[k] = (fq - (f[p] + p * p)) / (2 * q - 2 * p)
+        v[k] = q
+    if k < 0:
+        for q in range(n):
+            out[q] = math.inf
+        return
+    z[k + 1] = math.inf
+    j = 0
+    for q in range(n):
+        while z[j + 1] < q:
+            j += 1
+        p = v[j]
+        out[q] = (q - p) * (q - p) + f[p]
+
+
+@njit(cache=True, nogil=True)
+def squared_distance_grid(rows, cols, h, w):
+    """(h, w) the exact squared distance [cells^2] of every cell to the nearest of the feature
+    cells ``rows[m], cols[m]`` (what ``scipy.ndimage.distance_transform_edt`` squares: an
+    integer, exact in float64)."""
+    d2 = np.empty((h, w))
+    col = np.empty(h)
+    f = np.full(h, math.inf)
+    out = np.empty(max(h, w))
+    v = np.empty(max(h, w), dtype=np.int64)
+    z = np.empty(max(h, w) + 1)
+    feat = np.zeros((h, w), dtype=np.bool_)
+    for m in range(rows.shape[0]):
+        feat[rows[m], cols[m]] = True
+    for c in range(w):
+        for r in range(h):
+            f[r] = 0.0 if feat[r, c] else math.inf
+        _squared_edt_1d(f, h, col, v, z)
+        for r in range(h):
+            d2[r, c] = col[r]
+    for r in range(h):
+        _squared_edt_1d(d2[r], w, out, v, z)
+        for c in range(w):
+            d2[r, c] = out[c]
+    return d2
+
+
+@njit(cache=True, nogil=True)
+def gap_bounds(bx, by, box_bounds, px, py, grid, r_out, r_in, need):
+    """The bounds of ``dwa._gap_bounds``, and which poses they cannot clear.
+
+    The points are marked on a grid of ``grid`` cells spanning them and the box centres with a
+    margin of two cells; ``d``, a box centre's distance to the nearest marked cell (the exact
+    Euclidean distance transform, as ``scipy.ndimage.distance_transform_edt``), is within ``e =
+    sqrt(2) grid`` of its distance to the nearest point.
 
     Args:
         bx: (S, T) box centres x [m] in ``map``.
         by: (S, T) box centres y [m].
-        dist: (H, W) distance [m] of each grid cell to the nearest obstacle point.
-        lo_x: x [m] of the grid's cell (0, 0) corner.
-        lo_y: y [m] of that corner.
+        box_bounds: (4,) ``(bx_min, bx_max, by_min, by_max)`` [m].
+        px: (M,) obstacle points x [m] in ``map``, M > 0.
+        py: (M,) obstacle points y [m].
         grid: cell size [m].
-        err: the grid's error bound [m] (a cell's diagonal).
         r_out: the box's half diagonal [m].
         r_in: the box's half width [m].
         need: (S,) the gap [m] each rollout must keep.
 
     Returns:
-        ``(lower, upper_min, est_min, unsure)``: (S, T) lower bounds of the gaps [m], (S,) each
-        rollout's least upper bound [m], (S,) its least estimate for the BaseObstacle critic [m],
-        and (S, T) bool, ``lower < need``.
+        ``(lower, upper_min, est_min, unsure)``: (S, T) lower bounds ``d - e - r_out`` of the
+        gaps [m], (S,) each rollout's least upper bound ``min d + e - r_in`` [m], (S,) its least
+        estimate for the BaseObstacle critic ``min d - (r_in + r_out) / 2`` [m], and (S, T)
+        bool, ``lower < need``.
     """
+    lo_x = min(box_bounds[0], px.min()) - 2 * grid
+    lo_y = min(box_bounds[2], py.min()) - 2 * grid
+    hi_x = max(box_bounds[1], px.max()) + 2 * grid
+    hi_y = max(box_bounds[3], py.max()) + 2 * grid
+    h = math.ceil((hi_y - lo_y) / grid) + 1
+    w = math.ceil((hi_x - lo_x) / grid) + 1
+    rows = np.empty(px.shape[0], dtype=np.int64)
+    cols = np.empty(px.shape[0], dtype=np.int64)
+    for m in range(px.shape[0]):
+        rows[m] = int((py[m] - lo_y) / grid)
+        cols[m] = int((px[m] - lo_x) / grid)
+    d2 = squared_distance_grid(rows, cols, h, w)
+    err = grid * math.sqrt(2.0)
     ns, nt = bx.shape
-    ncol = dist.shape[1]
-    flat = dist.ravel()
     lower = np.empty((ns, nt))
     upper_min = np.empty(ns)
     est_min = np.empty(ns)
@@ -112,8 +203,7 @@ def gap_bounds(bx, by, dist, lo_x, lo_y, grid, err, r_out, r_in, need):
     for k in range(ns):
         d_min = math.inf
         for t in range(nt):
-            cell = int((by[k, t] - lo_y) / grid) * ncol + int((bx[k, t] - lo_x) / grid)
-            d = flat[cell]
+            d = math.sqrt(d2[int((by[k, t] - lo_y) / grid), int((bx[k, t] - lo_x) / grid)]) * grid
             d_min = min(d_min, d)
             lo = d - err - r_out
             lower[k, t] = lo
@@ -188,32 +278,93 @@ def rollout_min_gap(k, lower, unsure, bx, by, cos_th, sin_th, px, py, hx, hy):
 
 
 @njit(cache=True, nogil=True)
-def nearest_path_dist(ex, ey, rx, ry):
-    """(S,) distance [m] from each rollout end ``ex, ey`` to the nearest of the path points
-    ``rx, ry`` (R,) (``dwa._path_dist``'s arithmetic: squared differences summed, then the root
-    of the least)."""
-    out = np.empty(ex.shape[0])
-    for k in range(ex.shape[0]):
+def score_rollouts(x, y, aim_end, th_end, vs, ws, rx, ry, carrot_x, carrot_y, tangent, px, py,
+                   to_path, i0, est_min, upper_min, need, max_vel_x, influence, scales):
+    """The weighted cost of every rollout (the critics of :mod:`swarm_nav.dwa`), and the
+    candidates to check, cheapest first.
+
+    Args:
+        x: (S, T) rollout poses x [m] in ``map``; rollout ``k`` has ``vs[k // W]``,
+            ``ws[k % W]``.
+        y: (S, T) rollout poses y [m].
+        aim_end: (S,) ``arctan2`` [rad] of each rollout end's offset to the carrot (numpy's,
+            whose rounding the kernels do not reproduce).
+        th_end: (W,) yaw [rad] at the rollouts' end per ``ws`` sample.
+        vs: (V,) forward speeds [m/s].
+        ws: (W,) rotational speeds [rad/s].
+        rx: the robot's x [m] in ``map``.
+        ry: the robot's y [m].
+        carrot_x: x [m] of the lookahead point.
+        carrot_y: y [m] of the lookahead point.
+        tangent: the path's heading [rad] there.
+        px: (N,) path points x [m] in ``map``.
+        py: (N,) path points y [m].
+        to_path: (N,) each path point's distance [m] to the robot.
+        i0: index of the path point nearest the robot.
+        est_min: (S,) each rollout's least gap estimate [m] (``gap_bounds``).
+        upper_min: (S,) each rollout's least gap upper bound [m].
+        need: (S,) the gap [m] each rollout must keep.
+        max_vel_x: [m/s], for the Speed critic.
+        influence: BaseObstacle's influence distance [m].
+        scales: (5,) weights of PathDist, GoalDist, PathAlign, BaseObstacle, Speed.
+
+    Returns:
+        ``(cost, order)``: (S,) weighted costs, and (K,) the rollouts that move and whose upper
+        bound does not already rule them out, by cost (stable: ties keep rollout order).
+    """
+    ns, nt = x.shape
+    nw = ws.shape[0]
+    # PathDist compares each end only with the path points that can be its nearest: with every
+    # end within `reach` of the robot, a point farther than 2 reach + to_path[i0] from the robot
+    # is farther from every end than the point i0
+    reach = -math.inf
+    for k in range(ns):
+        reach = max(reach, math.hypot(x[k, nt - 1] - rx, y[k, nt - 1] - ry))
+    limit = 2.0 * reach + to_path[i0] + 1e-6
+    near = np.empty(px.shape[0] - i0, dtype=np.int64)
+    n_near = 0
+    for r in range(i0, px.shape[0]):
+        if to_path[r] <= limit:
+            near[n_near] = r
+            n_near += 1
+    cost = np.empty(ns)
+    keep = np.empty(ns, dtype=np.bool_)
+    for k in range(ns):
+        v = vs[k // nw]
+        w = ws[k % nw]
+        ex = x[k, nt - 1]
+        ey = y[k, nt - 1]
         best = math.inf
-        for r in range(rx.shape[0]):
-            dx = ex[k] - rx[r]
+        for i in range(n_near):
+            dx = ex - px[near[i]]
             dx *= dx
-            dy = ey[k] - ry[r]
+            dy = ey - py[near[i]]
             dy *= dy
             dx += dy
             best = min(best, dx)
-        out[k] = math.sqrt(best)
-    return out
+        path_dist = math.sqrt(best)
+        goal_dist = math.hypot(carrot_x - ex, carrot_y - ey)
+        aim = aim_end[k] if goal_dist > 0.15 else tangent
+        turn = th_end[k % nw] - aim
+        align = abs(math.pi - ((math.pi - turn) % (2.0 * math.pi)))
+        obst = min(max((influence - est_min[k]) / influence, 0.0), 1.0) ** 2
+        speed = (max_vel_x - v) / max_vel_x
+        cost[k] = (scales[0] * path_dist + scales[1] * goal_dist + scales[2] * align
+                   + scales[3] * obst + scales[4] * speed)
+        keep[k] = (abs(v) > 1e-9 or abs(w) > 1e-9) and not upper_min[k] < need[k]
+    cand = np.flatnonzero(keep)
+    return cost, cand[np.argsort(cost[cand], kind="mergesort")]
 
 
 def warm_up() -> None:
     """Compile (or load from the cache) every kernel, on tiny inputs."""
     one = np.ones(1)
     tt = np.ones((1, 1))
-    x, y, bx, by, _ = rollout_boxes(0.0, 0.0, 0.0, 1.0, one, one, np.zeros(1, dtype=np.bool_),
-                                    one, tt, tt, 0.0, 0.0)
-    lower, _, _, unsure = gap_bounds(bx, by, tt, -1.0, -1.0, 1.0, 0.0, 0.0, 0.0, one)
-    order = np.zeros(1, dtype=np.int64)
-    first_admissible(order, unsure, one, bx, by, tt, tt, one, one, 0.1, 0.1)
+    no = np.zeros(1, dtype=np.bool_)
+    x, y, bx, by, _, need = rollout_boxes(0.0, 0.0, 0.0, 1.0, one, one, one, no, one, tt, tt,
+                                          0.0, 0.0, 0.1, 0.1, 0.05)
+    lower, upper, est, unsure = gap_bounds(bx, by, np.zeros(4), one, one, 1.0, 0.0, 0.0, need)
+    _, order = score_rollouts(x, y, one, one, one, one, 0.0, 0.0, 1.0, 1.0, 0.0, one, one, one,
+                              0, est, upper, need, 0.26, 0.3, np.ones(5))
+    first_admissible(order, unsure, need, bx, by, tt, tt, one, one, 0.1, 0.1)
     rollout_min_gap(0, lower, unsure, bx, by, tt, tt, one, one, 0.1, 0.1)
-    nearest_path_dist(one, one, one, one)

@@ -270,12 +270,35 @@ def test_compiled_rollouts_equal_rollout_per_pair(seed):
         times = 1.7 * np.arange(1, 18) / 17
         th_w = pose[2] + ws[:, None] * times[None, :]
         straight = np.abs(ws) < 1e-6
-        x, y, bx, by, bounds = dwa_kernels.rollout_boxes(
-            pose[0], pose[1], math.sin(pose[2]), math.cos(pose[2]), vs,
-            np.where(straight, 1.0, ws), straight, times, np.cos(th_w), np.sin(th_w), cx, cy)
-        rx, ry, th = rollout(pose, np.repeat(vs, len(ws)), np.tile(ws, len(vs)), times)
+        x, y, bx, by, bounds, need_s = dwa_kernels.rollout_boxes(
+            pose[0], pose[1], math.sin(pose[2]), math.cos(pose[2]), vs, ws,
+            np.where(straight, 1.0, ws), straight, times, np.cos(th_w), np.sin(th_w), cx, cy,
+            FP.radius, 0.1, 0.05)
+        V, W = np.repeat(vs, len(ws)), np.tile(ws, len(vs))
+        rx, ry, th = rollout(pose, V, W, times)
+        assert np.array_equal(need_s, 0.05 + 0.5 * ((np.abs(V) + np.abs(W) * FP.radius) * 0.1))
         assert np.array_equal(x, rx) and np.array_equal(y, ry)
         c, s = np.cos(th), np.sin(th)
         assert np.array_equal(bx, rx + c * cx - s * cy)
         assert np.array_equal(by, ry + s * cx + c * cy)
         assert np.array_equal(bounds, [bx.min(), bx.max(), by.min(), by.max()])
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_compiled_distance_transform_equals_scipy(seed):
+    """The compiled exact distance transform gives scipy's distances to the last bit, on grids
+    with one feature cell, a few, many, whole lines, and features at the borders."""
+    rng = np.random.default_rng(300 + seed)
+    for case in range(40):
+        h, w = (int(v) for v in rng.integers(1, 70, size=2))
+        n = [1, 3, int(rng.integers(1, h * w + 1))][case % 3]
+        cells = rng.integers(0, h * w, size=n)
+        if case % 7 == 0:  # a whole row and a whole column
+            r, c = int(rng.integers(h)), int(rng.integers(w))
+            cells = np.concatenate((cells, r * w + np.arange(w), np.arange(h) * w + c))
+        rows, cols = (cells // w).astype(np.int64), (cells % w).astype(np.int64)
+        free = np.ones((h, w), dtype=bool)
+        free[rows, cols] = False
+        ref = ndimage.distance_transform_edt(free)
+        got = np.sqrt(dwa_kernels.squared_distance_grid(rows, cols, h, w))
+        assert np.array_equal(got, ref), (h, w, n)
