@@ -37,6 +37,7 @@ import numpy as np
 from swarm_common.geometry import Path2D, Points2D, Pose2D, wrap_angle
 from swarm_common.nav_status import TERMINAL, NavState
 from swarm_common.occupancy import OccupancyMap
+from swarm_nav import core_kernels
 from swarm_nav.config import NavigatorConfig
 from swarm_nav.costmap import INSCRIBED, Costmap, add_keepout, build_costmap, overlay_obstacles
 from swarm_nav.dwa import Footprint, RobotState, dwa_command, point_gaps, rotation_is_safe
@@ -554,17 +555,10 @@ class NavigatorCore:
         s0 = self._path_s[self._idx]
         hi = int(np.searchsorted(self._path_s, s0 + distance))
         ahead = self._path[self._idx:max(hi, self._idx + 1)]
-        rel = seen.centres - self._pose[:2]
-        near = np.flatnonzero(np.hypot(rel[:, 0], rel[:, 1]) <= distance + _NEAR_PATH_SLACK)
-        if not len(near):
-            return near
-        flag = np.zeros(len(seen.centres), dtype=bool)
-        flag[near] = True
-        mine = flag[seen.owner]
-        pts = seen.points[mine]
-        d = np.hypot(pts[:, None, 0] - ahead[None, :, 0], pts[:, None, 1] - ahead[None, :, 1])
-        starts = np.searchsorted(seen.owner[mine], near)  # each near robot's first point
-        return near[np.minimum.reduceat(d.min(axis=1), starts) < radius]
+        return core_kernels.robots_near_path(
+            seen.centres, seen.points, seen.starts, seen.sizes, np.ascontiguousarray(ahead[:, 0]),
+            np.ascontiguousarray(ahead[:, 1]), float(self._pose[0]), float(self._pose[1]),
+            distance + _NEAR_PATH_SLACK, radius)
 
     def _dynamic_on_path(self, distance: float, radius: float, now: float) -> bool:
         """Whether a robot seen has a point within ``radius`` of the next ``distance`` of path."""
