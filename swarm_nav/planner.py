@@ -32,10 +32,11 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from swarm_common.geometry import Path2D
+from swarm_nav import planner_kernels as kernels
 from swarm_nav.config import PlannerConfig
-from swarm_nav.costmap import INSCRIBED, LETHAL, UNKNOWN, Costmap, segment_profile
+from swarm_nav.costmap import INSCRIBED, LETHAL, UNKNOWN, Costmap
 
-_UNKNOWN_AS = 126
+_UNKNOWN_AS = kernels.UNKNOWN_AS
 _MOVES = ((0, 1), (0, -1), (1, 0), (-1, 0), (1, 1), (1, -1), (-1, 1), (-1, -1))
 
 
@@ -368,61 +369,15 @@ def shortcut_path(costmap: Costmap, pts: np.ndarray, cfg: PlannerConfig,
     n = len(pts)
     if n <= 2:
         return pts.copy()
-
-    def profile(a: np.ndarray, b: np.ndarray, strict: bool = True) -> tuple[float, int]:
-        """Weighted length [m] and highest cost of a segment; inf if ``strict`` and it crosses
-        a blocked cell (else blocked cells count as the costliest free ones)."""
-        lengths, costs = segment_profile(costmap, a, b)
-        c = costs.astype(float)
-        unknown = costs == UNKNOWN
-        blocked = (costs >= INSCRIBED) & ~unknown
-        if unknown.any():
-            c[unknown] = _UNKNOWN_AS
-            blocked |= unknown & (not cfg.allow_unknown)
-        if blocked.any():
-            if strict:
-                return math.inf, int(costs.max())
-            c = np.minimum(c, INSCRIBED - 1)
-        return float(lengths @ (1.0 + cfg.cost_penalty * c / (INSCRIBED - 1))), int(c.max())
-
-    # weighted length along the path, and each point's cell cost
-    cell_cost = costmap.cost_at(pts).astype(int)
+    pts = np.ascontiguousarray(pts, dtype=float)
+    cell_cost = costmap.cost_at(pts).astype(np.int64)
     if cfg.allow_unknown:
         cell_cost = np.where(cell_cost == UNKNOWN, _UNKNOWN_AS, cell_cost)
-    mult = 1.0 + cfg.cost_penalty * np.minimum(cell_cost, INSCRIBED - 1) / (INSCRIBED - 1)
-    seg = np.hypot(*np.diff(pts, axis=0).T) * 0.5 * (mult[:-1] + mult[1:])
-    for k in {0, 1, n - 2}:  # the exact start and goal are no cell centres
-        seg[k] = profile(pts[k], pts[k + 1], strict=False)[0]
-    cum = np.concatenate(([0.0], np.cumsum(seg)))
-
-    def better(a: int, b: int) -> bool:
-        weighted, worst = profile(pts[a], pts[b])
-        limit = max(cfg.shortcut_max_cost, int(cell_cost[a:b + 1].max()))
-        return worst <= limit and weighted <= cum[b] - cum[a] + 1e-9
-
-    out = [pts[0]]
-    i = 0
-    if keep_first:
-        out.append(pts[1])
-        i = 1
-    while i < n - 1:
-        good, step, bad = i + 1, 1, None
-        while good < n - 1:
-            j = min(good + step, n - 1)
-            if not better(i, j):
-                bad = j
-                break
-            good, step = j, step * 2
-        if bad is not None:
-            while bad - good > 1:
-                mid = (good + bad) // 2
-                if better(i, mid):
-                    good = mid
-                else:
-                    bad = mid
-        out.append(pts[good])
-        i = good
-    return np.asarray(out)
+    keep = kernels.shortcut_indices(
+        costmap.costs, float(costmap.resolution), float(costmap.origin[0]),
+        float(costmap.origin[1]), pts, cell_cost, float(cfg.cost_penalty),
+        bool(cfg.allow_unknown), int(cfg.shortcut_max_cost), bool(keep_first))
+    return pts[keep]
 
 
 def resample_path(path: Path2D, spacing: float) -> Path2D:

@@ -1,0 +1,139 @@
+"""The compiled line-of-sight shortcuts (swarm_nav.planner_kernels) give exactly the paths of the
+numpy implementation they replaced.
+
+The reference below is ``swarm_nav.planner.shortcut_path`` before it was compiled (commit
+005dbd3), on :func:`swarm_nav.costmap.segment_profile`.  The new code must keep exactly the same
+points (``==``) on random cell paths over random costmaps (with unknown cells allowed and not, a
+start escaping the inscribed zone, exact starts and goals off the cell centres) and on cross-map
+plans of slim_blockage.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from swarm_nav import planner_kernels
+from swarm_nav.config import CostmapConfig, PlannerConfig
+from swarm_nav.costmap import INSCRIBED, UNKNOWN, build_costmap, segment_profile
+from swarm_nav.planner import cell_path, plan_path, shortcut_path
+from tests.swarm_nav.helpers import random_grid, slim_blockage_map
+
+_UNKNOWN_AS = 126
+
+
+def ref_shortcut_path(costmap, pts, cfg, keep_first=False):
+    n = len(pts)
+    if n <= 2:
+        return pts.copy()
+
+    def profile(a, b, strict=True):
+        lengths, costs = segment_profile(costmap, a, b)
+        c = costs.astype(float)
+        unknown = costs == UNKNOWN
+        blocked = (costs >= INSCRIBED) & ~unknown
+        if unknown.any():
+            c[unknown] = _UNKNOWN_AS
+            blocked |= unknown & (not cfg.allow_unknown)
+        if blocked.any():
+            if strict:
+                return math.inf, int(costs.max())
+            c = np.minimum(c, INSCRIBED - 1)
+        return float(lengths @ (1.0 + cfg.cost_penalty * c / (INSCRIBED - 1))), int(c.max())
+
+    cell_cost = costmap.cost_at(pts).astype(int)
+    if cfg.allow_unknown:
+        cell_cost = np.where(cell_cost == UNKNOWN, _UNKNOWN_AS, cell_cost)
+    mult = 1.0 + cfg.cost_penalty * np.minimum(cell_cost, INSCRIBED - 1) / (INSCRIBED - 1)
+    seg = np.hypot(*np.diff(pts, axis=0).T) * 0.5 * (mult[:-1] + mult[1:])
+    for k in {0, 1, n - 2}:
+        seg[k] = profile(pts[k], pts[k + 1], strict=False)[0]
+    cum = np.concatenate(([0.0], np.cumsum(seg)))
+
+    def better(a, b):
+        weighted, worst = profile(pts[a], pts[b])
+        limit = max(cfg.shortcut_max_cost, int(cell_cost[a:b + 1].max()))
+        return worst <= limit and weighted <= cum[b] - cum[a] + 1e-9
+
+    out = [pts[0]]
+    i = 0
+    if keep_first:
+        out.append(pts[1])
+        i = 1
+    while i < n - 1:
+        good, step, bad = i + 1, 1, None
+        while good < n - 1:
+            j = min(good + step, n - 1)
+            if not better(i, j):
+                bad = j
+                break
+            good, step = j, step * 2
+        if bad is not None:
+            while bad - good > 1:
+                mid = (good + bad) // 2
+                if better(i, mid):
+                    good = mid
+                else:
+                    bad = mid
+        out.append(pts[good])
+        i = good
+    return np.asarray(out)
+
+
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("allow_unknown", [False, True])
+def test_compiled_shortcuts_equal_the_numpy_ones(seed, allow_unknown):
+    rng = np.random.default_rng(400 + seed)
+    checked = 0
+    for _ in range(12):
+        occ = random_grid(rng, 40, 50, 0.04)
+        data = occ.data.copy()
+        data[rng.random(data.shape) < 0.02] = -1  # a few unknown cells
+        occ = type(occ)(data, occ.resolution, occ.origin)
+        cm = build_costmap(occ, CostmapConfig(robot_radius=0.1, inflation_radius=0.4))
+        cfg = PlannerConfig(allow_unknown=allow_unknown,
+                            cost_penalty=float(rng.choice([0.0, 1.5, 3.0])),
+                            shortcut_max_cost=int(rng.choice([0, 64, 128, 252])))
+        ok = cm.traversable(allow_unknown)
+        free = np.argwhere(ok)
+        for _ in range(6):
+            s, g = free[rng.integers(len(free), size=2)]
+            cells, cost = cell_path(cm, tuple(s), tuple(g), cfg)
+            if len(cells) < 3:
+                continue
+            pts = cm.cell_to_world(np.asarray(cells)).reshape(-1, 2)
+            pts[0] += rng.uniform(-0.05, 0.05, 2)  # exact start and goal off the centres
+            pts[-1] += rng.uniform(-0.05, 0.05, 2)
+            keep_first = bool(rng.integers(2))
+            got = shortcut_path(cm, pts, cfg, keep_first=keep_first)
+            ref = ref_shortcut_path(cm, pts, cfg, keep_first=keep_first)
+            assert np.array_equal(got, ref)
+            checked += 1
+    assert checked >= 20
+
+
+def test_compiled_segment_profile_equals_the_numpy_one():
+    rng = np.random.default_rng(7)
+    cm = build_costmap(random_grid(rng, 30, 30, 0.1), CostmapConfig())
+    for _ in range(300):
+        a, b = rng.uniform(-0.5, 3.5, size=(2, 2))  # also off the map
+        if rng.random() < 0.2:
+            b[int(rng.integers(2))] = a[int(rng.integers(2))]  # axis-parallel, or a point
+        lengths, costs = planner_kernels.segment_profile(
+            cm.costs, cm.resolution, float(cm.origin[0]), float(cm.origin[1]), *a, *b)
+        ref_l, ref_c = segment_profile(cm, a, b)
+        assert np.array_equal(lengths, ref_l) and np.array_equal(costs, ref_c)
+
+
+def test_cross_map_plans_on_slim_blockage_equal_the_numpy_shortcuts():
+    cm = build_costmap(slim_blockage_map(), CostmapConfig())
+    cfg = PlannerConfig()
+    for start, goal in [((8.5, 8.5), (-7.74575, -3.57766)), ((0.0, 0.0), (-7.74575, 5.78442)),
+                        ((-7.7, 8.5), (3.0, -4.0)), ((7.0, 7.0), (-7.74575, 0.97297))]:
+        res = plan_path(cm, start, goal, cfg)
+        assert res.path is not None
+        s_rc, g_rc = cm.world_to_cell(np.array(start)), cm.world_to_cell(np.array(goal))
+        cells, _ = cell_path(cm, tuple(s_rc), tuple(g_rc), cfg)
+        pts = cm.cell_to_world(np.asarray(cells)).reshape(-1, 2)
+        pts[0], pts[-1] = start, goal
+        assert np.array_equal(shortcut_path(cm, pts, cfg), ref_shortcut_path(cm, pts, cfg))
