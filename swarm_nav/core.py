@@ -230,8 +230,7 @@ class NavigatorCore:
             self._dyn = dynamic_points(pts, self.costmap,
                                        self.cfg.perception.static_point_tolerance)
         viewer = self._pose[:2] if self._pose is not None else np.zeros(2)
-        self._robots = self._tracker.update(self._dyn, viewer, now)
-        self._seen = SeenArrays.of(self._robots)
+        self._robots, self._seen = self._tracker.update_arrays(self._dyn, viewer, now)
         self._centres = self._seen.centres
         self._movers = self._moving_points()
 
