@@ -168,9 +168,9 @@ _NO_CENTRES = np.zeros((0, 2))
 
 
 def _perceive(dyn_points: Points2D, viewer_xy, earlier: np.ndarray | None, dt: float
-              ) -> tuple[list[SeenRobot], tuple | None]:
-    """:func:`perceive_robots` in one compiled call; also its arrays ``(centres, velocity,
-    grouped points, starts, sizes)`` (None when no robot is seen) for :class:`SeenArrays`."""
+              ) -> tuple[list[SeenRobot], SeenArrays | None]:
+    """:func:`perceive_robots` in one compiled call; also the robots' :class:`SeenArrays`
+    (None when no robot is seen)."""
     pts = np.ascontiguousarray(np.asarray(dyn_points, dtype=float).reshape(-1, 2))
     v = np.asarray(viewer_xy, dtype=float).reshape(2)
     if earlier is None:
@@ -178,15 +178,18 @@ def _perceive(dyn_points: Points2D, viewer_xy, earlier: np.ndarray | None, dt: f
     else:
         e = np.ascontiguousarray(np.asarray(earlier, dtype=float).reshape(-1, 2))
         reach = _GATE + _MAX_SPEED * dt
-    n, centres, vel, grouped, starts, sizes = kern.perceive(
+    n, centres, vel, grouped, starts, sizes, owner, known, speed = kern.perceive(
         pts, 0.2, float(v[0]), float(v[1]), CENTRE_DEPTH, e, float(dt), reach)
     if n < 0:
         raise ValueError("data must be finite, check for nan or inf values")
     if n == 0:
         return [], None
-    robots = [SeenRobot(centres[k], grouped[starts[k]:starts[k] + sizes[k]], vel[k])
-              for k in range(n)]
-    return robots, (centres, vel, grouped, starts, sizes)
+    ends = (starts + sizes).tolist()
+    robots = [SeenRobot(c, grouped[a:b], u)
+              for c, a, b, u in zip(centres, starts.tolist(), ends, vel, strict=True)]
+    # the arrays apart from the robots' (as SeenArrays.of's), so neither sees the other's changes
+    return robots, SeenArrays(centres.copy(), vel.copy(), known, speed, grouped.copy(), owner,
+                              starts, sizes)
 
 
 class RobotTracker:
@@ -241,14 +244,11 @@ class RobotTracker:
                 off = abs(now - t - cfg.velocity_baseline)
                 if best is None or off < best:
                     best, earlier, dt = off, c, now - t
-        robots, arrays = _perceive(dyn_points, viewer_xy, earlier, dt)
-        if arrays is None:
-            self._history.append((now, np.zeros((0, 2))))
-            return robots, SeenArrays.of([])
-        centres, vel, grouped, starts, sizes = arrays
-        self._history.append((now, centres.copy()))
-        return robots, SeenArrays.from_arrays(centres.copy(), vel.copy(), grouped.copy(),
-                                              starts, sizes)
+        robots, seen = _perceive(dyn_points, viewer_xy, earlier, dt)
+        if seen is None:
+            seen = SeenArrays.of([])
+        self._history.append((now, seen.centres.copy()))
+        return robots, seen
 
 
 @dataclass(frozen=True)
@@ -282,21 +282,12 @@ class SeenArrays:
             z2, zi = np.zeros((0, 2)), np.zeros(0, dtype=int)
             return cls(z2, z2, np.zeros(0, dtype=bool), np.zeros(0), z2, zi, zi, zi)
         velocity = np.array([r.velocity for r in robots], dtype=float)
+        known, speed = kern.speeds(velocity)
         sizes = np.array([len(r.points) for r in robots], dtype=int)
         starts = np.concatenate(([0], np.cumsum(sizes)[:-1])).astype(int)
-        return cls.from_arrays(robot_centres(robots), velocity,
-                               np.vstack([r.points for r in robots]), starts, sizes)
-
-    @classmethod
-    def from_arrays(cls, centres: np.ndarray, velocity: np.ndarray, points: np.ndarray,
-                    starts: np.ndarray, sizes: np.ndarray) -> SeenArrays:
-        """The arrays of K >= 1 robots from their (K, 2) centres [m], (K, 2) velocities [m/s],
-        (P, 2) points [m] robot after robot and the (K,) int first index and number of each
-        robot's points (kept, not copied)."""
-        known = np.isfinite(velocity).all(axis=1)
-        speed = np.where(known, np.hypot(velocity[:, 0], velocity[:, 1]), 0.0)
-        return cls(centres, velocity, known, speed, points,
-                   np.repeat(np.arange(len(centres)), sizes), starts, sizes)
+        return cls(robot_centres(robots), velocity, known, speed,
+                   np.vstack([r.points for r in robots]),
+                   np.repeat(np.arange(len(robots)), sizes), starts, sizes)
 
 
 def robot_centres(robots: list[SeenRobot]) -> np.ndarray:

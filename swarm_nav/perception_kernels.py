@@ -5,9 +5,11 @@ Each kernel does, point by point, the arithmetic that :mod:`swarm_nav.perception
 same order, so the results are the same to the last bit (no ``fastmath``: LLVM then neither
 reorders nor contracts them).  ``hypot`` is the C library's in both numpy and numba.  What the
 loops gain is not arithmetic but the per-call overhead of some forty numpy and scipy calls on
-small arrays (tens to a few hundred points) at every scan of every robot: ``on_scan`` took about
-0.44 ms with numpy and about 0.09 ms with these kernels (a replay of 30,266 recorded navigator
-ticks of a 100-robot run; see tests/swarm_nav/test_perception_kernels.py for the equivalence).
+small arrays (tens to a few hundred points) at every scan of every robot: ``NavigatorCore.on_scan``
+took about 0.50 ms with numpy (0.37 ms of it in ``RobotTracker.update``) and takes about 0.10 ms
+with these kernels (0.07 ms), in a replay of the 14,951 scans of 50 robots of a 100-robot run
+(0 differences in 30,266 navigator ticks; tests/swarm_nav/test_perception_kernels.py holds the
+equivalence).
 
 Single linkage: two points are linked when ``dx * dx + dy * dy <= link * link``, the test of
 scipy's ``cKDTree.query_pairs`` at its leaves (it compares squared distances, summed from 0 in
@@ -239,6 +241,79 @@ def group_points(pts, labels, n):
 
 
 @njit(cache=True, nogil=True)
+def finite_rows(pts):
+    """The rows of ``pts`` (M, 2) whose two coordinates are finite, in order, as a new (K, 2)
+    array (``pts[np.all(np.isfinite(pts), axis=1)]``)."""
+    m = pts.shape[0]
+    keep = np.empty(m, dtype=np.bool_)
+    k = 0
+    for i in range(m):
+        ok = math.isfinite(pts[i, 0]) and math.isfinite(pts[i, 1])
+        keep[i] = ok
+        k += ok
+    out = np.empty((k, 2))
+    j = 0
+    for i in range(m):
+        if keep[i]:
+            out[j, 0] = pts[i, 0]
+            out[j, 1] = pts[i, 1]
+            j += 1
+    return out
+
+
+@njit(cache=True, nogil=True)
+def speeds(velocity):
+    """``(known, speed)`` of (K, 2) velocities [m/s]: (K,) bool, both components finite, and
+    (K,) their ``hypot`` [m/s] where known, 0 elsewhere (``SeenArrays``' arithmetic)."""
+    k = velocity.shape[0]
+    known = np.empty(k, dtype=np.bool_)
+    speed = np.empty(k)
+    for i in range(k):
+        ok = math.isfinite(velocity[i, 0]) and math.isfinite(velocity[i, 1])
+        known[i] = ok
+        speed[i] = math.hypot(velocity[i, 0], velocity[i, 1]) if ok else 0.0
+    return known, speed
+
+
+@njit(cache=True, nogil=True)
+def moving_points(points, starts, sizes, velocity, moving):
+    """The points of the moving robots, each robot's twice (``NavigatorCore._moving_points``).
+
+    Args:
+        points: (P, 2) every robot's points x, y [m] in ``map``, robot after robot.
+        starts: (K,) int index of each robot's first point in ``points``.
+        sizes: (K,) int number of each robot's points.
+        velocity: (K, 2) each robot's velocity [m/s].
+        moving: (K,) bool, the robots to take.
+
+    Returns:
+        ``(pts, vel, later)``: robot after robot, its points for the earlier time, then the
+        same points for the later one: (Q, 2) x, y [m], (Q, 2) the robot's velocity [m/s] and
+        (Q,) bool, whether the row is for the later time.
+    """
+    q = 0
+    for k in range(starts.shape[0]):
+        if moving[k]:
+            q += 2 * sizes[k]
+    pts = np.empty((q, 2))
+    vel = np.empty((q, 2))
+    later = np.empty(q, dtype=np.bool_)
+    j = 0
+    for k in range(starts.shape[0]):
+        if not moving[k]:
+            continue
+        for copy in range(2):
+            for i in range(starts[k], starts[k] + sizes[k]):
+                pts[j, 0] = points[i, 0]
+                pts[j, 1] = points[i, 1]
+                vel[j, 0] = velocity[k, 0]
+                vel[j, 1] = velocity[k, 1]
+                later[j] = copy == 1
+                j += 1
+    return pts, vel, later
+
+
+@njit(cache=True, nogil=True)
 def perceive(pts, link, vx, vy, depth, earlier, dt, reach):
     """Clusters, centres, velocities and grouped points of one scan's dynamic points.
 
@@ -256,22 +331,28 @@ def perceive(pts, link, vx, vy, depth, earlier, dt, reach):
         reach: the farthest [m] a match may be.
 
     Returns:
-        ``(n, centres, velocity, grouped, starts, sizes)``: the number of clusters, (n, 2)
-        centres [m], (n, 2) velocities [m/s] (NaN: unknown), and :func:`group_points`'s arrays;
-        ``n`` is -1 (and the arrays empty) when :func:`cluster_labels` refuses the points.
+        ``(n, centres, velocity, grouped, starts, sizes, owner, known, speed)``: the number of
+        clusters, (n, 2) centres [m], (n, 2) velocities [m/s] (NaN: unknown),
+        :func:`group_points`'s arrays, (M,) int64 the cluster of each grouped point, and
+        :func:`speeds`; ``n`` is -1 (and the arrays empty) when :func:`cluster_labels` refuses
+        the points.
     """
     labels, n = cluster_labels(pts, link)
     if n < 0:
         z = np.zeros((0, 2))
         e = np.zeros(0, dtype=np.int64)
-        return n, z, z, z, e, e
+        return n, z, z, z, e, e, e, np.zeros(0, dtype=np.bool_), np.zeros(0)
     centres = cluster_centres(pts, labels, n, vx, vy, depth)
     if n > 0 and earlier.shape[0] > 0 and dt > 0:
         vel = match_velocities(centres, earlier, dt, reach)
     else:
         vel = np.full((n, 2), np.nan)
     grouped, starts, sizes = group_points(pts, labels, n)
-    return n, centres, vel, grouped, starts, sizes
+    owner = np.empty(pts.shape[0], dtype=np.int64)
+    for k in range(n):
+        owner[starts[k]:starts[k] + sizes[k]] = k
+    known, speed = speeds(vel)
+    return n, centres, vel, grouped, starts, sizes, owner, known, speed
 
 
 def warm_up() -> None:
@@ -281,5 +362,8 @@ def warm_up() -> None:
     labels, n = cluster_labels(pts, 0.2)
     centres = cluster_centres(pts, labels, n, 0.0, 0.0, 0.1)
     match_velocities(centres, pts, 1.0, 1.0)
-    group_points(pts, labels, n)
+    grouped, starts, sizes = group_points(pts, labels, n)
+    known, _ = speeds(centres)
+    moving_points(grouped, starts, sizes, centres, known)
+    finite_rows(pts)
     perceive(pts, 0.2, 0.0, 0.0, 0.1, pts, 1.0, 1.0)

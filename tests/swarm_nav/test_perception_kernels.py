@@ -357,3 +357,45 @@ def test_dynamic_points_of_huge_coordinates_take_numpy_s_path(costmap):
 
 def test_warm_up_compiles_every_kernel():
     perception_kernels.warm_up()
+
+
+# ---------------------------------------------------------------- the navigator's on_scan pieces
+def ref_finite_rows(points):
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    return pts[np.all(np.isfinite(pts), axis=1)]
+
+
+def ref_moving_points(seen, moving_speed):
+    moving = seen.known & (seen.speed > moving_speed)
+    rows = np.flatnonzero(moving[seen.owner])
+    twice = np.concatenate((rows, rows))
+    order = np.argsort(seen.owner[twice], kind="stable")
+    idx = twice[order]
+    later = order >= len(rows)
+    return seen.points[idx], seen.velocity[seen.owner[idx]], later
+
+
+@pytest.mark.parametrize("seed", SEEDS[:50])
+def test_finite_rows_as_before(seed):
+    rng = np.random.default_rng(seed)
+    pts = rng.uniform(-5, 5, (rng.integers(0, 300), 2))
+    bad = rng.random(pts.shape) < 0.05
+    pts[bad] = rng.choice([np.nan, np.inf, -np.inf], int(bad.sum()))
+    assert same(perception_kernels.finite_rows(pts), ref_finite_rows(pts))
+
+
+@pytest.mark.parametrize("seed", SEEDS[:100])
+def test_moving_points_as_before(seed):
+    rng = np.random.default_rng(seed)
+    pts, viewer = scene(rng)
+    earlier = np.vstack((robot_centres(ref_perceive_robots(pts, viewer))
+                         + rng.normal(0, 0.15, (1, 2)), rng.uniform(-5, 5, (2, 2))))
+    tracker = RobotTracker(PCFG)
+    tracker._history = [(0.0, earlier)]
+    _, seen = tracker.update_arrays(pts, viewer, 0.5)
+    for speed in (0.0, 0.05, 0.2):
+        moving = seen.known & (seen.speed > speed)
+        got = perception_kernels.moving_points(seen.points, seen.starts, seen.sizes,
+                                               seen.velocity, moving)
+        for a, b in zip(got, ref_moving_points(seen, speed), strict=True):
+            assert same(a, b)
