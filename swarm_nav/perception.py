@@ -72,13 +72,13 @@ def cluster_points(points: Points2D, link: float = 0.2) -> tuple[np.ndarray, int
     """Group points at most ``link`` [m] apart (single linkage); clusters are numbered in the
     order of their first point.
 
-    Args:
-        points: (M, 2) x, y [m].
-        link: the linking distance [m].
-
     Two points are linked when ``dx * dx + dy * dy <= link * link`` (the test of scipy's
     ``cKDTree.query_pairs``, which this function used before
     :func:`swarm_nav.perception_kernels.cluster_labels`).
+
+    Args:
+        points: (M, 2) x, y [m].
+        link: the linking distance [m].
 
     Returns:
         ``(labels, n)``: (M,) int cluster index of each point, and the number of clusters.
