@@ -37,7 +37,7 @@ import numpy as np
 from swarm_common.geometry import Path2D, Points2D, Pose2D, wrap_angle
 from swarm_common.nav_status import TERMINAL, NavState
 from swarm_common.occupancy import OccupancyMap
-from swarm_nav import core_kernels
+from swarm_nav import core_kernels, perception_kernels
 from swarm_nav.config import NavigatorConfig
 from swarm_nav.costmap import INSCRIBED, Costmap, add_keepout, build_costmap, overlay_obstacles
 from swarm_nav.dwa import Footprint, RobotState, dwa_command, point_gaps, rotation_is_safe
@@ -222,7 +222,7 @@ class NavigatorCore:
             now: the scan's time [s].
         """
         pts = np.asarray(points_map, dtype=float).reshape(-1, 2)
-        pts = pts[np.all(np.isfinite(pts), axis=1)]
+        pts = perception_kernels.finite_rows(np.ascontiguousarray(pts))
         self._scan = pts
         self._scan_time = now
         if self.costmap is None:
@@ -231,8 +231,7 @@ class NavigatorCore:
             self._dyn = dynamic_points(pts, self.costmap,
                                        self.cfg.perception.static_point_tolerance)
         viewer = self._pose[:2] if self._pose is not None else np.zeros(2)
-        self._robots = self._tracker.update(self._dyn, viewer, now)
-        self._seen = SeenArrays.of(self._robots)
+        self._robots, self._seen = self._tracker.update_arrays(self._dyn, viewer, now)
         self._centres = self._seen.centres
         self._movers = self._moving_points()
 
@@ -590,13 +589,9 @@ class NavigatorCore:
         (P, 2) their robot's velocity [m/s], (P,) whether the point is for the later time."""
         seen = self._seen
         moving = seen.known & (seen.speed > self.cfg.holding.moving_speed)
-        rows = np.flatnonzero(moving[seen.owner])
         # robot after robot: its points for the earlier time, then for the later one
-        twice = np.concatenate((rows, rows))
-        order = np.argsort(seen.owner[twice], kind="stable")
-        idx = twice[order]
-        later = order >= len(rows)
-        return seen.points[idx], seen.velocity[seen.owner[idx]], later
+        return perception_kernels.moving_points(seen.points, seen.starts, seen.sizes,
+                                                seen.velocity, moving)
 
     def _static_near(self, pose: np.ndarray) -> np.ndarray:
         """(K, 2) the static map's boundary points within ``obstacle_window`` (per axis) of pose.

@@ -9,6 +9,9 @@ about ``velocity_baseline`` earlier (:func:`estimate_velocities`; :class:`RobotT
 that short history). The holding pattern (:mod:`swarm_nav.holding`), the traffic rules
 (:mod:`swarm_nav.traffic`) and the navigator (:mod:`swarm_nav.core`) use what is seen here.
 
+The loops run compiled (:mod:`swarm_nav.perception_kernels`, numba), with the same results to the
+last bit as the numpy and scipy code they replaced (tests/swarm_nav/test_perception_kernels.py).
+
 Pure: numpy arrays in ``map`` and dataclasses, no ROS. Tests: tests/swarm_nav/test_perception.py.
 """
 
@@ -17,9 +20,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from swarm_common.geometry import Points2D
+from swarm_nav import perception_kernels as kern
 from swarm_nav.config import PerceptionConfig
 from swarm_nav.costmap import Costmap
 
@@ -41,6 +44,12 @@ def dynamic_points(points: Points2D, costmap: Costmap, tolerance: float) -> Poin
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
     if len(pts) == 0:
         return pts
+    if type(costmap) is Costmap:  # Costmap.distance_at's lookup, compiled
+        keep, ok = kern.dynamic_mask(np.ascontiguousarray(pts), float(costmap.origin[0]),
+                                     float(costmap.origin[1]), float(costmap.resolution),
+                                     costmap.obstacle_distance, float(tolerance))
+        if ok:
+            return pts[keep]
     return pts[costmap.distance_at(pts) > tolerance]
 
 
@@ -63,34 +72,25 @@ def cluster_points(points: Points2D, link: float = 0.2) -> tuple[np.ndarray, int
     """Group points at most ``link`` [m] apart (single linkage); clusters are numbered in the
     order of their first point.
 
+    Two points are linked when ``dx * dx + dy * dy <= link * link`` (the test of scipy's
+    ``cKDTree.query_pairs``, which this function used before
+    :func:`swarm_nav.perception_kernels.cluster_labels`).
+
     Args:
         points: (M, 2) x, y [m].
         link: the linking distance [m].
 
     Returns:
-        ``(labels, n)``: (M,) cluster index of each point, and the number of clusters.
+        ``(labels, n)``: (M,) int cluster index of each point, and the number of clusters.
+
+    Raises:
+        ValueError: more than one point and a coordinate is NaN or infinite.
     """
-    pts = np.asarray(points, dtype=float).reshape(-1, 2)
-    m = len(pts)
-    if m <= 1:
-        return np.zeros(m, dtype=int), m
-    # the links (a k-d tree's pairs, both ways, and every point to itself) sorted by point
-    pairs = cKDTree(pts).query_pairs(link, output_type="ndarray")
-    own = np.arange(m)
-    src = np.concatenate((own, pairs[:, 0], pairs[:, 1]))
-    dst = np.concatenate((own, pairs[:, 1], pairs[:, 0]))
-    order = np.argsort(src, kind="stable")
-    dst = dst[order]
-    first = np.searchsorted(src[order], own)  # each point's first link
-    labels = own
-    while True:  # min-label propagation with pointer jumping
-        new = np.minimum.reduceat(labels[dst], first)
-        new = new[new]
-        if np.array_equal(new, labels):
-            break
-        labels = new
-    _, labels = np.unique(labels, return_inverse=True)
-    return labels.reshape(-1), int(labels.max()) + 1
+    pts = np.ascontiguousarray(np.asarray(points, dtype=float).reshape(-1, 2))
+    labels, n = kern.cluster_labels(pts, float(link))
+    if n < 0:
+        raise ValueError("data must be finite, check for nan or inf values")
+    return labels, n
 
 
 def cluster_centres(points: Points2D, viewer_xy, link: float = 0.2,
@@ -119,12 +119,9 @@ def _centres_of(pts: np.ndarray, labels: np.ndarray, n: int, viewer_xy, depth: f
     """(n, 2) the centres of the clusters ``labels`` of ``pts`` (see :func:`cluster_centres`)."""
     if n == 0:
         return np.zeros((0, 2))
-    sums = np.zeros((n, 2))
-    np.add.at(sums, labels, pts)
-    centroids = sums / np.bincount(labels, minlength=n)[:, None]
-    away = centroids - np.asarray(viewer_xy, dtype=float)
-    norm = np.hypot(away[:, 0], away[:, 1])[:, None]
-    return centroids + depth * away / np.maximum(norm, 1e-9)
+    v = np.asarray(viewer_xy, dtype=float).reshape(2)
+    return kern.cluster_centres(np.ascontiguousarray(pts), np.asarray(labels, dtype=np.int64),
+                                int(n), float(v[0]), float(v[1]), float(depth))
 
 
 def estimate_velocities(centres: np.ndarray, earlier: np.ndarray, dt: float,
@@ -143,14 +140,10 @@ def estimate_velocities(centres: np.ndarray, earlier: np.ndarray, dt: float,
     """
     c = np.asarray(centres, dtype=float).reshape(-1, 2)
     e = np.asarray(earlier, dtype=float).reshape(-1, 2)
-    out = np.full(c.shape, np.nan)
     if len(c) == 0 or len(e) == 0 or dt <= 0:
-        return out
-    d = np.hypot(c[:, None, 0] - e[None, :, 0], c[:, None, 1] - e[None, :, 1])
-    j = np.argmin(d, axis=1)
-    ok = d[np.arange(len(c)), j] <= gate + max_speed * dt
-    out[ok] = (c[ok] - e[j[ok]]) / dt
-    return out
+        return np.full(c.shape, np.nan)
+    return kern.match_velocities(np.ascontiguousarray(c), np.ascontiguousarray(e), float(dt),
+                                 gate + max_speed * dt)
 
 
 def perceive_robots(dyn_points: Points2D, viewer_xy, earlier: np.ndarray | None = None,
@@ -166,16 +159,37 @@ def perceive_robots(dyn_points: Points2D, viewer_xy, earlier: np.ndarray | None 
     Returns:
         One :class:`SeenRobot` per cluster.
     """
-    pts = np.asarray(dyn_points, dtype=float).reshape(-1, 2)
-    labels, n = cluster_points(pts)
-    if n == 0:
-        return []
-    centres = _centres_of(pts, labels, n, viewer_xy, CENTRE_DEPTH)
+    return _perceive(dyn_points, viewer_xy, earlier, dt)[0]
+
+
+_GATE = 0.3  # [m] estimate_velocities' default gate
+_MAX_SPEED = 0.5  # [m/s] estimate_velocities' default max_speed
+_NO_CENTRES = np.zeros((0, 2))
+
+
+def _perceive(dyn_points: Points2D, viewer_xy, earlier: np.ndarray | None, dt: float
+              ) -> tuple[list[SeenRobot], SeenArrays | None]:
+    """:func:`perceive_robots` in one compiled call; also the robots' :class:`SeenArrays`
+    (None when no robot is seen)."""
+    pts = np.ascontiguousarray(np.asarray(dyn_points, dtype=float).reshape(-1, 2))
+    v = np.asarray(viewer_xy, dtype=float).reshape(2)
     if earlier is None:
-        vel = np.full((n, 2), np.nan)
+        e, dt, reach = _NO_CENTRES, 0.0, 0.0
     else:
-        vel = estimate_velocities(centres, earlier, dt)
-    return [SeenRobot(centres[k], pts[labels == k], vel[k]) for k in range(n)]
+        e = np.ascontiguousarray(np.asarray(earlier, dtype=float).reshape(-1, 2))
+        reach = _GATE + _MAX_SPEED * dt
+    n, centres, vel, grouped, starts, sizes, owner, known, speed = kern.perceive(
+        pts, 0.2, float(v[0]), float(v[1]), CENTRE_DEPTH, e, float(dt), reach)
+    if n < 0:
+        raise ValueError("data must be finite, check for nan or inf values")
+    if n == 0:
+        return [], None
+    ends = (starts + sizes).tolist()
+    robots = [SeenRobot(c, grouped[a:b], u)
+              for c, a, b, u in zip(centres, starts.tolist(), ends, vel, strict=True)]
+    # the arrays apart from the robots' (as SeenArrays.of's), so neither sees the other's changes
+    return robots, SeenArrays(centres.copy(), vel.copy(), known, speed, grouped.copy(), owner,
+                              starts, sizes)
 
 
 class RobotTracker:
@@ -205,17 +219,36 @@ class RobotTracker:
             One :class:`SeenRobot` per cluster; velocities NaN until a scan at least
             ``velocity_min_baseline`` older is known (or where no earlier centre matched).
         """
+        return self.update_arrays(dyn_points, viewer_xy, now)[0]
+
+    def update_arrays(self, dyn_points: Points2D, viewer_xy, now: float
+                      ) -> tuple[list[SeenRobot], SeenArrays]:
+        """:meth:`update`, and its robots as :class:`SeenArrays`.
+
+        Args:
+            dyn_points: (M, 2) dynamic scan points x, y [m] in ``map`` (:func:`dynamic_points`).
+            viewer_xy: (2,) the lidar's (or robot's) x, y [m].
+            now: the scan's time [s].
+
+        Returns:
+            ``(robots, seen)``: :meth:`update`'s robots, and ``SeenArrays.of(robots)`` (equal
+            arrays, made from the clusters without gathering them from the robots).
+        """
         cfg = self.cfg
         self._history = [(t, c) for t, c in self._history
                          if now - t <= cfg.velocity_history and t < now]
-        old = [(t, c) for t, c in self._history if now - t >= cfg.velocity_min_baseline]
         earlier, dt = (None, 0.0)
-        if old:
-            t_old, earlier = min(old, key=lambda tc: abs(now - tc[0] - cfg.velocity_baseline))
-            dt = now - t_old
-        robots = perceive_robots(dyn_points, viewer_xy, earlier, dt)
-        self._history.append((now, robot_centres(robots)))
-        return robots
+        best = None
+        for t, c in self._history:  # the first of the kept scans nearest the baseline
+            if now - t >= cfg.velocity_min_baseline:
+                off = abs(now - t - cfg.velocity_baseline)
+                if best is None or off < best:
+                    best, earlier, dt = off, c, now - t
+        robots, seen = _perceive(dyn_points, viewer_xy, earlier, dt)
+        if seen is None:
+            seen = SeenArrays.of([])
+        self._history.append((now, seen.centres.copy()))
+        return robots, seen
 
 
 @dataclass(frozen=True)
@@ -249,8 +282,7 @@ class SeenArrays:
             z2, zi = np.zeros((0, 2)), np.zeros(0, dtype=int)
             return cls(z2, z2, np.zeros(0, dtype=bool), np.zeros(0), z2, zi, zi, zi)
         velocity = np.array([r.velocity for r in robots], dtype=float)
-        known = np.isfinite(velocity).all(axis=1)
-        speed = np.where(known, np.hypot(velocity[:, 0], velocity[:, 1]), 0.0)
+        known, speed = kern.speeds(velocity)
         sizes = np.array([len(r.points) for r in robots], dtype=int)
         starts = np.concatenate(([0], np.cumsum(sizes)[:-1])).astype(int)
         return cls(robot_centres(robots), velocity, known, speed,
