@@ -23,6 +23,7 @@ from scipy import ndimage
 
 from swarm_common.geometry import Points2D
 from swarm_common.occupancy import GridGeometry, OccupancyMap
+from swarm_nav import costmap_kernels
 from swarm_nav.config import CostmapConfig
 
 LETHAL = CostmapConfig.LETHAL_OBSTACLE
@@ -281,19 +282,9 @@ def segment_profile(costmap: Costmap, a, b) -> tuple[np.ndarray, np.ndarray]:
     """
     a = np.asarray(a, dtype=float)[:2]
     b = np.asarray(b, dtype=float)[:2]
-    d = b - a
-    res = costmap.resolution
-    ts = [np.array([0.0, 1.0])]
-    for k in (0, 1):
-        if abs(d[k]) > 1e-12:
-            lo, hi = sorted(((a[k] - costmap.origin[k]) / res, (b[k] - costmap.origin[k]) / res))
-            lines = np.arange(math.floor(lo) + 1, math.ceil(hi))
-            ts.append((costmap.origin[k] + lines * res - a[k]) / d[k])
-    t = np.unique(np.concatenate(ts))
-    if len(t) < 2:
-        return np.zeros(1), costmap.cost_at(a[None, :])
-    mids = 0.5 * (t[:-1] + t[1:])
-    return np.diff(t) * float(np.hypot(*d)), costmap.cost_at(a + mids[:, None] * d)
+    return costmap_kernels.segment_profile(
+        costmap.costs, float(costmap.resolution), float(costmap.origin[0]),
+        float(costmap.origin[1]), float(a[0]), float(a[1]), float(b[0]), float(b[1]))
 
 
 def segment_max_cost(costmap: Costmap, a, b) -> int:

@@ -1,11 +1,11 @@
 """The compiled line-of-sight shortcuts (swarm_nav.planner_kernels) give exactly the paths of the
 numpy implementation they replaced.
 
-The reference below is ``swarm_nav.planner.shortcut_path`` before it was compiled (commit
-005dbd3), on :func:`swarm_nav.costmap.segment_profile`.  The new code must keep exactly the same
-points (``==``) on random cell paths over random costmaps (with unknown cells allowed and not, a
-start escaping the inscribed zone, exact starts and goals off the cell centres) and on cross-map
-plans of slim_blockage.
+The reference below is ``swarm_nav.planner.shortcut_path`` and ``swarm_nav.costmap.
+segment_profile`` before they were compiled (commit 005dbd3).  The new code must keep exactly the
+same points (``==``) on random cell paths over random costmaps (with unknown cells allowed and
+not, a start escaping the inscribed zone, exact starts and goals off the cell centres) and on
+cross-map plans of slim_blockage.
 """
 
 import math
@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from swarm_nav import planner_kernels
+from swarm_nav import costmap_kernels
 from swarm_nav.config import CostmapConfig, PlannerConfig
 from swarm_nav.costmap import INSCRIBED, UNKNOWN, build_costmap, segment_profile
 from swarm_nav.planner import cell_path, plan_path, shortcut_path
@@ -22,13 +22,31 @@ from tests.swarm_nav.helpers import random_grid, slim_blockage_map
 _UNKNOWN_AS = 126
 
 
+def ref_segment_profile(costmap, a, b):
+    a = np.asarray(a, dtype=float)[:2]
+    b = np.asarray(b, dtype=float)[:2]
+    d = b - a
+    res = costmap.resolution
+    ts = [np.array([0.0, 1.0])]
+    for k in (0, 1):
+        if abs(d[k]) > 1e-12:
+            lo, hi = sorted(((a[k] - costmap.origin[k]) / res, (b[k] - costmap.origin[k]) / res))
+            lines = np.arange(math.floor(lo) + 1, math.ceil(hi))
+            ts.append((costmap.origin[k] + lines * res - a[k]) / d[k])
+    t = np.unique(np.concatenate(ts))
+    if len(t) < 2:
+        return np.zeros(1), costmap.cost_at(a[None, :])
+    mids = 0.5 * (t[:-1] + t[1:])
+    return np.diff(t) * float(np.hypot(*d)), costmap.cost_at(a + mids[:, None] * d)
+
+
 def ref_shortcut_path(costmap, pts, cfg, keep_first=False):
     n = len(pts)
     if n <= 2:
         return pts.copy()
 
     def profile(a, b, strict=True):
-        lengths, costs = segment_profile(costmap, a, b)
+        lengths, costs = ref_segment_profile(costmap, a, b)
         c = costs.astype(float)
         unknown = costs == UNKNOWN
         blocked = (costs >= INSCRIBED) & ~unknown
@@ -113,16 +131,20 @@ def test_compiled_shortcuts_equal_the_numpy_ones(seed, allow_unknown):
 
 
 def test_compiled_segment_profile_equals_the_numpy_one():
+    """Lengths and costs of random segments, on and off the map, axis-parallel and points."""
     rng = np.random.default_rng(7)
     cm = build_costmap(random_grid(rng, 30, 30, 0.1), CostmapConfig())
     for _ in range(300):
         a, b = rng.uniform(-0.5, 3.5, size=(2, 2))  # also off the map
         if rng.random() < 0.2:
             b[int(rng.integers(2))] = a[int(rng.integers(2))]  # axis-parallel, or a point
-        lengths, costs = planner_kernels.segment_profile(
+        lengths, costs = costmap_kernels.segment_profile(
             cm.costs, cm.resolution, float(cm.origin[0]), float(cm.origin[1]), *a, *b)
-        ref_l, ref_c = segment_profile(cm, a, b)
+        ref_l, ref_c = ref_segment_profile(cm, a, b)
         assert np.array_equal(lengths, ref_l) and np.array_equal(costs, ref_c)
+        got_l, got_c = segment_profile(cm, a, b)  # the public wrapper
+        assert np.array_equal(got_l, ref_l) and np.array_equal(got_c, ref_c)
+        assert got_c.dtype == ref_c.dtype
 
 
 def test_cross_map_plans_on_slim_blockage_equal_the_numpy_shortcuts():
