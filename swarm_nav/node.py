@@ -37,6 +37,7 @@ from swarm_common.geometry import quaternion_to_yaw, transform_points, yaw_to_qu
 from swarm_common.nav_status import TERMINAL, NavState, NavStatusRecord, encode, level_of
 from swarm_common.occupancy import OccupancyMap
 from swarm_common.stamps import NS_PER_S, format_stamp
+from swarm_nav import jit
 from swarm_nav.config import NavigatorConfig, flat_defaults
 from swarm_nav.core import NavigatorCore
 from swarm_nav.holding import holding_sites_from_poi
@@ -125,6 +126,10 @@ class NavigatorNode(Node):
         robot, sites = self._load_context()
         self.lidar = robot.lidar
         self.core = NavigatorCore(self.cfg, robot.footprint, sites)
+        took = jit.warm_up()  # before the first tick needs the compiled kernels (once a process)
+        if took > 2.0:
+            self.get_logger().info(f"compiled the navigator's kernels in {took:.1f} s "
+                                   "(once per machine; later runs load them)")
         self.has_map = False
         self.ready = False
         self._scan: tuple[int, np.ndarray] | None = None  # (stamp, ranges) of the latest scan

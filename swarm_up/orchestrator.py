@@ -15,6 +15,7 @@ import json
 import os
 import re
 import signal
+import subprocess
 import sys
 import time
 from collections.abc import Mapping
@@ -305,6 +306,26 @@ class Orchestrator:
         return metrics
 
 
+def warm_up_kernels() -> None:
+    """Compile (first run on a machine, about 15 s) or load the navigator's numba kernels in a
+    short-lived process before any navigator starts (:mod:`swarm_nav.jit`), so the navigator
+    processes load them from the cache instead of each compiling them at once."""
+    import importlib.util
+
+    where = importlib.util.find_spec("swarm_nav").submodule_search_locations or []
+    if not any(Path(d, "__pycache__").glob("dwa_kernels.*.nbi") for d in where):
+        say("compiling the navigator's kernels (once per machine, about 15 s)")
+    t0 = time.monotonic()
+    proc = subprocess.run([sys.executable, "-m", "swarm_nav.jit"], capture_output=True,
+                          text=True, check=False)
+    took = time.monotonic() - t0
+    if proc.returncode != 0:  # the navigators compile them themselves, then say why if it fails
+        say(f"warning: could not warm up the navigator's kernels: "
+            f"{(proc.stderr.strip().splitlines() or ['?'])[-1]}")
+    elif took > 3.0:
+        say(f"compiled the navigator's kernels in {took:.0f} s (once per machine)")
+
+
 def run(cfg: RunConfig) -> int:
     """Run the swarm described by ``cfg`` until it ends.
 
@@ -334,6 +355,7 @@ def run(cfg: RunConfig) -> int:
     say(f"{len(cfg.robots)} robots in {cfg.world_name}, seed {cfg.seed}, rtf {cfg.rtf:g}, "
          f"{layout}; logs in {cfg.run_dir / 'logs'}")
 
+    warm_up_kernels()
     shm_before = shm.snapshot()
     orch = Orchestrator(cfg)
     stop = StopFlag()

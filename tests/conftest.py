@@ -45,6 +45,12 @@ def pytest_configure(config):
     global _SHM_BEFORE
     shm.clean_stale(frozenset(), min_age_s=5.0)
     _SHM_BEFORE = shm.snapshot()
+    # Compile the navigator's numba kernels now (about 15 s on a fresh clone; a cache load
+    # after), not inside the first test that starts a navigator, whose wall-clock waits would
+    # count the compilation.
+    from swarm_nav import jit
+
+    jit.warm_up()
 
 
 @pytest.fixture(scope="session")
