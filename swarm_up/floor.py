@@ -19,15 +19,16 @@ process layout; its real-time factor is the ceiling that the messaging sets, and
   ``/swarm/events`` once; the start gate (the first tick is re-published every 0.5 s wall until
   every robot answered it); ``spin_once`` of an ``EventsExecutor`` between ticks, as the
   simulator.
-- navigator (one node ``/<ns>/navigator`` per robot, ``use_sim_time``, so it also subscribes to
-  ``/clock``): subscribes ``/map``, ``scan``, ``odom``, ``goal_pose``; serves
-  ``navigator/cancel``; answers each ``odom`` with one ``cmd_vel`` stamped with its tick, on lidar
-  ticks only after that tick's scan arrived (converted to a numpy array, as the navigator does);
-  publishes ``nav_status`` (``diagnostic_msgs/DiagnosticStatus`` with the real keys, reliable,
-  transient local) at 2 Hz simulated and on every change of state, and a ``nav_msgs/Path``
-  ``plan`` of 200 poses (a typical A* path on a 0.05 m grid) per goal.  Its first answer waits
-  for a commander to connect, and the answer on the tick after a goal ended waits for the
-  commander's next goal (up to 2.5 s wall), as with ``swarm-up --commanders``.
+- navigator (one node ``/<ns>/navigator`` per robot, ``use_sim_time``; a process of its own
+  subscribes to ``/clock`` itself, a group process once for all its nodes,
+  :class:`swarm_up.clock.SharedClock`): subscribes ``/map``, ``scan``, ``odom``, ``goal_pose``;
+  serves ``navigator/cancel``; answers each ``odom`` with one ``cmd_vel`` stamped with its tick, on
+  lidar ticks only after that tick's scan arrived (converted to a numpy array, as the navigator
+  does); publishes ``nav_status`` (``diagnostic_msgs/DiagnosticStatus`` with the real keys,
+  reliable, transient local) at 2 Hz simulated and on every change of state, and a
+  ``nav_msgs/Path`` ``plan`` of 200 poses (a typical A* path on a 0.05 m grid) per goal. Its first
+  answer waits for a commander to connect, and the answer on the tick after a goal ended waits for
+  the commander's next goal (up to 2.5 s wall), as with ``swarm-up --commanders``.
 - commander (one node ``/<ns>/commander`` per robot, ``use_sim_time``): subscribes
   ``nav_status`` (depth 10), has the ``navigator/cancel`` client and the runner's 10 Hz wall-clock
   poll timer, and publishes the next ``goal_pose`` (stamped with the status's ``stamp``) when a

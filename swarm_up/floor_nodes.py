@@ -52,6 +52,7 @@ from std_srvs.srv import Trigger
 from swarm_commander.robot_navigator import NAV_STATUS_QOS
 from swarm_common.nav_status import TERMINAL
 from swarm_common.stamps import NS_PER_S
+from swarm_up.clock import SharedClock
 from swarm_up.floor import FloorConfig
 from swarm_up.metrics import CLOCK_QOS as LISTENER_CLOCK_QOS
 from swarm_up.metrics import EVENTS_QOS as LISTENER_EVENTS_QOS
@@ -634,6 +635,11 @@ def run_group(cfg: FloorConfig, namespaces: list[str], navigators: bool,
             nodes.append(FloorNavigatorNode(ns, cfg))
         if commanders:
             nodes.append(FloorCommanderNode(ns))
+    if len(nodes) > 1:  # a group process: one /clock subscription, as swarm_up.group
+        clock = SharedClock(f"/{namespaces[0]}")
+        for node in nodes:
+            clock.adopt(node)
+        nodes.append(clock.node)
     _spin(nodes)
     return 0
 

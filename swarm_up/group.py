@@ -28,6 +28,7 @@ from rclpy.experimental import EventsExecutor
 from swarm_common import cli
 from swarm_common.errors import InputError, run_cli
 from swarm_nav.node import NavigatorNode, spin_forever
+from swarm_up.clock import SharedClock
 
 PROG = "swarm_up.group"
 
@@ -69,12 +70,20 @@ def _run(argv: list[str]) -> int:
 
         routes = {ns: build_route(opts.world, opts.seed, ns) for ns in names}
 
+    clock = None  # a SharedClock when this process holds more than one node
+
     def make_navigator(ns: str) -> NavigatorNode:
-        return NavigatorNode(namespace=f"/{ns}",
+        node = NavigatorNode(namespace=f"/{ns}",
                              cli_args=["--ros-args", "--params-file", str(files[ns])])
+        if clock is not None:
+            clock.adopt(node)
+        return node
 
     rclpy.init(args=[PROG])
     executor = EventsExecutor()
+    if len(names) > 1 or opts.commanders:
+        clock = SharedClock(f"/{names[0]}")
+        executor.add_node(clock.node)
     nodes, runners = [], []
     navigators, commanders = {}, {}  # ns -> node; ns -> (node, runner): what faults may kill
     faults = None
@@ -104,6 +113,8 @@ def _run(argv: list[str]) -> int:
                 executor.add_node(nav)
                 nodes.append(nav)
                 commanders[ns] = (nav, runners[-1])
+        for node in nodes if clock is not None else ():  # the commanders (the navigators
+            clock.adopt(node)                             # were adopted at creation)
         print(f"{PROG}: {len(names)} navigators{' and commanders' if runners else ''} up: "
               f"{','.join(names)}", flush=True)
         if opts.faults:
@@ -111,10 +122,17 @@ def _run(argv: list[str]) -> int:
 
             def gone(node):
                 nodes.remove(node)
+                if clock is not None:
+                    clock.forget(node)
                 runners[:] = [r for r in runners if r.nav is not node]
 
+            def added(node):
+                nodes.append(node)
+                if clock is not None:
+                    clock.adopt(node)
+
             faults = GroupFaults(executor, nodes[0].context, names[0], navigators, commanders,
-                                 make_navigator, gone, nodes.append,
+                                 make_navigator, gone, added,
                                  emit=lambda line: print(line, flush=True))
             context = nodes[0].context
             while context.ok():
@@ -137,6 +155,8 @@ def _run(argv: list[str]) -> int:
             faults.close()
         for node in nodes:
             node.destroy_node()
+        if clock is not None:
+            clock.node.destroy_node()
         rclpy.try_shutdown()
     return 0
 
