@@ -30,7 +30,7 @@ from geometry_msgs.msg import TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry
 from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
-from rclpy.node import Node
+from rclpy.node import Node, NodeNameNonExistentError
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from rclpy.signals import SignalHandlerOptions
@@ -59,6 +59,7 @@ from swarm_common.stamps import NS_PER_S
 # as teleop outranks navigation in twist_mux (its default timeout is 0.5 s).
 MANUAL_PRIORITY_S = 0.5  # [s] wall
 REJOIN_TIMEOUT_S = 60.0  # [s] wall: how long a tick waits for a killed navigator's successor
+READER_GRACE_S = 10.0  # [s] wall: how long the start gate waits for --wait-for-reader to match
 
 
 @dataclass(frozen=True)
@@ -80,6 +81,9 @@ class SimSettings:
         inactive_after: consecutive late ticks after which a robot is no longer waited for [-].
         wait_for: robots that must have answered before simulated time starts (the start gate;
             ``swarm-up`` passes N) [-].
+        wait_for_reader: a node (``name`` or ``/ns/name``) whose subscriptions to the
+            simulator's topics must be matched before simulated time starts (``swarm-up
+            --record`` passes its recorder), or None; given up after ``READER_GRACE_S``.
         gui: open PyBullet's window.
         faults: the ``--faults`` SPEC (inline syntax or YAML path, :mod:`swarm_common.faults`),
             or None.
@@ -99,6 +103,7 @@ class SimSettings:
     command_timeout: float = 3.0  # [s] wall
     inactive_after: int = 1  # [ticks]
     wait_for: int = 0  # [robots]
+    wait_for_reader: str | None = None
     gui: bool = False
     faults: str | None = None
     fault_ack_timeout: float = 10.0  # [s] wall
@@ -526,20 +531,45 @@ class SimulatorNode(Node):
                 f"collision {a} / {other} at ({ev.x:.2f}, {ev.y:.2f}), t = {ev.t:.1f} s")
         self._publish_events(statuses)
 
+    def _reader_matched(self, deadline: float) -> bool:
+        """Whether the ``wait_for_reader`` node's subscriptions to this node's topics are all
+        matched by their publishers (True without such a node, or after ``deadline``)."""
+        name = self.settings.wait_for_reader
+        if name is None or time.monotonic() > deadline:
+            return True
+        ns, _, base = name.rpartition("/")
+        try:
+            topics = self.get_subscriber_names_and_types_by_node(base, ns or "/")
+        except NodeNameNonExistentError:  # not discovered yet
+            return False
+        pubs = {pub.topic_name: pub for pub in self.publishers}
+        mine = [pubs[t] for t, _ in topics if t in pubs]
+        return bool(mine) and all(
+            pub.get_subscription_count() >= self.count_subscribers(pub.topic_name)
+            for pub in mine)
+
     def wait_for_robots(self, executor) -> None:
         """The start gate: hold the first tick, re-publishing it every 0.5 s wall, until
-        ``wait_for`` robots have answered it (navigators that start late still see it)."""
+        ``wait_for`` robots have answered it (navigators that start late still see it) and the
+        ``wait_for_reader`` node's subscriptions are matched (a recorder then gets every tick; a
+        reader that never matches is given up ``READER_GRACE_S`` wall s after the robots)."""
         want = min(self.settings.wait_for, self.n)
         announced = -1
-        while rclpy.ok() and not self.stop_requested and int(self.active.sum()) < want:
+        deadline = math.inf
+        while rclpy.ok() and not self.stop_requested:
+            if int(self.active.sum()) >= want:
+                deadline = min(deadline, time.monotonic() + READER_GRACE_S)
+                if self._reader_matched(deadline):
+                    break
             if int(self.active.sum()) != announced:
                 announced = int(self.active.sum())
                 self.get_logger().info(f"start gate: {announced}/{want} robots answering")
             self.publish_tick()
             until = time.monotonic() + 0.5
-            while (time.monotonic() < until and int(self.active.sum()) < want
-                   and not self.stop_requested):
+            while time.monotonic() < until and not self.stop_requested:
                 executor.spin_once(timeout_sec=0.05)
+                if int(self.active.sum()) >= want and self._reader_matched(deadline):
+                    break
 
     def run(self, executor) -> None:
         """Run until ``duration`` simulated seconds have passed (forever if None)."""
@@ -641,6 +671,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "stopped; it is waited for again once it answers [3.0]")
     p.add_argument("--wait-for", type=cli.non_negative_int, default=0, metavar="K",
                    help="hold simulated time at the first tick until K robots answer it [0]")
+    p.add_argument("--wait-for-reader", default=None, metavar="NODE",
+                   help="also hold the first tick until NODE's subscriptions to the simulator's "
+                   f"topics are matched (given up after {READER_GRACE_S:g} s) [none]")
     p.add_argument("--faults", default=None, metavar="SPEC",
                    help="inject faults at simulated times: KIND[:TARGET]@TIME[+DURATION],... "
                    "or a YAML file (kinds kill-nav, kill-robot, freeze, drop, kill-coordinator; "
@@ -665,7 +698,8 @@ def parse_settings(argv: list[str]) -> SimSettings:
         world=a.world, robot=a.robot, swarm_size=a.swarm_size, name_prefix=a.name_prefix,
         seed=a.seed, rtf=a.rtf, duration=a.duration, map_path=a.map, summary=a.summary,
         control_rate=a.control_rate, command_timeout=a.command_timeout, wait_for=a.wait_for,
-        gui=a.gui, faults=a.faults, fault_ack_timeout=a.fault_ack_timeout,
+        wait_for_reader=a.wait_for_reader, gui=a.gui, faults=a.faults,
+        fault_ack_timeout=a.fault_ack_timeout,
     )
 
 

@@ -60,6 +60,10 @@ def child_specs(cfg: RunConfig):
         sim += ["--faults", str(faults_file(cfg))]
     if cfg.gui:
         sim.append("--gui")
+    if cfg.record_path is not None:  # the recorder gets the first tick on (docs/ARCHITECTURE.md)
+        from swarm_up.recording import RECORDER_NODE
+
+        sim += ["--wait-for-reader", RECORDER_NODE]
     specs = [ChildSpec("sim", tuple(sim), logs / "sim.log", kind="sim", restart=False, env=env)]
     if cfg.record_path is not None:  # started first: swarm-up waits for it before the rest
         specs.insert(0, recorder_spec(cfg, env))

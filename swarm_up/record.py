@@ -110,7 +110,7 @@ def make_node(recording: rec.McapRecording, robots, selected, tf: rec.TfBuilder 
 
     class RecorderNode(Node):
         def __init__(self):
-            super().__init__("swarm_recorder")
+            super().__init__(rec.RECORDER_NODE)
             # state
             self.clock_ns = 0
             self.recording = recording

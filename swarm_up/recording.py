@@ -38,6 +38,8 @@ SCHEMA_ENCODING = "ros2msg"
 CHUNK_SIZE = 256 * 1024  # [bytes] uncompressed; ~0.5 s simulated at 20 robots, a few s at 3
 META_NAME = "swarm_workbench"
 """Name of the MCAP metadata record that describes the run (:func:`run_metadata`)."""
+RECORDER_NODE = "swarm_recorder"
+"""The recorder's node name; the simulator's start gate waits until its readers are matched."""
 TF_TOPIC = "/tf"
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 DEFINITION_RULE = "=" * 80
