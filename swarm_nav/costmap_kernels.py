@@ -44,35 +44,27 @@ def segment_profile(costs, res, ox, oy, ax, ay, bx, by):
     d = (dx, dy)
     o = (ox, oy)
     b = (bx, by)
-    n_t = 2
+    # the grid lines x = o + line * res (then y) strictly between the segment's ends
+    first = [0, 0]
+    stop = [0, 0]
     for k in range(2):
         if abs(d[k]) > 1e-12:
             lo = (a[k] - o[k]) / res
             hi = (b[k] - o[k]) / res
             if hi < lo:
                 lo, hi = hi, lo
-            n_t += max(0, math.ceil(hi) - (math.floor(lo) + 1))
-    t = np.empty(n_t)
+            first[k] = math.floor(lo) + 1
+            stop[k] = max(first[k], math.ceil(hi))
+    t = np.empty(2 + (stop[0] - first[0]) + (stop[1] - first[1]))
     t[0] = 0.0
     t[1] = 1.0
     i = 2
     for k in range(2):
-        if abs(d[k]) > 1e-12:
-            lo = (a[k] - o[k]) / res
-            hi = (b[k] - o[k]) / res
-            if hi < lo:
-                lo, hi = hi, lo
-            for line in range(math.floor(lo) + 1, math.ceil(hi)):
-                t[i] = (o[k] + float(line) * res - a[k]) / d[k]
-                i += 1
-    t = np.unique(t)
+        for line in range(first[k], stop[k]):
+            t[i] = (o[k] + float(line) * res - a[k]) / d[k]
+            i += 1
+    t = np.unique(t)  # always holds 0 and 1: at least one piece
     h, w = costs.shape
-    if t.shape[0] < 2:
-        out = np.empty(1, dtype=costs.dtype)
-        row = math.floor((ay - oy) / res)
-        col = math.floor((ax - ox) / res)
-        out[0] = costs[row, col] if 0 <= row < h and 0 <= col < w else LETHAL
-        return np.zeros(1), out
     norm = math.hypot(dx, dy)
     m = t.shape[0] - 1
     lengths = np.empty(m)

@@ -11,7 +11,7 @@ rollouts x up to 31 poses each) a call took 0.57 ms with numpy and 0.28 ms with 
 the same commands.
 
 Compiled on first use and cached beside this file (``cache=True``), so a process after the first
-loads the machine code instead of compiling it.  :func:`warm_up` compiles them all.
+loads the machine code instead of compiling it (:mod:`swarm_nav.jit` warms them all up).
 """
 
 from __future__ import annotations
@@ -355,17 +355,3 @@ def score_rollouts(x, y, aim_end, th_end, vs, ws, rx, ry, carrot_x, carrot_y, ta
         keep[k] = (abs(v) > 1e-9 or abs(w) > 1e-9) and not upper_min[k] < need[k]
     cand = np.flatnonzero(keep)
     return cost, cand[np.argsort(cost[cand], kind="mergesort")]
-
-
-def warm_up() -> None:
-    """Compile (or load from the cache) every kernel, on tiny inputs."""
-    one = np.ones(1)
-    tt = np.ones((1, 1))
-    no = np.zeros(1, dtype=np.bool_)
-    x, y, bx, by, _, need = rollout_boxes(0.0, 0.0, 0.0, 1.0, one, one, one, no, one, tt, tt,
-                                          0.0, 0.0, 0.1, 0.1, 0.05)
-    lower, upper, est, unsure = gap_bounds(bx, by, np.zeros(4), one, one, 1.0, 0.0, 0.0, need)
-    _, order = score_rollouts(x, y, one, one, one, one, 0.0, 0.0, 1.0, 1.0, 0.0, one, one, one,
-                              0, est, upper, need, 0.26, 0.3, np.ones(5))
-    first_admissible(order, unsure, need, bx, by, tt, tt, one, one, 0.1, 0.1)
-    rollout_min_gap(0, lower, unsure, bx, by, tt, tt, one, one, 0.1, 0.1)

@@ -11,7 +11,9 @@ the test session does too (``tests/conftest.py``).
 :func:`warm_up` drives one :class:`~swarm_nav.core.NavigatorCore` through a small scene that
 takes every compiled path with the argument types of a real run: a robot plans across a room,
 perceives another robot standing on its path and one moving, replans around them (an overlay
-replan with shortcuts), and holds short of a workstation that is taken.
+replan with shortcuts), and holds short of a workstation that is taken; then it calls the entry
+points the scene need not reach (``tests/swarm_nav/test_jit.py`` checks that every kernel the
+Python code calls has been compiled).
 """
 
 from __future__ import annotations
@@ -58,8 +60,10 @@ def warm_up() -> float:
     if _done:
         return 0.0
     t0 = time.perf_counter()
+    from swarm_nav import perception
     from swarm_nav.config import NavigatorConfig
     from swarm_nav.core import NavigatorCore
+    from swarm_nav.costmap import segment_max_cost
 
     footprint = np.array([[-0.197, -0.133], [0.069, -0.133], [0.069, 0.133], [-0.197, 0.133]])
     goal = np.array([6.5, 1.0, 0.0])
@@ -80,6 +84,14 @@ def warm_up() -> float:
             core.on_scan(points, now)
         v, w = core.step(pose, v, w, now)
         pose = pose + np.array([v * math.cos(pose[2]) * dt, v * math.sin(pose[2]) * dt, w * dt])
+    # entry points the scene need not reach: the holding pattern's line of sight, and the
+    # perception's public helpers (tools and tests call them one by one)
+    segment_max_cost(core.costmap, pose[:2], goal[:2])
+    robots = perception.perceive_robots(points, pose[:2], perception.robot_centres(
+        perception.perceive_robots(points, pose[:2])), 0.2)
+    centres = perception.cluster_centres(points, pose[:2])
+    perception.estimate_velocities(centres, centres, 0.2)
+    perception.SeenArrays.of(robots)
     _done = True
     return time.perf_counter() - t0
 

@@ -17,7 +17,7 @@ the order x, y).  The pairs are found by a sweep over the points sorted by x, wh
 ``dx * dx`` alone exceeds ``link * link``.
 
 Compiled on first use and cached beside this file (``cache=True``), so a process after the first
-loads the machine code instead of compiling it.  :func:`warm_up` compiles them all.
+loads the machine code instead of compiling it (:mod:`swarm_nav.jit` warms them all up).
 """
 
 from __future__ import annotations
@@ -353,17 +353,3 @@ def perceive(pts, link, vx, vy, depth, earlier, dt, reach):
         owner[starts[k]:starts[k] + sizes[k]] = k
     known, speed = speeds(vel)
     return n, centres, vel, grouped, starts, sizes, owner, known, speed
-
-
-def warm_up() -> None:
-    """Compile (or load from the cache) every kernel, on tiny inputs."""
-    pts = np.zeros((2, 2))
-    dynamic_mask(pts, 0.0, 0.0, 1.0, np.zeros((1, 1), dtype=np.float32), 0.1)
-    labels, n = cluster_labels(pts, 0.2)
-    centres = cluster_centres(pts, labels, n, 0.0, 0.0, 0.1)
-    match_velocities(centres, pts, 1.0, 1.0)
-    grouped, starts, sizes = group_points(pts, labels, n)
-    known, _ = speeds(centres)
-    moving_points(grouped, starts, sizes, centres, known)
-    finite_rows(pts)
-    perceive(pts, 0.2, 0.0, 0.0, 0.1, pts, 1.0, 1.0)

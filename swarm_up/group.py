@@ -113,8 +113,9 @@ def _run(argv: list[str]) -> int:
                 executor.add_node(nav)
                 nodes.append(nav)
                 commanders[ns] = (nav, runners[-1])
-        for node in nodes if clock is not None else ():  # the commanders (the navigators
-            clock.adopt(node)                             # were adopted at creation)
+        if clock is not None:  # the commanders (each navigator was adopted at its creation)
+            for node in nodes:
+                clock.adopt(node)
         print(f"{PROG}: {len(names)} navigators{' and commanders' if runners else ''} up: "
               f"{','.join(names)}", flush=True)
         if opts.faults:

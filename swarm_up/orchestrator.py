@@ -307,23 +307,23 @@ class Orchestrator:
 
 
 def warm_up_kernels() -> None:
-    """Compile (first run on a machine, about 15 s) or load the navigator's numba kernels in a
-    short-lived process before any navigator starts (:mod:`swarm_nav.jit`), so the navigator
-    processes load them from the cache instead of each compiling them at once."""
+    """On a machine whose numba cache holds no navigator kernels yet, compile them (about 15 s)
+    in one short-lived process before any navigator starts (:mod:`swarm_nav.jit`), instead of
+    every navigator process compiling them at once; with a cache, each process loads them."""
     import importlib.util
 
     where = importlib.util.find_spec("swarm_nav").submodule_search_locations or []
-    if not any(Path(d, "__pycache__").glob("dwa_kernels.*.nbi") for d in where):
-        say("compiling the navigator's kernels (once per machine, about 15 s)")
+    if any(Path(d, "__pycache__").glob("dwa_kernels.*.nbi") for d in where):
+        return
+    say("compiling the navigator's kernels (once per machine, about 15 s)")
     t0 = time.monotonic()
     proc = subprocess.run([sys.executable, "-m", "swarm_nav.jit"], capture_output=True,
                           text=True, check=False)
-    took = time.monotonic() - t0
     if proc.returncode != 0:  # the navigators compile them themselves, then say why if it fails
-        say(f"warning: could not warm up the navigator's kernels: "
+        say(f"warning: could not compile the navigator's kernels: "
             f"{(proc.stderr.strip().splitlines() or ['?'])[-1]}")
-    elif took > 3.0:
-        say(f"compiled the navigator's kernels in {took:.0f} s (once per machine)")
+    else:
+        say(f"compiled the navigator's kernels in {time.monotonic() - t0:.0f} s")
 
 
 def run(cfg: RunConfig) -> int:

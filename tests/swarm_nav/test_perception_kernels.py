@@ -355,10 +355,6 @@ def test_dynamic_points_of_huge_coordinates_take_numpy_s_path(costmap):
         assert same(dynamic_points(pts, costmap, 0.1), ref_dynamic_points(pts, costmap, 0.1))
 
 
-def test_warm_up_compiles_every_kernel():
-    perception_kernels.warm_up()
-
-
 # ---------------------------------------------------------------- the navigator's on_scan pieces
 def ref_finite_rows(points):
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
