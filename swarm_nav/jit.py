@@ -5,8 +5,9 @@ geometry are compiled with numba (``swarm_nav.*_kernels``, ``cache=True``): the 
 machine compiles them, in about 15 s of CPU, and writes the machine code beside the sources;
 every later process loads it in about half a second.  A navigator whose first tick compiled them
 would answer that tick late by those 15 s (wall clock only: the lockstep waits, the simulated
-run is the same), so ``swarm-up`` calls :func:`warm_up` once before it starts the navigators, and
-the test session does too (``tests/conftest.py``).
+run is the same), so every navigator process calls :func:`warm_up` at start, ``swarm-up`` runs
+it once before the navigators start when the cache holds no kernels yet (so they do not all
+compile at once), and the test session runs it at its start (``tests/conftest.py``).
 
 :func:`warm_up` drives one :class:`~swarm_nav.core.NavigatorCore` through a small scene that
 takes every compiled path with the argument types of a real run: a robot plans across a room,
