@@ -441,7 +441,15 @@ class NavigatorNode(Node):
             values=[KeyValue(key=k, value=v) for k, v in encode(record).items()]))
 
     def _publish_plan(self, stamp) -> None:
+        """Publish the global plan when it changed and someone reads ``plan``.
+
+        With no reader the message is not even built (at 100 robots that was 2-3 % of a group
+        process's CPU); a reader that joins later gets the current plan at the next tick, as the
+        plan then differs from the last one published.
+        """
         if self.core.path_version == self._path_version:
+            return
+        if not self.plan_pub.get_subscription_count():
             return
         self._path_version = self.core.path_version
         msg = Path()

@@ -26,7 +26,7 @@ import numpy as np
 import rclpy
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import TwistStamped
+from geometry_msgs.msg import Pose, PoseArray, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry
 from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
@@ -52,6 +52,7 @@ from swarm_common.faults import (
     FaultEvent,
     parse_faults,
 )
+from swarm_common.fleet_poses import POSES_TOPIC, POSES_WRITER_QOS
 from swarm_common.sim_summary import CollisionCounts, RobotSummary, SimSummary
 from swarm_common.stamps import NS_PER_S
 
@@ -203,6 +204,7 @@ class SimulatorNode(Node):
         self.clock_pub = self.create_publisher(Clock, "/clock", reliable)
         self.map_pub = self.create_publisher(OccupancyGrid, "/map", latched)
         self.events_pub = self.create_publisher(DiagnosticArray, "/swarm/events", events_qos)
+        self.poses_pub = self.create_publisher(PoseArray, POSES_TOPIC, POSES_WRITER_QOS)
         self.odom_pubs, self.truth_pubs, self.scan_pubs = [], [], []
         for i, ns in enumerate(namespaces):
             self.odom_pubs.append(self.create_publisher(Odometry, f"/{ns}/odom", reliable))
@@ -220,6 +222,8 @@ class SimulatorNode(Node):
         self._odom_msgs = [self._make_odom(ns, f"{ns}/odom") for ns in namespaces]
         self._truth_msgs = [self._make_odom(ns, "map") for ns in namespaces]
         self._scan_msgs = [self._make_scan(ns) for ns in namespaces]
+        self._poses_msg = PoseArray(poses=[Pose() for _ in namespaces])
+        self._poses_msg.header.frame_id = "map"
         self.map_pub.publish(occupancy_grid_msg(occ, _time_msg(0)))
 
     # -- message templates ---------------------------------------------------------------------
@@ -418,7 +422,8 @@ class SimulatorNode(Node):
         ])
 
     def publish_tick(self) -> None:
-        """Publish ``/clock``, odometry, ground truth and (on lidar ticks) scans for this tick."""
+        """Publish ``/clock``, odometry, ground truth and (on lidar ticks) scans for this tick,
+        and ``/swarm/poses`` while it has a subscriber."""
         stamp = _time_msg(self.t_ns)
         self.clock_pub.publish(Clock(clock=stamp))
         eng = self.engine
@@ -453,6 +458,19 @@ class SimulatorNode(Node):
                 msg.twist.twist.linear.x = float(eng.v[i])
                 msg.twist.twist.angular.z = float(eng.w[i])
                 pub.publish(msg)
+        if self.poses_pub.get_subscription_count():
+            self._publish_poses(stamp)
+
+    def _publish_poses(self, stamp: Time) -> None:
+        """``/swarm/poses`` (:mod:`swarm_common.fleet_poses`): every robot's pose in ``map``."""
+        msg = self._poses_msg
+        msg.header.stamp = stamp
+        for pose, (x, y, yaw) in zip(msg.poses, self.engine.poses.tolist(), strict=True):
+            pose.position.x = x
+            pose.position.y = y
+            pose.orientation.z = math.sin(yaw / 2.0)
+            pose.orientation.w = math.cos(yaw / 2.0)
+        self.poses_pub.publish(msg)
 
     def request_stop(self, signum=None, frame=None) -> None:
         """Ask the run loop to end after the current step (a signal handler: only sets a flag)."""

@@ -24,7 +24,7 @@ import struct
 
 import numpy as np
 
-__all__ = ["odom_pose", "path_points", "scan_ranges"]
+__all__ = ["odom_pose", "path_points", "pose_array", "scan_ranges"]
 
 _CDR_LE = b"\x00\x01"
 _U32 = struct.Struct("<I")
@@ -127,6 +127,38 @@ def _path_points(body: memoryview) -> np.ndarray:
         out[k] = unpack_xy(body, pos)
         pos += 56
     return out
+
+
+def pose_array(buf) -> tuple[int, np.ndarray]:
+    """The stamp and poses of a serialized ``geometry_msgs/PoseArray`` (``/swarm/poses``).
+
+    Args:
+        buf: the message's CDR bytes.
+
+    Returns:
+        ``(stamp_ns, poses)``: header stamp [ns]; (N, 3) array of x [m], y [m] and yaw [rad] in
+        (-pi, pi] in the message's frame, N >= 0.
+
+    Raises:
+        ValueError: not little-endian CDR, or truncated.
+    """
+    try:
+        body = _body(buf)
+        sec, nanosec = struct.unpack_from("<iI", body, 0)
+        pos = _after_header(body)
+        pos = _align(pos, 4)
+        (count,) = _U32.unpack_from(body, pos)
+        pos = _align(pos + 4, 8)
+    except struct.error as exc:
+        raise ValueError(f"truncated message: {exc}") from None
+    if count and pos + _POSE.size * count > len(body):  # an empty sequence has no padding
+        raise ValueError("poses run past the end of the message")
+    if not count:
+        return sec * 1_000_000_000 + nanosec, np.zeros((0, 3))
+    p = np.frombuffer(body, dtype="<f8", count=7 * count, offset=pos).reshape(count, 7)
+    qx, qy, qz, qw = p[:, 3], p[:, 4], p[:, 5], p[:, 6]
+    yaw = np.arctan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+    return sec * 1_000_000_000 + nanosec, np.column_stack((p[:, 0], p[:, 1], yaw))
 
 
 def scan_ranges(buf) -> tuple[int, float, float, float, float, np.ndarray]:

@@ -6,14 +6,15 @@ It runs in ``swarm-up``'s own process, in the metrics listener's context and thr
 ``nav_status`` stream the recorder already receives is handed over by a hook instead of a second
 set of subscriptions.  Costs, per robot:
 
-- ``/<ns>/odom`` (not ``ground_truth``, which the simulator publishes only while someone
-  listens; odometry is published every tick anyway and coincides with ``map``), best effort,
-  depth 1: the simulator's reliable writer then sends without waiting for acknowledgements;
+- ``/swarm/poses`` (:mod:`swarm_common.fleet_poses`): every robot's pose in one message a tick,
+  which the simulator publishes only while someone listens; best effort, depth 1.  Reading the
+  ``N`` robots' ``odom`` instead made the simulator write, and this process wake up, ``N`` more
+  times a tick;
 - ``/<ns>/plan``, latched like the navigator's writer;
 - ``/<ns>/scan`` only while a browser watches the robot (:meth:`FleetNode.watch`).
 
 Every subscription is ``raw=True`` and read with :mod:`swarm_up.cdr` (rclpy's deserializer was
-8 ms per plan, 72 us per odometry).  The markers are built only while ``/swarm/markers`` has a
+8 ms per plan).  The markers are built only while ``/swarm/markers`` has a
 subscriber.
 """
 
@@ -23,7 +24,8 @@ import threading
 from collections.abc import Iterable
 
 import numpy as np
-from nav_msgs.msg import Odometry, Path
+from geometry_msgs.msg import PoseArray
+from nav_msgs.msg import Path
 from rclpy.node import Node
 from rclpy.qos import (
     DurabilityPolicy,
@@ -34,12 +36,11 @@ from rclpy.qos import (
 )
 from sensor_msgs.msg import LaserScan
 
+from swarm_common.fleet_poses import POSES_READER_QOS, POSES_TOPIC
 from swarm_common.nav_status import decode
-from swarm_up.cdr import odom_pose, path_points, scan_ranges
+from swarm_up.cdr import path_points, pose_array, scan_ranges
 from swarm_up.fleet_view import FleetState, ScanSample, ViewConfig, workstation_states
 
-ODOM_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                      reliability=ReliabilityPolicy.BEST_EFFORT)
 PLAN_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                       reliability=ReliabilityPolicy.RELIABLE,
                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -80,11 +81,9 @@ class FleetNode(Node):
         self.markers_published = 0
         self._scan_subs: dict[int, object] = {}
         # subscriptions
-        self._subs = []
+        self._subs = [self.create_subscription(PoseArray, POSES_TOPIC, self._on_poses,
+                                               POSES_READER_QOS, raw=True)]
         for i, ns in enumerate(fleet.robots):
-            self._subs.append(self.create_subscription(
-                Odometry, f"/{ns}/odom", lambda buf, i=i: self._on_odom(i, buf), ODOM_QOS,
-                raw=True))
             self._subs.append(self.create_subscription(
                 Path, f"/{ns}/plan", lambda buf, i=i: self._on_plan(i, buf), PLAN_QOS,
                 raw=True))
@@ -97,14 +96,15 @@ class FleetNode(Node):
             self.create_timer(1.0 / cfg.markers_hz, self._on_markers_timer)
 
     # -- inputs --------------------------------------------------------------------------------
-    def _on_odom(self, i: int, buf: bytes) -> None:
+    def _on_poses(self, buf: bytes) -> None:
         try:
-            stamp, x, y, yaw, _, _ = odom_pose(buf)
+            stamp, poses = pose_array(buf)
         except ValueError:
             self.malformed += 1
             return
         with self.lock:
-            self.fleet.set_pose(i, stamp, x, y, yaw)
+            for i, (x, y, yaw) in enumerate(poses[:len(self.fleet.robots)].tolist()):
+                self.fleet.set_pose(i, stamp, x, y, yaw)
 
     def _on_plan(self, i: int, buf: bytes) -> None:
         try:

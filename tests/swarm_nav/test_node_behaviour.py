@@ -23,6 +23,7 @@ import yaml
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import OccupancyGrid, Odometry
+from nav_msgs.msg import Path as PathMsg
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -300,6 +301,23 @@ def test_one_robot_reaches_five_goals_around_the_blockage(swarm):
         result = sw.wait_result("Srobot1", gid, 60)
         assert_reached(sw, "Srobot1", result, goal)
     assert_no_collisions(sw)
+
+
+def test_a_plan_reader_that_joins_late_gets_the_current_plan(swarm):
+    # The navigator builds ``plan`` only while someone reads it: a reader that subscribes after
+    # the plan was made must still get it (at the next tick).
+    sw = swarm(1)
+    goal = GOALS_AROUND[0]
+    gid = sw.send("Srobot1", *goal)
+    sw.spin_until(lambda: any(st.state == "DRIVING" for st in sw.statuses["Srobot1"]), 30,
+                  "the robot to drive")
+    plans = []
+    sw.node.create_subscription(PathMsg, "/Srobot1/plan", plans.append, LATCHED)
+    sw.spin_until(lambda: plans, 10, "the plan")
+    end = plans[-1].poses[-1].pose.position
+    assert plans[-1].header.frame_id == "map"
+    assert math.hypot(end.x - goal[0], end.y - goal[1]) < 0.1
+    assert_reached(sw, "Srobot1", sw.wait_result("Srobot1", gid, 60), goal)
 
 
 # -- 2. two robots swap ends of the passage below the blockage --------------------------------

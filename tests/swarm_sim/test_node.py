@@ -13,7 +13,7 @@ import time
 import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import TwistStamped
+from geometry_msgs.msg import PoseArray, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import LaserScan
@@ -149,6 +149,40 @@ def test_stamped_command_moves_robot_expected_distance(tmp_path):
         data = json.loads(summary.read_text())
         assert data["late_ticks"] == 0
         assert data["per_robot"]["Srobot3"]["distance_m"] == pytest.approx(0.6, abs=0.001)
+    finally:
+        stop(proc)
+
+
+def test_fleet_poses_equal_each_robots_ground_truth(tmp_path):
+    proc, _ = _sim(tmp_path, 3, "--duration", "3", wait_for=2)
+    try:
+        with ros_context() as (ctx, ex):
+            node = rclpy.create_node("driver", context=ctx)
+            ex.add_node(node)
+            fleet = {}  # stamp [s] -> (N, 3) x, y, yaw
+
+            def on_poses(msg):
+                t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+                assert msg.header.frame_id == "map"
+                fleet[round(t, 3)] = [(p.position.x, p.position.y,
+                                       2.0 * math.atan2(p.orientation.z, p.orientation.w))
+                                      for p in msg.poses]
+
+            node.create_subscription(PoseArray, "/swarm/poses", on_poses, RELIABLE)
+            driver = Driver(node, {"Srobot1": (0.2, 0.5), "Srobot3": (0.1, -0.3)}, ticks=20,
+                            watch=["Srobot2"])
+            spin_until(ex, lambda: proc.poll() is not None, 60, "the simulator to finish")
+        assert proc.returncode == 0
+        compared = 0
+        for k, ns in enumerate(("Srobot1", "Srobot2", "Srobot3")):
+            for t, x, y, yaw in driver.truth[ns]:
+                if round(t, 3) in fleet:
+                    assert len(fleet[round(t, 3)]) == 3
+                    assert fleet[round(t, 3)][k] == pytest.approx((x, y, yaw), abs=1e-12)
+                    compared += 1
+        assert compared >= 3 * 20  # most of the 30 ticks, for every robot
+        moved = fleet[max(fleet)]
+        assert moved[0][:2] != pytest.approx(fleet[min(fleet)][0][:2], abs=0.1)  # Srobot1 drove
     finally:
         stop(proc)
 

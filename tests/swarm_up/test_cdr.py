@@ -7,12 +7,12 @@ import time
 
 import numpy as np
 import pytest
-from geometry_msgs.msg import PoseStamped
+from geometry_msgs.msg import Pose, PoseArray, PoseStamped
 from nav_msgs.msg import Odometry, Path
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import LaserScan
 
-from swarm_up.cdr import odom_pose, path_points, scan_ranges
+from swarm_up.cdr import odom_pose, path_points, pose_array, scan_ranges
 
 
 @pytest.mark.parametrize("ns", ["S", "Srobot1", "Srobot12", "Srobot100", "abc"])
@@ -71,6 +71,27 @@ def test_path_points_is_much_cheaper_than_deserializing():
     assert ours < theirs / 3, (ours, theirs)
 
 
+@pytest.mark.parametrize("frame", ["map", "m", "map12", ""])
+@pytest.mark.parametrize("n", [0, 1, 2, 100])
+def test_pose_array_matches_the_message(frame, n):
+    rng = np.random.default_rng(n)
+    xy = rng.uniform(-10.0, 10.0, size=(n, 2))
+    yaw = rng.uniform(-math.pi, math.pi, size=n)
+    msg = PoseArray()
+    msg.header.frame_id = frame
+    msg.header.stamp.sec, msg.header.stamp.nanosec = 7, 900_000_000
+    for (x, y), a in zip(xy, yaw, strict=True):
+        p = Pose()
+        p.position.x, p.position.y = float(x), float(y)
+        p.orientation.z, p.orientation.w = math.sin(a / 2), math.cos(a / 2)
+        msg.poses.append(p)
+    stamp, got = pose_array(serialize_message(msg))
+    assert stamp == 7_900_000_000
+    assert got.shape == (n, 3)
+    np.testing.assert_array_equal(got[:, :2], xy)
+    np.testing.assert_allclose(got[:, 2], yaw, atol=1e-12)
+
+
 def test_scan_ranges_match_the_message():
     msg = LaserScan()
     msg.header.frame_id = "Srobot7/base_scan"
@@ -87,7 +108,7 @@ def test_scan_ranges_match_the_message():
     np.testing.assert_array_equal(got, ranges)
 
 
-@pytest.mark.parametrize("reader", [odom_pose, path_points, scan_ranges])
+@pytest.mark.parametrize("reader", [odom_pose, path_points, pose_array, scan_ranges])
 @pytest.mark.parametrize("buf", [b"", b"\x00\x00\x00\x00" + bytes(200), b"\x00\x01\x00\x00\x05"])
 def test_malformed_bytes_are_a_value_error(reader, buf):
     with pytest.raises(ValueError):

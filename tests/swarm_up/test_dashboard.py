@@ -2,10 +2,10 @@
 headless Chromium (robots drawn, KPIs equal to the metrics recorder's, the scan of a watched
 robot subscribed only while a browser watches it).
 
-The fake swarm publishes what the simulator and the navigators do, with their QoS: reliable
-``odom``, latched ``plan`` and ``nav_status``, ``/clock``, ``/swarm/events`` (one collision, two
-late ticks), and best-effort scans.  Three robots: Srobot1 docked at loader1, Srobot2 holding for
-loader2, Srobot3 driving with a plan and a goal reached.
+The fake swarm publishes what the simulator and the navigators do, with their QoS:
+``/swarm/poses``, latched ``plan`` and ``nav_status``, ``/clock``, ``/swarm/events`` (one
+collision, two late ticks), and best-effort scans.  Three robots: Srobot1 docked at loader1,
+Srobot2 holding for loader2, Srobot3 driving with a plan and a goal reached.
 """
 
 from __future__ import annotations
@@ -20,8 +20,8 @@ import urllib.request
 import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import PoseStamped
-from nav_msgs.msg import Odometry, Path
+from geometry_msgs.msg import Pose, PoseArray, PoseStamped
+from nav_msgs.msg import Path
 from rclpy.qos import (
     DurabilityPolicy,
     QoSProfile,
@@ -32,6 +32,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 from visualization_msgs.msg import Marker, MarkerArray
 
+from swarm_common.fleet_poses import POSES_TOPIC, POSES_WRITER_QOS
 from swarm_common.nav_status import NavState, NavStatusRecord, encode
 from swarm_up.args import build_parser, validate
 from swarm_up.dashboard import LiveView
@@ -80,7 +81,7 @@ class FakeSwarm:
         n = self.node
         self.clock = n.create_publisher(Clock, "/clock", RELIABLE)
         self.events = n.create_publisher(DiagnosticArray, "/swarm/events", EVENTS)
-        self.odom = {ns: n.create_publisher(Odometry, f"/{ns}/odom", RELIABLE) for ns in POSES}
+        self.poses = n.create_publisher(PoseArray, POSES_TOPIC, POSES_WRITER_QOS)
         self.plan = {ns: n.create_publisher(Path, f"/{ns}/plan", LATCHED) for ns in POSES}
         self.status = {ns: n.create_publisher(DiagnosticStatus, f"/{ns}/nav_status", LATCHED)
                        for ns in POSES}
@@ -92,15 +93,15 @@ class FakeSwarm:
         sec = int(self.t)
         stamp = rclpy.time.Time(nanoseconds=int(self.t * 1e9)).to_msg()
         self.clock.publish(Clock(clock=stamp))
-        for ns, (x, y, yaw) in POSES.items():
-            msg = Odometry()
-            msg.header.stamp = stamp
-            msg.header.frame_id = f"{ns}/odom"
-            msg.child_frame_id = f"{ns}/base_footprint"
-            msg.pose.pose.position.x, msg.pose.pose.position.y = x, y
-            msg.pose.pose.orientation.z = math.sin(yaw / 2)
-            msg.pose.pose.orientation.w = math.cos(yaw / 2)
-            self.odom[ns].publish(msg)
+        msg = PoseArray()
+        msg.header.stamp = stamp
+        msg.header.frame_id = "map"
+        for x, y, yaw in POSES.values():  # in the namespaces' order, as the simulator does
+            p = Pose()
+            p.position.x, p.position.y = x, y
+            p.orientation.z, p.orientation.w = math.sin(yaw / 2), math.cos(yaw / 2)
+            msg.poses.append(p)
+        self.poses.publish(msg)
         scan = LaserScan()
         scan.header.stamp = stamp
         scan.header.frame_id = "Srobot3/base_scan"
@@ -165,7 +166,7 @@ def test_state_markers_and_pages(live):
         markers: list[MarkerArray] = []
         swarm.node.create_subscription(MarkerArray, "/swarm/markers", markers.append, RELIABLE)
         executor.add_node(swarm.node)
-        spin_until(executor, lambda: swarm.odom["Srobot3"].get_subscription_count() >= 1
+        spin_until(executor, lambda: swarm.poses.get_subscription_count() >= 1
                    and swarm.status["Srobot3"].get_subscription_count() >= 1
                    and swarm.events.get_subscription_count() >= 1, 20.0, "the live view")
         swarm.publish_once()
@@ -222,7 +223,7 @@ def test_page_in_headless_chromium(live):
     with ros_context() as (ctx, executor):
         swarm = FakeSwarm(ctx)
         executor.add_node(swarm.node)
-        spin_until(executor, lambda: swarm.odom["Srobot3"].get_subscription_count() >= 1
+        spin_until(executor, lambda: swarm.poses.get_subscription_count() >= 1
                    and swarm.status["Srobot3"].get_subscription_count() >= 1, 20.0, "the view")
         swarm.publish_once()
 
