@@ -27,10 +27,12 @@ from swarm_up import PROG
 from swarm_up.rundir import check_nav_template, load_nav_template
 
 PER_ROBOT = "per-robot"
-# Default layout: one process per robot (and one per commander) up to this many robots, else
-# one group per core.  Each rclpy process is a DDS participant of ~75 MB whose start costs ~1 s
-# of CPU; 20 robots with commanders as 41 processes took minutes to come up on 2 cores.
-PER_ROBOT_MAX = 8
+# Default layout: one group process per core (fewer with fewer robots), each hosting its robots'
+# navigators and commanders; ``--processes per-robot`` gives every navigator and commander a
+# process of its own.  Each rclpy process is a DDS participant of ~75 MB whose start costs ~1 s of
+# CPU, and every message between processes wakes its reader: at 5 robots on 2 cores the per-robot
+# layout ran at RTF 7.1 and 391 MB per robot where 2 groups ran at 11.4 and 136 MB, with the same
+# simulated run (swarm-up --commanders --rtf 0 --duration 300; README, Benchmark).
 DEFAULT_READY_TIMEOUT_S = 120.0
 RECORD_IN_RUN_DIR = Path("recording.mcap")  # --record without a path: in the run directory
 DEFAULT_DASHBOARD_PORT = 8080
@@ -51,9 +53,10 @@ def processes_arg(text: str) -> str | int:
     return value
 
 
-def default_processes(n: int) -> str | int:
-    """The process layout for ``n`` robots without ``--processes``: see :data:`PER_ROBOT_MAX`."""
-    return PER_ROBOT if n <= PER_ROBOT_MAX else (os.cpu_count() or 1)
+def default_processes(n: int) -> int:
+    """The number of group processes for ``n`` robots without ``--processes``: one per core, at
+    most one per robot (see :data:`PER_ROBOT`)."""
+    return max(1, min(n, os.cpu_count() or 1))
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -116,8 +119,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "YAML file (README, Faults)")
     p.add_argument("--processes", type=processes_arg, default=None, metavar="per-robot|K",
                    help="one navigator process per robot, or K processes each hosting a group "
-                   f"of robots (default: per-robot up to {PER_ROBOT_MAX} robots, else "
-                   f"K = number of cores, here {cores})")
+                   f"of robots (default: K = number of cores, here {cores}, at most one per "
+                   "robot)")
     view = p.add_mutually_exclusive_group()
     view.add_argument("--headless", dest="gui", action="store_false", default=False,
                       help="no window (the default)")

@@ -29,7 +29,7 @@ pytestmark = pytest.mark.e2e
 SPEC = ("kill-nav:2@10,kill-robot:1@20,freeze:3@30+10,drop:4/scan:0.5@30+10,"
         "drop:4/cmd_vel:0.3@45+5,kill-coordinator@50+5")
 ARGS = ["--swarm-size", "4", "--commanders", "--rtf", "0", "--duration", "120",
-        "--faults", SPEC]
+        "--faults", SPEC, "--processes", "per-robot"]  # a killed navigator is its own process
 EXPECTED_LOG = [
     (1, "kill-nav", "start", "Srobot2", 10.0),
     (1, "kill-nav", "end", "Srobot2", 12.0),
@@ -96,7 +96,8 @@ def test_killed_navigator_is_restarted_and_reaches_goals_again(fault_run):
 def test_fault_runs_are_reproducible_in_both_process_layouts(fault_run, tmp_path):
     first, diag1, _ = fault_run
     _, second, diag2 = _run_to_end(ARGS, tmp_path, "second", 120)
-    _, grouped, diag3 = _run_to_end(ARGS + ["--processes", "2"], tmp_path, "grouped", 120)
+    grouped_args = ARGS[:ARGS.index("--processes")] + ["--processes", "2"]
+    _, grouped, diag3 = _run_to_end(grouped_args, tmp_path, "grouped", 120)
     for other, diag in ((second, diag2), (grouped, diag3)):
         assert other["reproducible"] is True, diag
     a, b = _simulated(first), _simulated(second)

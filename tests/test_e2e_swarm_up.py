@@ -294,7 +294,7 @@ def _navigators_of(run: SwarmUp, ns: str) -> list[psutil.Process]:
 
 def test_killed_navigator_is_restarted_and_goes_on(tmp_path):
     args = ["--swarm-size", "4", "--commanders", "--rtf", "1", "--duration", "60",
-            "--metrics", "m.json"]
+            "--metrics", "m.json", "--processes", "per-robot"]
     with SwarmUp(args, tmp_path) as run:
         run.wait_for_stdout(r"all 4 navigators ready", READY_TIMEOUT_S)
         nav_log = run.logs / "nav_Srobot2.log"

@@ -18,6 +18,7 @@ from pathlib import Path
 import psutil
 import pytest
 
+from swarm_up.args import default_processes
 from swarm_up.bench import build_parser, summarize, write_plot
 from tests.support.ros import alive
 
@@ -205,7 +206,7 @@ def test_small_sweep_with_floor_writes_table_json_and_plot(tmp_path):
         f = rec["floor"]
         assert rec["exit_code"] == 0
         assert f["ticks"] == duration * 10 and f["late_ticks"] == 0 and f["rtf"] > 0
-        assert f["processes"] == "per-robot"  # what swarm-up chose for 2-3 robots
+        assert f["processes"] == default_processes(rec["size"])  # what swarm-up chose
     assert [s["size"] for s in doc["summary"]] == [2, 3]
     for s in doc["summary"]:
         assert s["rtf_mean"] > 0 and s["floor_rtf"] > 0

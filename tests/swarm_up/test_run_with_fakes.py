@@ -162,7 +162,7 @@ def _argv(tmp_path, *extra):
             "--world", str(tmp_path / "w.world"), "--map", str(tmp_path / "m.yaml"),
             "--nav-params", str(tmp_path / "navigator.yaml"),
             "--run-dir", str(tmp_path / "run"), "--metrics", str(tmp_path / "metrics.json"),
-            "--ready-timeout", "30", *extra]
+            "--ready-timeout", "30", "--processes", "per-robot", *extra]  # the fakes: swarm-nav
 
 
 def _descendants_gone(pids, timeout=2.0):
