@@ -38,6 +38,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 
 from swarm_common import cli
+from swarm_common.cdr import twist_stamped
 from swarm_common.errors import InputError, run_cli
 from swarm_common.faults import (
     ACK_NAME,
@@ -213,8 +214,8 @@ class SimulatorNode(Node):
             self.scan_pubs.append(
                 self.create_publisher(LaserScan, f"/{ns}/scan", qos_profile_sensor_data))
             self.create_subscription(
-                TwistStamped, f"/{ns}/cmd_vel", lambda msg, i=i: self._on_cmd_vel(i, msg),
-                reliable)
+                TwistStamped, f"/{ns}/cmd_vel", lambda buf, i=i: self._on_cmd_vel(i, buf),
+                reliable, raw=True)  # read with swarm_common.cdr: no message objects
         if self.faults is not None:
             self.create_subscription(DiagnosticStatus, ACKS_TOPIC, self._on_fault_ack,
                                      QoSProfile(depth=100,
@@ -249,9 +250,12 @@ class SimulatorNode(Node):
 
     # -- callbacks -----------------------------------------------------------------------------
 
-    def _on_cmd_vel(self, i: int, msg: TwistStamped) -> None:
-        v, w = msg.twist.linear.x, msg.twist.angular.z
-        frame = msg.header.frame_id
+    def _on_cmd_vel(self, i: int, buf: bytes) -> None:
+        try:
+            stamp, frame, v, w = twist_stamped(buf)
+        except ValueError as exc:
+            self._drop(f"/{self.namespaces[i]}/cmd_vel: malformed message ({exc})")
+            return
         ns = self.namespaces[i]
         if not (math.isfinite(v) and math.isfinite(w)):
             self._drop(f"/{ns}/cmd_vel: non-finite velocity ({v}, {w})")
@@ -260,7 +264,6 @@ class SimulatorNode(Node):
                          f"{ns}/base_link"):
             self._drop(f"/{ns}/cmd_vel: frame '{frame}' is not {ns}/base_footprint")
             return
-        stamp = _stamp_ns(msg.header.stamp)
         if stamp == 0:  # manual driving: apply now, hold until replaced
             self.manual[i] = (v, w, time.monotonic())
         elif stamp == self.t_ns and i not in self._silenced:

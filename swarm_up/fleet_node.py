@@ -13,7 +13,7 @@ set of subscriptions.  Costs, per robot:
 - ``/<ns>/plan``, latched like the navigator's writer;
 - ``/<ns>/scan`` only while a browser watches the robot (:meth:`FleetNode.watch`).
 
-Every subscription is ``raw=True`` and read with :mod:`swarm_up.cdr` (rclpy's deserializer was
+Every subscription is ``raw=True`` and read with :mod:`swarm_common.cdr` (rclpy's deserializer was
 8 ms per plan).  The markers are built only while ``/swarm/markers`` has a
 subscriber.
 """
@@ -36,9 +36,9 @@ from rclpy.qos import (
 )
 from sensor_msgs.msg import LaserScan
 
+from swarm_common.cdr import path_points, pose_array, scan_ranges
 from swarm_common.fleet_poses import POSES_READER_QOS, POSES_TOPIC
 from swarm_common.nav_status import decode
-from swarm_up.cdr import path_points, pose_array, scan_ranges
 from swarm_up.fleet_view import FleetState, ScanSample, ViewConfig, workstation_states
 
 PLAN_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,

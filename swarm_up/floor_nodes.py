@@ -50,6 +50,7 @@ from sensor_msgs.msg import LaserScan
 from std_srvs.srv import Trigger
 
 from swarm_commander.robot_navigator import NAV_STATUS_QOS
+from swarm_common.cdr import odom_pose, scan_ranges, twist_stamped
 from swarm_common.nav_status import TERMINAL
 from swarm_common.stamps import NS_PER_S
 from swarm_up.clock import SharedClock
@@ -144,7 +145,8 @@ class FloorSimNode(Node):
             self.scan_pubs.append(self.create_publisher(LaserScan, f"/{ns}/scan",
                                                         qos_profile_sensor_data))
             self.create_subscription(TwistStamped, f"/{ns}/cmd_vel",
-                                     lambda msg, i=i: self._on_cmd_vel(i, msg), RELIABLE)
+                                     lambda buf, i=i: self._on_cmd_vel(i, buf), RELIABLE,
+                                     raw=True)  # read raw, as the simulator does
         self._odom_msgs = [self._make_odom(ns, f"{ns}/odom") for ns in cfg.robots]
         self._truth_msgs = [self._make_odom(ns, "map") for ns in cfg.robots]
         self._scan_msgs = [self._make_scan(ns) for ns in cfg.robots]
@@ -188,11 +190,14 @@ class FloorSimNode(Node):
         msg.range_max = cfg.range_max
         return msg
 
-    def _on_cmd_vel(self, i: int, msg: TwistStamped) -> None:
-        v, w = msg.twist.linear.x, msg.twist.angular.z
+    def _on_cmd_vel(self, i: int, buf: bytes) -> None:
+        try:
+            stamp, _, v, w = twist_stamped(buf)
+        except ValueError:
+            return
         if not (math.isfinite(v) and math.isfinite(w)):
             return
-        if _stamp_ns(msg.header.stamp) == self.t_ns:
+        if stamp == self.t_ns:
             self.answers.add(i)
             self.active[i] = True
 
@@ -397,8 +402,10 @@ class FloorNavigatorNode(Node):
         self.plan_pub = self.create_publisher(PathMsg, "plan", LATCHED)
         self.status_pub = self.create_publisher(DiagnosticStatus, "nav_status", LATCHED)
         self.create_subscription(OccupancyGrid, "/map", self._on_map, LATCHED)
-        self.create_subscription(LaserScan, "scan", self._on_scan, qos_profile_sensor_data)
-        self.create_subscription(Odometry, "odom", self._on_odom, RELIABLE)
+        # Raw, read with swarm_common.cdr, as the real navigator does.
+        self.create_subscription(LaserScan, "scan", self._on_scan, qos_profile_sensor_data,
+                                 raw=True)
+        self.create_subscription(Odometry, "odom", self._on_odom, RELIABLE, raw=True)
         self.create_subscription(PoseStamped, "goal_pose", self._on_goal_pose, RELIABLE)
         self.create_service(Trigger, "navigator/cancel", self._on_cancel)
 
@@ -406,13 +413,12 @@ class FloorNavigatorNode(Node):
         np.asarray(msg.data, dtype=np.int8)  # the conversion the real navigator makes
         self.has_map = True
 
-    def _on_scan(self, msg: LaserScan) -> None:
-        self._scan_stamp = _stamp_ns(msg.header.stamp)
-        self._ranges = np.asarray(msg.ranges, dtype=np.float32)
+    def _on_scan(self, buf: bytes) -> None:
+        self._scan_stamp, *_, self._ranges = scan_ranges(buf)
         self._release()
 
-    def _on_odom(self, msg: Odometry) -> None:
-        self._pending = msg
+    def _on_odom(self, buf: bytes) -> None:
+        self._pending = odom_pose(buf)  # (stamp [ns], x, y, yaw, v, w)
         self._release()
 
     def _on_goal_pose(self, msg: PoseStamped) -> None:
@@ -427,10 +433,10 @@ class FloorNavigatorNode(Node):
         return response
 
     def _release(self) -> None:
-        msg = self._pending
-        if msg is None:
+        odom = self._pending
+        if odom is None:
             return
-        t = _stamp_ns(msg.header.stamp)
+        t = odom[0]
         if round(t / self.tick_ns) % self.cfg.lidar_every == 0 and self._scan_stamp != t:
             return
         if self._awaits_goal(t):
@@ -442,7 +448,7 @@ class FloorNavigatorNode(Node):
             return
         self._pending = None
         self._cancel_goal_timer()
-        self._tick(msg)
+        self._tick(odom)
 
     def _awaits_goal(self, t: int) -> bool:
         if not self.cfg.commanders or any(stamp < t for stamp, _ in self._goals):
@@ -467,9 +473,10 @@ class FloorNavigatorNode(Node):
             self.destroy_timer(self._goal_timer)
             self._goal_timer = None
 
-    def _tick(self, odom: Odometry) -> None:
+    def _tick(self, odom: tuple) -> None:
         _Cpu.begin()
-        t = _stamp_ns(odom.header.stamp)
+        t = odom[0]
+        stamp = _time_msg(t)
         self._now_ns = t
         self.answered = True
         due = [g for g in self._goals if g[0] < t]
@@ -483,7 +490,7 @@ class FloorNavigatorNode(Node):
         elif self.state == "DRIVING" and t - self.goal_start_ns >= self.goal_period_ns:
             self.state = "SUCCEEDED"
         cmd = TwistStamped()
-        cmd.header.stamp = odom.header.stamp
+        cmd.header.stamp = stamp
         cmd.header.frame_id = f"{self.ns}/base_footprint"
         self.cmd_pub.publish(cmd)
         if self.state in TERMINAL:
@@ -493,7 +500,7 @@ class FloorNavigatorNode(Node):
             self._terminal_ns = None
         if self.has_map:
             self._publish_status()
-            self._publish_plan(odom.header.stamp)
+            self._publish_plan(stamp)
 
     def _publish_status(self) -> None:
         key = (self.state, self.goal_id)
@@ -514,6 +521,8 @@ class FloorNavigatorNode(Node):
 
     def _publish_plan(self, stamp) -> None:
         if self.path_version == self._published_path:
+            return
+        if not self.plan_pub.get_subscription_count():  # as the navigator: only when read
             return
         self._published_path = self.path_version
         msg = PathMsg()

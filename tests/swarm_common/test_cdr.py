@@ -1,4 +1,4 @@
-"""The CDR readers of :mod:`swarm_up.cdr` against rclpy's own serializer."""
+"""The CDR readers of :mod:`swarm_common.cdr` against rclpy's own serializer."""
 
 from __future__ import annotations
 
@@ -7,12 +7,12 @@ import time
 
 import numpy as np
 import pytest
-from geometry_msgs.msg import Pose, PoseArray, PoseStamped
+from geometry_msgs.msg import Pose, PoseArray, PoseStamped, TwistStamped
 from nav_msgs.msg import Odometry, Path
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import LaserScan
 
-from swarm_up.cdr import odom_pose, path_points, pose_array, scan_ranges
+from swarm_common.cdr import odom_pose, path_points, pose_array, scan_ranges, twist_stamped
 
 
 @pytest.mark.parametrize("ns", ["S", "Srobot1", "Srobot12", "Srobot100", "abc"])
@@ -29,6 +29,13 @@ def test_odom_pose_matches_the_message(ns, yaw):
     assert stamp == 12_345_000_000
     assert (x, y, v, w) == (-7.25, 3.5, 0.26, -1.82)
     assert math.isclose(math.remainder(got_yaw - yaw, math.tau), 0.0, abs_tol=1e-12)
+
+
+@pytest.mark.parametrize("bad", [math.inf, -math.inf, math.nan])
+def test_odom_pose_of_a_non_finite_quaternion_has_no_yaw(bad):
+    msg = Odometry()
+    msg.pose.pose.orientation.z, msg.pose.pose.orientation.w = bad, -math.inf
+    assert math.isnan(odom_pose(serialize_message(msg))[3])
 
 
 @pytest.mark.parametrize("frame", ["map", "m", "map12", ""])
@@ -92,6 +99,18 @@ def test_pose_array_matches_the_message(frame, n):
     np.testing.assert_allclose(got[:, 2], yaw, atol=1e-12)
 
 
+@pytest.mark.parametrize("frame", ["", "b", "Srobot7/base_footprint", "ü/base_link"])
+def test_twist_stamped_matches_the_message(frame):
+    msg = TwistStamped()
+    msg.header.frame_id = frame
+    msg.header.stamp.sec, msg.header.stamp.nanosec = 41, 200_000_000
+    msg.twist.linear.x, msg.twist.linear.y, msg.twist.angular.z = 0.26, 9.0, -1.5
+    msg.twist.angular.x = 7.0
+    assert twist_stamped(serialize_message(msg)) == (41_200_000_000, frame, 0.26, -1.5)
+    msg.twist.linear.x = math.nan
+    assert math.isnan(twist_stamped(serialize_message(msg))[2])
+
+
 def test_scan_ranges_match_the_message():
     msg = LaserScan()
     msg.header.frame_id = "Srobot7/base_scan"
@@ -108,7 +127,8 @@ def test_scan_ranges_match_the_message():
     np.testing.assert_array_equal(got, ranges)
 
 
-@pytest.mark.parametrize("reader", [odom_pose, path_points, pose_array, scan_ranges])
+@pytest.mark.parametrize("reader", [odom_pose, path_points, pose_array, scan_ranges,
+                                    twist_stamped])
 @pytest.mark.parametrize("buf", [b"", b"\x00\x00\x00\x00" + bytes(200), b"\x00\x01\x00\x00\x05"])
 def test_malformed_bytes_are_a_value_error(reader, buf):
     with pytest.raises(ValueError):

@@ -1,10 +1,11 @@
-"""Read the few fields the live view needs straight from serialized ROS messages (CDR bytes).
+"""Read the few fields a node needs straight from serialized ROS messages (CDR bytes).
 
 Why: rclpy's deserialization builds a Python object per nested message.  A 300-pose
 ``nav_msgs/Path`` took 8 ms to deserialize and an ``nav_msgs/Odometry`` 72 us (its two 36-double
-covariances become arrays) on this machine; the dashboard reads 100 robots' odometry at 10 Hz
-simulated and every new plan.  With ``raw=True`` subscriptions it gets the bytes and this module
-picks out the pose (a few ``struct`` reads, ~2 us) or the path's points.
+covariances become arrays) on this machine.  Every tick the navigators read their robot's
+odometry (and scan), the simulator every robot's ``cmd_vel``, the dashboard the fleet's poses and
+every new plan.  With ``raw=True`` subscriptions they get the bytes and this module picks out
+the fields (a few ``struct`` reads, ~2 us; the scan's ranges as one array).
 
 Format: the OMG CDR (XCDR1) encoding that rmw_fastrtps writes: a 4-byte encapsulation header
 (``00 01`` = little endian), then the fields in order, each primitive aligned to its own size
@@ -12,7 +13,7 @@ counted from the end of that header; a string is a ``uint32`` length (with the N
 bytes; a sequence is a ``uint32`` count and the elements (OMG CDR 1.x, section 9.3 "CDR Transfer
 Syntax"; DDS-XTypes 1.3 section 7.4.3.5 "XCDR Version 1").  Only little-endian CDR is read; any
 other encapsulation is a :class:`ValueError`.  The tests hold every reader against rclpy's own
-serializer (``tests/swarm_up/test_cdr.py``).
+serializer (``tests/swarm_common/test_cdr.py``).
 
 Pure: no ROS import.
 """
@@ -24,7 +25,7 @@ import struct
 
 import numpy as np
 
-__all__ = ["odom_pose", "path_points", "pose_array", "scan_ranges"]
+__all__ = ["odom_pose", "path_points", "pose_array", "scan_ranges", "twist_stamped"]
 
 _CDR_LE = b"\x00\x01"
 _U32 = struct.Struct("<I")
@@ -75,8 +76,8 @@ def odom_pose(buf) -> tuple[int, float, float, float, float, float]:
 
     Returns:
         ``(stamp_ns, x, y, yaw, v, w)``: header stamp [ns]; position in the message's frame [m];
-        yaw [rad] in (-pi, pi]; forward speed [m/s] and turn rate [rad/s] (the twist's
-        ``linear.x`` and ``angular.z``).
+        yaw [rad] in (-pi, pi], NaN if the quaternion is not finite; forward speed [m/s] and
+        turn rate [rad/s] (the twist's ``linear.x`` and ``angular.z``).
 
     Raises:
         ValueError: not little-endian CDR, or too short.
@@ -93,7 +94,11 @@ def _odom_pose(body: memoryview) -> tuple[int, float, float, float, float, float
     pos = _align(pos, 8)
     x, y, _, qx, qy, qz, qw = _POSE.unpack_from(body, pos)
     vx, _, _, _, _, wz = _TWIST.unpack_from(body, pos + _TWIST_AT)
-    return sec * 1_000_000_000 + nanosec, x, y, _yaw(qz, qw, qx, qy), vx, wz
+    if math.isfinite(qx) and math.isfinite(qy) and math.isfinite(qz) and math.isfinite(qw):
+        yaw = _yaw(qz, qw, qx, qy)
+    else:  # atan2 of infinities can be finite: say plainly that there is no heading
+        yaw = math.nan
+    return sec * 1_000_000_000 + nanosec, x, y, yaw, vx, wz
 
 
 def path_points(buf) -> np.ndarray:
@@ -192,3 +197,30 @@ def _scan_ranges(body: memoryview) -> tuple[int, float, float, float, float, np.
         raise ValueError("ranges run past the end of the message")
     ranges = np.frombuffer(body, dtype="<f4", count=count, offset=pos).copy()
     return sec * 1_000_000_000 + nanosec, angle_min, inc, range_min, range_max, ranges
+
+
+def twist_stamped(buf) -> tuple[int, str, float, float]:
+    """The stamp, frame and planar velocity of a serialized ``geometry_msgs/TwistStamped``.
+
+    Args:
+        buf: the message's CDR bytes.
+
+    Returns:
+        ``(stamp_ns, frame_id, v, w)``: header stamp [ns]; header frame; ``twist.linear.x``
+        [m/s] and ``twist.angular.z`` [rad/s].
+
+    Raises:
+        ValueError: not little-endian CDR, truncated, or a frame that is not UTF-8.
+    """
+    try:
+        body = _body(buf)
+        sec, nanosec = struct.unpack_from("<iI", body, 0)
+        (length,) = _U32.unpack_from(body, 8)
+        pos = _skip_string(body, 8)
+        frame = bytes(body[12:12 + max(length - 1, 0)]).decode()
+        v, _, _, _, _, w = _TWIST.unpack_from(body, _align(pos, 8))
+    except struct.error as exc:
+        raise ValueError(f"truncated message: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"frame_id is not UTF-8: {exc}") from None
+    return sec * 1_000_000_000 + nanosec, frame, v, w
