@@ -31,8 +31,8 @@ PER_ROBOT = "per-robot"
 # navigators and commanders; ``--processes per-robot`` gives every navigator and commander a
 # process of its own.  Each rclpy process is a DDS participant of ~75 MB whose start costs ~1 s of
 # CPU, and every message between processes wakes its reader: at 5 robots on 2 cores the per-robot
-# layout ran at RTF 7.1 and 391 MB per robot where 2 groups ran at 11.4 and 136 MB, with the same
-# simulated run (swarm-up --commanders --rtf 0 --duration 300; README, Benchmark).
+# layout ran at RTF 7.8 and 391 MB per robot where 2 groups ran at 14.0 and 135 MB, with the same
+# simulated run (swarm-up --swarm-size 5 --commanders --rtf 0 --duration 300).
 DEFAULT_READY_TIMEOUT_S = 120.0
 RECORD_IN_RUN_DIR = Path("recording.mcap")  # --record without a path: in the run directory
 DEFAULT_DASHBOARD_PORT = 8080
