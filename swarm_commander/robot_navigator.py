@@ -61,6 +61,7 @@ from enum import IntEnum
 from builtin_interfaces.msg import Duration, Time
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
+from rclpy._rclpy_pybind11 import RCLError  # what a call on a shut-down context raises
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSDurabilityPolicy, QoSHistoryPolicy, QoSProfile, QoSReliabilityPolicy
@@ -428,12 +429,22 @@ class BasicNavigator(Node):
     def _wait_for_navigator(self) -> bool:
         """Wait (spinning) for a ``goal_pose`` subscriber, as nav2 waits for its action server;
         without waiting when spun by an executor elsewhere."""
-        while self._goal_pub.get_subscription_count() == 0:
-            if self._in_executor() or not self.context.ok():
+        while True:
+            # Ctrl-C may shut the context down while a callback runs this: then the publisher's
+            # context is invalid and rclpy raises RCLError instead of counting.
+            if not self.context.ok():
+                return False
+            try:
+                if self._goal_pub.get_subscription_count() > 0:
+                    return True
+            except RCLError:
+                if not self.context.ok():
+                    return False
+                raise
+            if self._in_executor():
                 return False
             self.info(f"{self._goal_pub.topic_name} subscriber not available, waiting...")
             self._spin_until(lambda: self._goal_pub.get_subscription_count() > 0, 1.0)
-        return True
 
     def _send_current(self):
         """The one place a goal is sent: publish the task's current pose with a fresh stamp."""

@@ -4,19 +4,14 @@ The simulator publishes it, only while someone subscribes, as a ``geometry_msgs/
 ``map``: ``poses[i]`` is robot ``i`` (0-based) of the simulator's namespaces, ``/<prefix>1`` ...
 ``/<prefix>N`` in that order; ``header.stamp`` is the tick's simulated time.  A whole-fleet
 view (the dashboard) reads this one message instead of ``N`` odometry topics: one write and one
-wake-up a tick instead of ``N`` (at 100 robots that was most of what the dashboard cost the
-simulation, docs/ARCHITECTURE.md, Dashboard).
+wake-up a tick instead of ``N`` (docs/ARCHITECTURE.md, "The live view").
 
-The writer is reliable with depth 1 (a reliable writer serves best-effort readers too, without
-acknowledgements); a live view reads it best effort.
+QoS: the writer is reliable, keep last :data:`POSES_DEPTH` (a reliable writer serves
+best-effort readers too, without acknowledgements); a live view reads it best effort with the
+same depth.  Pure: no ROS import (the nodes build their ``QoSProfile`` from these).
 """
 
 from __future__ import annotations
 
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-
 POSES_TOPIC = "/swarm/poses"
-POSES_WRITER_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                              reliability=ReliabilityPolicy.RELIABLE)
-POSES_READER_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                              reliability=ReliabilityPolicy.BEST_EFFORT)
+POSES_DEPTH = 1

@@ -53,7 +53,7 @@ from swarm_common.faults import (
     FaultEvent,
     parse_faults,
 )
-from swarm_common.fleet_poses import POSES_TOPIC, POSES_WRITER_QOS
+from swarm_common.fleet_poses import POSES_DEPTH, POSES_TOPIC
 from swarm_common.sim_summary import CollisionCounts, RobotSummary, SimSummary
 from swarm_common.stamps import NS_PER_S
 
@@ -205,7 +205,9 @@ class SimulatorNode(Node):
         self.clock_pub = self.create_publisher(Clock, "/clock", reliable)
         self.map_pub = self.create_publisher(OccupancyGrid, "/map", latched)
         self.events_pub = self.create_publisher(DiagnosticArray, "/swarm/events", events_qos)
-        self.poses_pub = self.create_publisher(PoseArray, POSES_TOPIC, POSES_WRITER_QOS)
+        self.poses_pub = self.create_publisher(
+            PoseArray, POSES_TOPIC,
+            QoSProfile(depth=POSES_DEPTH, reliability=ReliabilityPolicy.RELIABLE))
         self.odom_pubs, self.truth_pubs, self.scan_pubs = [], [], []
         for i, ns in enumerate(namespaces):
             self.odom_pubs.append(self.create_publisher(Odometry, f"/{ns}/odom", reliable))

@@ -37,10 +37,12 @@ from rclpy.qos import (
 from sensor_msgs.msg import LaserScan
 
 from swarm_common.cdr import path_points, pose_array, scan_ranges
-from swarm_common.fleet_poses import POSES_READER_QOS, POSES_TOPIC
+from swarm_common.fleet_poses import POSES_DEPTH, POSES_TOPIC
 from swarm_common.nav_status import decode
 from swarm_up.fleet_view import FleetState, ScanSample, ViewConfig, workstation_states
 
+POSES_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=POSES_DEPTH,
+                       reliability=ReliabilityPolicy.BEST_EFFORT)
 PLAN_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                       reliability=ReliabilityPolicy.RELIABLE,
                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -82,7 +84,7 @@ class FleetNode(Node):
         self._scan_subs: dict[int, object] = {}
         # subscriptions
         self._subs = [self.create_subscription(PoseArray, POSES_TOPIC, self._on_poses,
-                                               POSES_READER_QOS, raw=True)]
+                                               POSES_QOS, raw=True)]
         for i, ns in enumerate(fleet.robots):
             self._subs.append(self.create_subscription(
                 Path, f"/{ns}/plan", lambda buf, i=i: self._on_plan(i, buf), PLAN_QOS,

@@ -59,13 +59,10 @@ def test_grouped_layout_holds_navigators_and_commanders_together():
     assert len(without) == 1 + 5 + 1
 
 
-def test_default_layout_is_one_group_per_core_at_most_one_per_robot(monkeypatch):
-    monkeypatch.setattr(os, "cpu_count", lambda: 2)
-    assert [default_processes(n) for n in (1, 2, 5, 100)] == [1, 2, 2, 2]
-    monkeypatch.setattr(os, "cpu_count", lambda: 8)
-    assert [default_processes(n) for n in (1, 5, 100)] == [1, 5, 8]
-    monkeypatch.setattr(os, "cpu_count", lambda: None)
-    assert default_processes(20) == 1
+def test_default_layout_is_swarm_ups():
+    assert default_processes(1) == PER_ROBOT
+    assert default_processes(8) == PER_ROBOT
+    assert default_processes(9) == (os.cpu_count() or 1)
 
 
 def test_make_config_takes_the_lidar_from_the_urdf(tmp_path):
