@@ -15,7 +15,10 @@ import pytest
 from swarm_up import shm
 from swarm_up.supervisor import ChildSpec, ResourceSampler, Supervisor
 
-SLEEPER = (sys.executable, "-c", "import time; time.sleep(100)")
+# Handles SIGINT as Python does by default even when started with SIGINT ignored (a test run
+# launched as `nohup ... &` inherits that, and the child then only dies of SIGTERM).
+SLEEPER = (sys.executable, "-c", "import signal, time; "
+           "signal.signal(signal.SIGINT, signal.default_int_handler); time.sleep(100)")
 # ignores SIGINT and SIGTERM, and starts a grandchild in its group that does the same
 STUBBORN = (
     sys.executable,
