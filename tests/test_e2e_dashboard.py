@@ -1,9 +1,9 @@
 """End to end: ``swarm-up --dashboard`` watched by headless Chromium, as a user would.
 
-A 4-robot run with commanders; the browser opens the printed URL while the swarm comes up and
-stays until the run has ended.  The page must have drawn every robot, received >= 5 updates a
-second, and its last KPIs (sent after the simulator's last tick, while swarm-up stops its
-children) must equal the figures of the run's ``metrics.json``.
+A 4-robot run with commanders, paced at 3 times real time; the browser opens the printed URL
+while the swarm comes up and stays until the run has ended.  The page must have drawn every
+robot, received >= 5 updates a second, and its last KPIs (sent after the simulator's last tick,
+while swarm-up stops its children) must equal the figures of the run's ``metrics.json``.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ pytestmark = pytest.mark.e2e
 
 N = 4
 DURATION_S = 60.0
+RTF = 3.0  # 20 wall seconds
 
 
 def _free_port() -> int:
@@ -31,7 +32,9 @@ def _free_port() -> int:
 
 def test_dashboard_shows_the_run_and_its_metrics(tmp_path):
     require_chromium()
-    args = ["--swarm-size", str(N), "--commanders", "--rtf", "0", "--duration",
+    # Paced: the page needs 60 frames (10 s at 6 a second) for its rate, and 4 robots unpaced now
+    # finish the simulated minute in about 6 s.
+    args = ["--swarm-size", str(N), "--commanders", "--rtf", str(RTF), "--duration",
             str(DURATION_S), "--dashboard", str(_free_port())]
     with SwarmUp(args, tmp_path, "dash") as run:
         url = run.wait_for_stdout(r"dashboard: (http://127\.0\.0\.1:\d+/)", 60.0).group(1)
