@@ -29,6 +29,7 @@ __all__ = ["odom_pose", "path_points", "pose_array", "scan_ranges", "twist_stamp
 
 _CDR_LE = b"\x00\x01"
 _U32 = struct.Struct("<I")
+_STAMP = struct.Struct("<iI")  # builtin_interfaces/Time: sec, nanosec
 _POSE = struct.Struct("<3d4d")  # position x, y, z; orientation x, y, z, w
 _TWIST_AT = 56 + 36 * 8  # pose (7 doubles) + its covariance, before the twist [bytes]
 _TWIST = struct.Struct("<3d3d")  # linear x, y, z; angular x, y, z
@@ -42,6 +43,21 @@ def _body(buf) -> memoryview:
     if len(view) < 4 or bytes(view[:2]) != _CDR_LE:
         raise ValueError("not a little-endian CDR message")
     return view[4:]
+
+
+def _decoded(read, buf):
+    """``read`` (a reader of the message body) applied to ``buf``; a truncated message is a
+    ValueError."""
+    try:
+        return read(_body(buf))
+    except struct.error as exc:
+        raise ValueError(f"truncated message: {exc}") from None
+
+
+def _stamp_ns(body: memoryview) -> int:
+    """The header stamp [ns] at the start of a message body."""
+    sec, nanosec = _STAMP.unpack_from(body, 0)
+    return sec * 1_000_000_000 + nanosec
 
 
 def _align(pos: int, n: int) -> int:
@@ -82,14 +98,10 @@ def odom_pose(buf) -> tuple[int, float, float, float, float, float]:
     Raises:
         ValueError: not little-endian CDR, or too short.
     """
-    try:
-        return _odom_pose(_body(buf))
-    except struct.error as exc:
-        raise ValueError(f"truncated message: {exc}") from None
+    return _decoded(_odom_pose, buf)
 
 
 def _odom_pose(body: memoryview) -> tuple[int, float, float, float, float, float]:
-    sec, nanosec = struct.unpack_from("<iI", body, 0)
     pos = _skip_string(body, _after_header(body))  # child_frame_id
     pos = _align(pos, 8)
     x, y, _, qx, qy, qz, qw = _POSE.unpack_from(body, pos)
@@ -98,7 +110,7 @@ def _odom_pose(body: memoryview) -> tuple[int, float, float, float, float, float
         yaw = _yaw(qz, qw, qx, qy)
     else:  # atan2 of infinities can be finite: say plainly that there is no heading
         yaw = math.nan
-    return sec * 1_000_000_000 + nanosec, x, y, yaw, vx, wz
+    return _stamp_ns(body), x, y, yaw, vx, wz
 
 
 def path_points(buf) -> np.ndarray:
@@ -113,10 +125,7 @@ def path_points(buf) -> np.ndarray:
     Raises:
         ValueError: not little-endian CDR, or truncated.
     """
-    try:
-        return _path_points(_body(buf))
-    except struct.error as exc:
-        raise ValueError(f"truncated message: {exc}") from None
+    return _decoded(_path_points, buf)
 
 
 def _path_points(body: memoryview) -> np.ndarray:
@@ -147,23 +156,21 @@ def pose_array(buf) -> tuple[int, np.ndarray]:
     Raises:
         ValueError: not little-endian CDR, or truncated.
     """
-    try:
-        body = _body(buf)
-        sec, nanosec = struct.unpack_from("<iI", body, 0)
-        pos = _after_header(body)
-        pos = _align(pos, 4)
-        (count,) = _U32.unpack_from(body, pos)
-        pos = _align(pos + 4, 8)
-    except struct.error as exc:
-        raise ValueError(f"truncated message: {exc}") from None
-    if count and pos + _POSE.size * count > len(body):  # an empty sequence has no padding
+    return _decoded(_pose_array, buf)
+
+
+def _pose_array(body: memoryview) -> tuple[int, np.ndarray]:
+    pos = _align(_after_header(body), 4)
+    (count,) = _U32.unpack_from(body, pos)
+    if count == 0:  # an empty sequence has no padding after its count
+        return _stamp_ns(body), np.zeros((0, 3))
+    pos = _align(pos + 4, 8)
+    if pos + _POSE.size * count > len(body):
         raise ValueError("poses run past the end of the message")
-    if not count:
-        return sec * 1_000_000_000 + nanosec, np.zeros((0, 3))
     p = np.frombuffer(body, dtype="<f8", count=7 * count, offset=pos).reshape(count, 7)
     qx, qy, qz, qw = p[:, 3], p[:, 4], p[:, 5], p[:, 6]
     yaw = np.arctan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
-    return sec * 1_000_000_000 + nanosec, np.column_stack((p[:, 0], p[:, 1], yaw))
+    return _stamp_ns(body), np.column_stack((p[:, 0], p[:, 1], yaw))
 
 
 def scan_ranges(buf) -> tuple[int, float, float, float, float, np.ndarray]:
@@ -180,14 +187,10 @@ def scan_ranges(buf) -> tuple[int, float, float, float, float, np.ndarray]:
     Raises:
         ValueError: not little-endian CDR, or truncated.
     """
-    try:
-        return _scan_ranges(_body(buf))
-    except struct.error as exc:
-        raise ValueError(f"truncated message: {exc}") from None
+    return _decoded(_scan_ranges, buf)
 
 
 def _scan_ranges(body: memoryview) -> tuple[int, float, float, float, float, np.ndarray]:
-    sec, nanosec = struct.unpack_from("<iI", body, 0)
     pos = _align(_after_header(body), 4)
     angle_min, _, inc, _, _, range_min, range_max = _SCAN.unpack_from(body, pos)
     pos += _SCAN.size
@@ -196,7 +199,7 @@ def _scan_ranges(body: memoryview) -> tuple[int, float, float, float, float, np.
     if pos + 4 * count > len(body):
         raise ValueError("ranges run past the end of the message")
     ranges = np.frombuffer(body, dtype="<f4", count=count, offset=pos).copy()
-    return sec * 1_000_000_000 + nanosec, angle_min, inc, range_min, range_max, ranges
+    return _stamp_ns(body), angle_min, inc, range_min, range_max, ranges
 
 
 def twist_stamped(buf) -> tuple[int, str, float, float]:
@@ -212,15 +215,14 @@ def twist_stamped(buf) -> tuple[int, str, float, float]:
     Raises:
         ValueError: not little-endian CDR, truncated, or a frame that is not UTF-8.
     """
+    return _decoded(_twist_stamped, buf)
+
+
+def _twist_stamped(body: memoryview) -> tuple[int, str, float, float]:
+    end = _after_header(body)  # frame_id: a uint32 length (with the NUL) at 8, the bytes at 12
     try:
-        body = _body(buf)
-        sec, nanosec = struct.unpack_from("<iI", body, 0)
-        (length,) = _U32.unpack_from(body, 8)
-        pos = _skip_string(body, 8)
-        frame = bytes(body[12:12 + max(length - 1, 0)]).decode()
-        v, _, _, _, _, w = _TWIST.unpack_from(body, _align(pos, 8))
-    except struct.error as exc:
-        raise ValueError(f"truncated message: {exc}") from None
+        frame = bytes(body[12:max(end - 1, 12)]).decode()
     except UnicodeDecodeError as exc:
         raise ValueError(f"frame_id is not UTF-8: {exc}") from None
-    return sec * 1_000_000_000 + nanosec, frame, v, w
+    v, _, _, _, _, w = _TWIST.unpack_from(body, _align(end, 8))
+    return _stamp_ns(body), frame, v, w
