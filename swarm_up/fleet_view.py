@@ -54,6 +54,10 @@ MAX_WATCH = 8
 """Robots one browser may watch at once (each costs a scan subscription)."""
 MAX_PATH_POINTS = 100
 """A plan is drawn as a marker with at most this many points (every k-th; the last always)."""
+PATH_TOLERANCE = 0.01
+"""[m] a plan is kept as its polyline without the points that lie this close to it
+(:func:`simplify`): a navigator's plan is a few straight runs resampled every 5 cm, so at 100
+robots the page drew and the server encoded some 30,000 points a frame instead of about 1,000."""
 
 
 @dataclass(frozen=True)
@@ -175,8 +179,9 @@ class FleetState:
         self.poses[i] = (x, y, yaw)
 
     def set_path(self, i: int, path: np.ndarray) -> None:
-        """Robot ``i``'s global plan, (M, 2) in ``map`` [m] (M = 0: none)."""
-        self.paths[i] = np.asarray(path, dtype=float).reshape(-1, 2)
+        """Robot ``i``'s global plan, (M, 2) in ``map`` [m] (M = 0: none), kept as
+        :func:`simplify` of it with :data:`PATH_TOLERANCE`."""
+        self.paths[i] = simplify(np.asarray(path, dtype=float).reshape(-1, 2), PATH_TOLERANCE)
         self.path_version[i] += 1
 
     def set_status(self, i: int, values: dict[str, str], state: NavState | None,
@@ -250,6 +255,42 @@ class KpiTracker:
             "robots": len(recorder.robots),
             "ready": recorder.ready_count,
         }
+
+
+def simplify(path: np.ndarray, tolerance: float) -> np.ndarray:
+    """The polyline without the points that lie within ``tolerance`` of it: the
+    Ramer-Douglas-Peucker algorithm (Ramer 1972; Douglas and Peucker 1973), iterative.
+
+    Args:
+        path: (N, 2) x, y [m].
+        tolerance: [m] no dropped point lies farther than this from the simplified polyline.
+
+    Returns:
+        (K, 2), K <= N: a subsequence of ``path`` keeping its first and last point.
+    """
+    n = len(path)
+    if n <= 2:
+        return path
+    keep = np.zeros(n, dtype=bool)
+    keep[0] = keep[-1] = True
+    stack = [(0, n - 1)]
+    while stack:
+        a, b = stack.pop()
+        if b - a < 2:
+            continue
+        p, q = path[a], path[b]
+        d = q - p
+        rel = path[a + 1:b] - p
+        dd = float(d @ d)
+        t = np.clip(rel @ d / dd, 0.0, 1.0) if dd > 0.0 else np.zeros(len(rel))
+        dist = np.hypot(rel[:, 0] - t * d[0], rel[:, 1] - t * d[1])  # to the segment p-q
+        k = int(np.argmax(dist))
+        if dist[k] > tolerance:
+            m = a + 1 + k
+            keep[m] = True
+            stack.append((a, m))
+            stack.append((m, b))
+    return path[keep]
 
 
 def decimate(path: np.ndarray, max_points: int = MAX_PATH_POINTS) -> np.ndarray:

@@ -12,6 +12,7 @@ from swarm_common.nav_status import NavState
 from swarm_common.poi import Workstation
 from swarm_up.aggregate import RunRecorder
 from swarm_up.fleet_view import (
+    PATH_TOLERANCE,
     WS_FREE,
     WS_HELD,
     WS_OCCUPIED,
@@ -24,6 +25,7 @@ from swarm_up.fleet_view import (
     encode_paths,
     encode_robot,
     encode_robots,
+    simplify,
     workstation_states,
 )
 
@@ -120,3 +122,44 @@ def test_decimate_keeps_the_ends_and_the_limit(n, max_points):
     assert len(out) <= max_points
     assert out[0, 0] == 0 and out[-1, 0] == n - 1
     assert np.all(np.diff(out[:, 0]) > 0)
+
+
+def _segment_distance(pts: np.ndarray, line: np.ndarray) -> np.ndarray:
+    """(N,) distance of each point to the polyline ``line`` (brute force over its segments)."""
+    best = np.full(len(pts), np.inf)
+    for p, q in zip(line[:-1], line[1:], strict=True):
+        d = q - p
+        t = np.clip((pts - p) @ d / max(float(d @ d), 1e-300), 0.0, 1.0)
+        best = np.minimum(best, np.hypot(*(pts - p - t[:, None] * d).T))
+    return best
+
+
+def test_simplify_keeps_a_plans_corners_and_drops_the_points_between():
+    # three straight runs resampled every 5 cm, as a navigator's plan
+    corners = np.array([[0.0, 0.0], [3.0, 0.0], [3.0, 2.0], [5.5, 4.5]])
+    runs = [np.linspace(a, b, int(round(np.hypot(*(b - a)) / 0.05)) + 1)[:-1]
+            for a, b in zip(corners[:-1], corners[1:], strict=True)]
+    path = np.vstack(runs + [corners[-1:]])
+    out = simplify(path, PATH_TOLERANCE)
+    np.testing.assert_allclose(out, corners, atol=1e-12)
+    assert len(path) > 150
+
+
+def test_simplify_bounds_the_deviation_of_every_dropped_point():
+    rng = np.random.default_rng(4)
+    path = np.cumsum(rng.normal(0.0, 0.05, size=(400, 2)), axis=0)
+    for tol in (0.0, 0.01, 0.1):
+        out = simplify(path, tol)
+        assert np.array_equal(out[0], path[0]) and np.array_equal(out[-1], path[-1])
+        assert len(out) < len(path) or tol == 0.0
+        assert _segment_distance(path, out).max() <= tol + 1e-12
+    # a run that turns back on itself keeps its far end (distance to the segment, not the line)
+    back = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [1.0, 0.0]])
+    np.testing.assert_array_equal(simplify(back, 0.01), [[0.0, 0.0], [2.0, 0.0], [1.0, 0.0]])
+
+
+def test_fleet_state_keeps_the_simplified_plan():
+    fleet = FleetState(("Srobot1",))
+    line = np.column_stack((np.linspace(0.0, 10.0, 201), np.full(201, 2.0)))
+    fleet.set_path(0, line)
+    np.testing.assert_array_equal(fleet.paths[0], [[0.0, 2.0], [10.0, 2.0]])
