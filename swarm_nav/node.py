@@ -21,7 +21,7 @@ import time
 import numpy as np
 import rclpy
 from builtin_interfaces.msg import Time
-from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
@@ -33,7 +33,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profi
 from sensor_msgs.msg import LaserScan
 from std_srvs.srv import Trigger
 
-from swarm_common.cdr import odom_pose, scan_ranges
+from swarm_common.cdr import TwistStampedWriter, diagnostic_status, odom_pose, scan_ranges
 from swarm_common.errors import InputError
 from swarm_common.geometry import quaternion_to_yaw, transform_points, yaw_to_quaternion
 from swarm_common.nav_status import TERMINAL, NavState, NavStatusRecord, encode, level_of
@@ -127,6 +127,8 @@ class NavigatorNode(Node):
                    or self.get_namespace().strip("/") or "robot")
         robot, sites = self._load_context()
         self.lidar = robot.lidar
+        # cmd_vel goes out every tick: written as CDR bytes (swarm_common.cdr), no message object
+        self._cmd_writer = TwistStampedWriter(f"{self.ns}/base_footprint")
         self.core = NavigatorCore(self.cfg, robot.footprint, sites)
         took = jit.warm_up()  # before the first tick needs the compiled kernels (once a process)
         if took > 2.0:
@@ -397,12 +399,7 @@ class NavigatorNode(Node):
             v, w = self.core.step(pose, odom_v, odom_w, now)
             if not (math.isfinite(v) and math.isfinite(w)):
                 v = w = 0.0
-        cmd = TwistStamped()
-        cmd.header.stamp = stamp
-        cmd.header.frame_id = f"{self.ns}/base_footprint"
-        cmd.twist.linear.x = float(v)
-        cmd.twist.angular.z = float(w)
-        self.cmd_pub.publish(cmd)
+        self.cmd_pub.publish(self._cmd_writer.write(t, float(v), float(w)))
         if self.core.state in TERMINAL:
             if self._terminal_ns is None:
                 self._terminal_ns = t
@@ -449,10 +446,8 @@ class NavigatorNode(Node):
             recoveries=st.recoveries if st else 0,
             holding_time=st.holding_time if st else 0.0,
             goal_wait_timeouts=self.goal_wait_timeouts, reason=reason)
-        self.status_pub.publish(DiagnosticStatus(
-            level=bytes((level_of(state),)), name=f"{self.ns}/navigator",
-            message=state.value, hardware_id=self.ns,
-            values=[KeyValue(key=k, value=v) for k, v in encode(record).items()]))
+        self.status_pub.publish(diagnostic_status(  # CDR bytes: no 13 KeyValue objects
+            level_of(state), f"{self.ns}/navigator", state.value, self.ns, encode(record)))
 
     def _publish_plan(self, stamp) -> None:
         """Publish the global plan when it changed and someone reads ``plan``.

@@ -38,7 +38,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 
 from swarm_common import cli
-from swarm_common.cdr import twist_stamped
+from swarm_common.cdr import LaserScanWriter, OdometryWriter, twist_stamped
 from swarm_common.errors import InputError, run_cli
 from swarm_common.faults import (
     ACK_NAME,
@@ -222,33 +222,32 @@ class SimulatorNode(Node):
             self.create_subscription(DiagnosticStatus, ACKS_TOPIC, self._on_fault_ack,
                                      QoSProfile(depth=100,
                                                 reliability=ReliabilityPolicy.RELIABLE))
-        self._odom_msgs = [self._make_odom(ns, f"{ns}/odom") for ns in namespaces]
-        self._truth_msgs = [self._make_odom(ns, "map") for ns in namespaces]
-        self._scan_msgs = [self._make_scan(ns) for ns in namespaces]
+        # Odometry, ground truth and scans are published as CDR bytes (swarm_common.cdr): 100
+        # robots' messages a tick, each a struct.pack instead of rclpy's conversion.
+        self._odom_writers = [OdometryWriter(f"{ns}/odom", f"{ns}/base_footprint")
+                              for ns in namespaces]
+        self._truth_writers = [OdometryWriter("map", f"{ns}/base_footprint") for ns in namespaces]
+        self._scan_writers = [self._make_scan_writer(ns) for ns in namespaces]
         self._poses_msg = PoseArray(poses=[Pose() for _ in namespaces])
         self._poses_msg.header.frame_id = "map"
         self.map_pub.publish(occupancy_grid_msg(occ, _time_msg(0)))
 
     # -- message templates ---------------------------------------------------------------------
 
-    def _make_odom(self, ns: str, frame: str) -> Odometry:
-        msg = Odometry()
-        msg.header.frame_id = frame
-        msg.child_frame_id = f"{ns}/base_footprint"
-        return msg
-
-    def _make_scan(self, ns: str) -> LaserScan:
+    def _make_scan_writer(self, ns: str) -> LaserScanWriter:
         pattern = self.engine.lidar.pattern
         lidar = self.engine.robot.lidar
-        msg = LaserScan()
-        msg.header.frame_id = f"{ns}/{lidar.frame}"
-        msg.angle_min = float(pattern.angles[0])
-        msg.angle_max = float(pattern.angles[-1])
-        msg.angle_increment = pattern.angle_increment
-        msg.scan_time = 1.0 / float(lidar.rate_hz)
-        msg.range_min = pattern.range_min
-        msg.range_max = pattern.range_max
-        return msg
+        return LaserScanWriter(f"{ns}/{lidar.frame}", float(pattern.angles[0]),
+                               float(pattern.angles[-1]), float(pattern.angle_increment),
+                               1.0 / float(lidar.rate_hz), float(pattern.range_min),
+                               float(pattern.range_max))
+
+    def _odom_bytes(self, i: int, writer: OdometryWriter) -> bytes:
+        """Robot ``i``'s odometry (or ground truth) of this tick, by ``writer``."""
+        eng = self.engine
+        x, y, yaw = eng.poses[i].tolist()
+        return writer.write(self.t_ns, x, y, math.sin(yaw / 2.0), math.cos(yaw / 2.0),
+                            float(eng.v[i]), float(eng.w[i]))
 
     # -- callbacks -----------------------------------------------------------------------------
 
@@ -406,15 +405,9 @@ class SimulatorNode(Node):
 
     def _republish(self, i: int) -> None:
         """Publish robot ``i``'s odometry (and scan, on a lidar tick) of this tick again."""
-        stamp = _time_msg(self.t_ns)
         if self.engine.lidar_due() and self._scans is not None:
-            msg = self._scan_msgs[i]
-            msg.header.stamp = stamp
-            msg.ranges = array.array("f", self._scans[i].tobytes())
-            self.scan_pubs[i].publish(msg)
-        msg = self._odom_msgs[i]
-        msg.header.stamp = stamp
-        self.odom_pubs[i].publish(msg)
+            self.scan_pubs[i].publish(self._scan_writers[i].write(self.t_ns, self._scans[i]))
+        self.odom_pubs[i].publish(self._odom_bytes(i, self._odom_writers[i]))
 
     # -- the loop ------------------------------------------------------------------------------
 
@@ -438,31 +431,17 @@ class SimulatorNode(Node):
             scans = self._scans
             mute = self._silenced | self._drops.scan if self.faults is not None else ()
             for i, pub in enumerate(self.scan_pubs):
-                if i in mute:
-                    continue
-                msg = self._scan_msgs[i]
-                msg.header.stamp = stamp
-                msg.ranges = array.array("f", scans[i].tobytes())
-                pub.publish(msg)
+                if i not in mute:
+                    pub.publish(self._scan_writers[i].write(self.t_ns, scans[i]))
         mute = self._silenced | self._drops.odom if self.faults is not None else ()
         for i in range(self.n):
-            x, y, yaw = eng.poses[i]
-            qz, qw = math.sin(yaw / 2.0), math.cos(yaw / 2.0)
-            outputs = [] if i in mute else [(self._odom_msgs[i], self.odom_pubs[i])]
+            if i not in mute:
+                self.odom_pubs[i].publish(self._odom_bytes(i, self._odom_writers[i]))
             # Ground truth only while someone listens (a probe, a recorder, ros2 topic echo):
             # in a swarm-up run nothing does, and converting and writing 100 messages a tick
             # for no reader was a third of the simulator's publishing time.
             if self.truth_pubs[i].get_subscription_count():
-                outputs.append((self._truth_msgs[i], self.truth_pubs[i]))
-            for msg, pub in outputs:
-                msg.header.stamp = stamp
-                msg.pose.pose.position.x = float(x)
-                msg.pose.pose.position.y = float(y)
-                msg.pose.pose.orientation.z = qz
-                msg.pose.pose.orientation.w = qw
-                msg.twist.twist.linear.x = float(eng.v[i])
-                msg.twist.twist.angular.z = float(eng.w[i])
-                pub.publish(msg)
+                self.truth_pubs[i].publish(self._odom_bytes(i, self._truth_writers[i]))
         if self.poses_pub.get_subscription_count():
             self._publish_poses(stamp)
 

@@ -50,7 +50,15 @@ from sensor_msgs.msg import LaserScan
 from std_srvs.srv import Trigger
 
 from swarm_commander.robot_navigator import NAV_STATUS_QOS
-from swarm_common.cdr import odom_pose, scan_ranges, twist_stamped
+from swarm_common.cdr import (
+    LaserScanWriter,
+    OdometryWriter,
+    TwistStampedWriter,
+    diagnostic_status,
+    odom_pose,
+    scan_ranges,
+    twist_stamped,
+)
 from swarm_common.nav_status import TERMINAL
 from swarm_common.stamps import NS_PER_S
 from swarm_up.clock import SharedClock
@@ -147,9 +155,15 @@ class FloorSimNode(Node):
             self.create_subscription(TwistStamped, f"/{ns}/cmd_vel",
                                      lambda buf, i=i: self._on_cmd_vel(i, buf), RELIABLE,
                                      raw=True)  # read raw, as the simulator does
-        self._odom_msgs = [self._make_odom(ns, f"{ns}/odom") for ns in cfg.robots]
-        self._truth_msgs = [self._make_odom(ns, "map") for ns in cfg.robots]
-        self._scan_msgs = [self._make_scan(ns) for ns in cfg.robots]
+        # Written as CDR bytes, as the simulator does (swarm_common.cdr).
+        self._odom_writers = [OdometryWriter(f"{ns}/odom", f"{ns}/base_footprint")
+                              for ns in cfg.robots]
+        self._truth_writers = [OdometryWriter("map", f"{ns}/base_footprint")
+                               for ns in cfg.robots]
+        self._scan_writers = [LaserScanWriter(
+            f"{ns}/{cfg.lidar_frame}", cfg.angle_min, cfg.angle_max,
+            (cfg.angle_max - cfg.angle_min) / max(cfg.beams - 1, 1), 1.0 / cfg.lidar_rate_hz,
+            cfg.range_min, cfg.range_max) for ns in cfg.robots]
         # Robots stand on a 1 m grid; the poses never change (no physics).
         self._poses = np.array([(i % 10, i // 10, 0.0) for i in range(self.n)], dtype=float)
         self.map_pub.publish(self._map_msg())
@@ -172,24 +186,6 @@ class FloorSimNode(Node):
         msg.data = array.array("b", np.ascontiguousarray(occ.data, dtype=np.int8).tobytes())
         return msg
 
-    def _make_odom(self, ns: str, frame: str) -> Odometry:
-        msg = Odometry()
-        msg.header.frame_id = frame
-        msg.child_frame_id = f"{ns}/base_footprint"
-        return msg
-
-    def _make_scan(self, ns: str) -> LaserScan:
-        cfg = self.cfg
-        msg = LaserScan()
-        msg.header.frame_id = f"{ns}/{cfg.lidar_frame}"
-        msg.angle_min = cfg.angle_min
-        msg.angle_max = cfg.angle_max
-        msg.angle_increment = (cfg.angle_max - cfg.angle_min) / max(cfg.beams - 1, 1)
-        msg.scan_time = 1.0 / cfg.lidar_rate_hz
-        msg.range_min = cfg.range_min
-        msg.range_max = cfg.range_max
-        return msg
-
     def _on_cmd_vel(self, i: int, buf: bytes) -> None:
         try:
             stamp, _, v, w = twist_stamped(buf)
@@ -207,25 +203,15 @@ class FloorSimNode(Node):
         self.clock_pub.publish(Clock(clock=stamp))
         if (self.t_ns // self.period_ns) % self.lidar_every == 0:
             for i, pub in enumerate(self.scan_pubs):
-                msg = self._scan_msgs[i]
-                msg.header.stamp = stamp
-                msg.ranges = array.array("f", self._ranges.tobytes())
-                pub.publish(msg)
+                pub.publish(self._scan_writers[i].write(self.t_ns, self._ranges))
         for i in range(self.n):
-            x, y, yaw = self._poses[i]
+            x, y, yaw = self._poses[i].tolist()
             qz, qw = math.sin(yaw / 2.0), math.cos(yaw / 2.0)
-            outputs = [(self._odom_msgs[i], self.odom_pubs[i])]
+            self.odom_pubs[i].publish(self._odom_writers[i].write(self.t_ns, x, y, qz, qw,
+                                                                  0.0, 0.0))
             if self.truth_pubs[i].get_subscription_count():  # as the simulator: only if heard
-                outputs.append((self._truth_msgs[i], self.truth_pubs[i]))
-            for msg, pub in outputs:
-                msg.header.stamp = stamp
-                msg.pose.pose.position.x = float(x)
-                msg.pose.pose.position.y = float(y)
-                msg.pose.pose.orientation.z = qz
-                msg.pose.pose.orientation.w = qw
-                msg.twist.twist.linear.x = 0.0
-                msg.twist.twist.angular.z = 0.0
-                pub.publish(msg)
+                self.truth_pubs[i].publish(self._truth_writers[i].write(self.t_ns, x, y, qz, qw,
+                                                                        0.0, 0.0))
 
     def collect(self, executor) -> bool:
         """Wait for this tick's answers of the active robots (or ``command_timeout``).
@@ -373,6 +359,7 @@ class FloorNavigatorNode(Node):
         super().__init__("navigator", namespace=f"/{ns}", parameter_overrides=_sim_time())
         # State.
         self.ns = ns
+        self._cmd_writer = TwistStampedWriter(f"{ns}/base_footprint")
         self.cfg = cfg
         self.tick_ns = round(NS_PER_S / cfg.control_rate_hz)
         self.goal_period_ns = round(cfg.goal_period_s * NS_PER_S)
@@ -489,10 +476,7 @@ class FloorNavigatorNode(Node):
             self.goals_taken += 1
         elif self.state == "DRIVING" and t - self.goal_start_ns >= self.goal_period_ns:
             self.state = "SUCCEEDED"
-        cmd = TwistStamped()
-        cmd.header.stamp = stamp
-        cmd.header.frame_id = f"{self.ns}/base_footprint"
-        self.cmd_pub.publish(cmd)
+        self.cmd_pub.publish(self._cmd_writer.write(t, 0.0, 0.0))  # bytes, as swarm_nav.node
         if self.state in TERMINAL:
             if self._terminal_ns is None:
                 self._terminal_ns = t
@@ -508,16 +492,14 @@ class FloorNavigatorNode(Node):
             return
         self._last_status = key
         self._last_status_ns = self._now_ns
-        kv = [("state", self.state), ("goal_id", self.goal_id),
-              ("stamp", _stamp_text(self._now_ns)), ("goal_x", "1.000"), ("goal_y", "2.000"),
-              ("goal_yaw", "0.0000"), ("distance_remaining_m", "1.000"),
-              ("navigation_time_s", f"{(self._now_ns - self.goal_start_ns) / NS_PER_S:.3f}"),
-              ("recoveries", "0"), ("holding_time_s", "0.000"),
-              ("goal_wait_timeouts", str(self.goal_wait_timeouts)),
-              ("reason", "")]
-        self.status_pub.publish(DiagnosticStatus(
-            level=DiagnosticStatus.OK, name=f"{self.ns}/navigator", message=self.state,
-            hardware_id=self.ns, values=[KeyValue(key=k, value=v) for k, v in kv]))
+        kv = {"state": self.state, "goal_id": self.goal_id,
+              "stamp": _stamp_text(self._now_ns), "goal_x": "1.000", "goal_y": "2.000",
+              "goal_yaw": "0.0000", "distance_remaining_m": "1.000",
+              "navigation_time_s": f"{(self._now_ns - self.goal_start_ns) / NS_PER_S:.3f}",
+              "recoveries": "0", "holding_time_s": "0.000",
+              "goal_wait_timeouts": str(self.goal_wait_timeouts), "reason": ""}
+        self.status_pub.publish(diagnostic_status(  # bytes, as swarm_nav.node
+            0, f"{self.ns}/navigator", self.state, self.ns, kv))
 
     def _publish_plan(self, stamp) -> None:
         if self.path_version == self._published_path:
