@@ -13,6 +13,7 @@ from swarm_nav.dwa import (
     dwa_command,
     dynamic_window,
     footprint_gaps,
+    linspace,
     rollout,
     rotation_is_safe,
 )
@@ -188,3 +189,15 @@ def test_rotation_is_safe():
     side = np.array([[0.0, 0.2], [-0.1, 0.2], [0.1, 0.2]])   # 7 cm left of the box
     assert not rotation_is_safe(pose, -math.pi / 2, side, FP, 0.04)  # the rear swings left
     assert rotation_is_safe(pose, -math.pi / 2, side + [0.0, 0.1], FP, 0.04)
+
+
+def test_linspace_equals_numpys_bit_for_bit():
+    rng = np.random.default_rng(11)
+    for _ in range(20000):
+        lo = float(rng.normal() * rng.choice([1e-3, 1.0, 10.0]))
+        hi = lo + float(abs(rng.normal()) * rng.choice([0.0, 1e-300, 1e-9, 1e-3, 1.0, 10.0]))
+        if rng.random() < 0.3:
+            lo, hi = hi, lo
+        num = int(rng.integers(1, 30))
+        np.testing.assert_array_equal(linspace(lo, hi, num), np.linspace(lo, hi, num))
+        assert linspace(lo, hi, num).dtype == np.float64
