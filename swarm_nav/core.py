@@ -242,6 +242,12 @@ class NavigatorCore:
         return self._state
 
     @property
+    def status_key(self) -> tuple[NavState, str, str]:
+        """``(state, goal_id, reason)`` of :attr:`status`, without computing the rest (the node
+        compares it every tick to decide whether to publish)."""
+        return self._state, self._goal_id, self._reason
+
+    @property
     def path(self) -> Path2D | None:
         """(N, 2) the current global path x, y [m] in ``map``, or ``None``."""
         return self._path

@@ -427,11 +427,11 @@ class NavigatorNode(Node):
     # -- outputs -------------------------------------------------------------------------------
 
     def _publish_status(self, force: bool = False) -> None:
-        st = self.core.status
-        key = (st.state, st.goal_id, st.reason, self.goal_wait_timeouts)
+        key = (*self.core.status_key, self.goal_wait_timeouts)
         if not force and key == self._last_status and (
                 self._now_ns - self._last_status_ns < STATUS_PERIOD_NS):
             return
+        st = self.core.status
         self._last_status = key
         self._last_status_ns = self._now_ns
         self._publish_raw(st.state, st.goal_id, st.goal, st.reason, st)

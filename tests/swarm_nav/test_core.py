@@ -61,6 +61,7 @@ def test_bad_goals_abort_at_once_with_the_reason(occ, goal, reason):
     r.core.set_goal(np.array(goal), "7.000000000", 1.0)
     st = r.core.status
     assert (st.state, st.reason, st.goal_id) == (NavState.ABORTED, reason, "7.000000000")
+    assert r.core.status_key == (st.state, st.goal_id, st.reason)
     assert r.core.step(r.pose, 0.0, 0.0, 1.1) == (0.0, 0.0)
 
 
@@ -88,8 +89,10 @@ def test_cancel_and_replace(occ):
     r.core.set_goal(np.array([2.0, 1.0, 0.0]), "b", 1.0)
     assert (r.core.status.state, r.core.status.goal_id) == (NavState.DRIVING, "b")
     assert np.allclose(r.core.path[-1], [2.0, 1.0])
+    assert r.core.status_key == (NavState.DRIVING, "b", "")
     r.core.cancel(2.0)
     assert r.core.status.state == NavState.CANCELED
+    assert r.core.status_key == (NavState.CANCELED, "b", r.core.status.reason)
     assert r.core.step(r.pose, 0.0, 0.0, 2.1) == (0.0, 0.0)
     assert r.core.status.navigation_time == pytest.approx(1.0)
 
