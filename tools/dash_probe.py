@@ -45,13 +45,15 @@ def main() -> int:
         selected = False
         while time.monotonic() - t0 < a.max_s:
             time.sleep(1.0)
+            now = time.monotonic()
             try:
                 stats = browser.evaluate("window.dash && window.dash.stats()")
             except RuntimeError:
-                continue
+                stats = None
             if not stats:
+                if first_frame_t is not None and now - last_change > 10.0:
+                    break  # the page stopped answering after the run
                 continue
-            now = time.monotonic()
             if stats["frames"] != last_frames:
                 last_frames, last_change = stats["frames"], now
             elif stats["frames"] and now - last_change > 5.0:
