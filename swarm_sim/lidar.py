@@ -20,6 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from swarm_sim import lidar_kernels as kernels
+
 
 @dataclass(frozen=True)
 class ScanPattern:
@@ -116,7 +118,8 @@ class PlanarLidar:
 
     Every (lidar, segment) pair within range is tested only on the beams inside the angle the
     segment subtends as seen from the lidar, so the work grows with what each lidar can see, not
-    with beams × segments; the result equals the brute force :func:`cast_rays` (tested).
+    with beams × segments; the result equals the brute force :func:`cast_rays` (tested).  The
+    loop over the pairs' beams is compiled (:mod:`swarm_sim.lidar_kernels`).
 
     Args:
         static_segments: (S, 4) outline segments of the static world at the lidar height [m],
@@ -129,6 +132,7 @@ class PlanarLidar:
         self.pattern = pattern
         self._cos = np.cos(pattern.angles)
         self._sin = np.sin(pattern.angles)
+        kernels.warm_up()
 
     def true_ranges(self, lidar_poses: np.ndarray, bodies: np.ndarray) -> np.ndarray:
         """Noise-free distances to the nearest hit for every robot's beams.
@@ -176,56 +180,27 @@ class PlanarLidar:
         out = np.full(n * n_beams, np.inf)
         if lid.size == 0:
             return out.reshape(n, n_beams)
-        beam_lidar, beam_k, beam_seg = self._beams_in_view(lidar_poses, lid, segs)
-        # Exact ray–segment intersection on the candidate (beam, segment) pairs.
-        yaw = lidar_poses[beam_lidar, 2]
-        ca, sa = self._cos[beam_k], self._sin[beam_k]
-        cy, sy = np.cos(yaw), np.sin(yaw)
-        dx, dy = cy * ca - sy * sa, sy * ca + cy * sa
-        seg = segs[beam_seg]
-        px = seg[:, 0] - origins[beam_lidar, 0]
-        py = seg[:, 1] - origins[beam_lidar, 1]
-        ex, ey = seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1]
-        denom = dx * ey - dy * ex
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t = (px * ey - py * ex) / denom
-            u = (px * dy - py * dx) / denom
-        hit = (np.abs(denom) > 1e-12) & (t >= 0.0) & (u >= 0.0) & (u <= 1.0)
-        np.minimum.at(out, beam_lidar[hit] * n_beams + beam_k[hit], t[hit])
+        lo, hi = self._arcs(lidar_poses, lid, segs)
+        yaw = lidar_poses[:, 2]
+        kernels.cast_pairs(lo, hi, lid, np.ascontiguousarray(segs),
+                           np.ascontiguousarray(origins[:, 0]),
+                           np.ascontiguousarray(origins[:, 1]), np.cos(yaw), np.sin(yaw),
+                           self._cos, self._sin,
+                           float(self.pattern.angle_increment or 2.0 * np.pi), out)
         return out.reshape(n, n_beams)
 
-    def _beams_in_view(self, lidar_poses, lid, segs):
-        """Expand (lidar, segment) pairs into the (lidar, beam, segment) triples to test.
-
-        A segment seen from a point subtends the arc between its endpoints' bearings (at most
-        pi); the beams inside that arc, widened by 1e-9 rad, are the only ones that can hit it.
-        """
+    def _arcs(self, lidar_poses, lid, segs) -> tuple[np.ndarray, np.ndarray]:
+        """(P,) start and end [rad] of the arc each (lidar, segment) pair's segment subtends as
+        seen from the lidar (at most pi), as offsets from the first beam's angle, widened by
+        1e-9 rad at each end: the beams inside are the only ones that can hit it."""
         amin = float(self.pattern.angles[0])
-        inc = self.pattern.angle_increment or 2.0 * np.pi
-        n_beams = self.pattern.angles.size
         o = lidar_poses[lid, :2]
         a0 = np.arctan2(segs[:, 1] - o[:, 1], segs[:, 0] - o[:, 0]) - lidar_poses[lid, 2]
         a1 = np.arctan2(segs[:, 3] - o[:, 1], segs[:, 2] - o[:, 0]) - lidar_poses[lid, 2]
         sweep = np.mod(a1 - a0 + np.pi, 2.0 * np.pi) - np.pi  # signed, in [-pi, pi)
         lo = np.mod(np.minimum(a0, a0 + sweep) - amin, 2.0 * np.pi) - 1e-9  # offset from amin
         hi = lo + np.abs(sweep) + 2e-9
-        starts, stops, owners = [], [], []
-        # The arc may wrap past amin + 2 pi (shift 2 pi), and the beams may reach past it too
-        # (Gazebo's 0..6.28319 puts the last beam 4.7e-6 rad beyond 2 pi: shift -2 pi).
-        for shift in (-2.0 * np.pi, 0.0, 2.0 * np.pi):
-            k0 = np.maximum(np.ceil((lo - shift) / inc), 0).astype(int)
-            k1 = np.minimum(np.floor((hi - shift) / inc), n_beams - 1).astype(int)
-            ok = k1 >= k0
-            starts.append(k0[ok])
-            stops.append(k1[ok] + 1)
-            owners.append(np.flatnonzero(ok))
-        k0 = np.concatenate(starts)
-        counts = np.concatenate(stops) - k0
-        owner = np.concatenate(owners)
-        pair = np.repeat(owner, counts)
-        first = np.repeat(np.cumsum(counts) - counts, counts)
-        beam = np.repeat(k0, counts) + (np.arange(pair.size) - first)
-        return lid[pair], beam, pair
+        return lo, hi
 
     def scan(self, lidar_poses, bodies, rng: np.random.Generator) -> np.ndarray:
         """Simulated scans: true ranges plus seeded Gaussian noise, REP 117 for invalid beams.

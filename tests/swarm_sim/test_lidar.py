@@ -481,3 +481,93 @@ def test_noise_is_gaussian_with_the_spec_stddev(slim, waffle):
     assert sigma == 0.01
     assert abs(err.mean()) < 4 * sigma / math.sqrt(n)
     assert err.std() == pytest.approx(sigma, rel=0.05)
+
+
+# -- (4) the compiled loop equals the numpy code it replaced, bit for bit ----------------------
+
+
+def numpy_true_ranges(lidar: PlanarLidar, lidar_poses: np.ndarray, bodies: np.ndarray
+                      ) -> np.ndarray:
+    """A frozen copy of ``PlanarLidar.true_ranges`` as it was in numpy (before
+    ``swarm_sim.lidar_kernels``): the reference the kernel must equal to the last bit."""
+    from swarm_sim.lidar import _point_segment_distance
+
+    n = lidar_poses.shape[0]
+    n_beams = lidar.pattern.angles.size
+    reach = lidar.pattern.range_max
+    origins = lidar_poses[:, :2]
+    pair_lidar, pair_segs = [np.zeros(0, dtype=int)], [np.zeros((0, 4))]
+    if lidar.static_segments.shape[0]:
+        li, si = np.nonzero(_point_segment_distance(origins, lidar.static_segments) <= reach)
+        pair_lidar.append(li)
+        pair_segs.append(lidar.static_segments[si])
+    bodies = np.asarray(bodies, dtype=float).reshape(n, -1, 2)
+    if n > 1:
+        k = bodies.shape[1]
+        body_segs = np.concatenate((bodies, np.roll(bodies, -1, axis=1)), axis=2)
+        centres = bodies.mean(axis=1)
+        radius = np.linalg.norm(bodies - centres[:, None, :], axis=2).max(axis=1)
+        dist = np.linalg.norm(origins[:, None, :] - centres[None, :, :], axis=2)
+        near = dist <= reach + radius[None, :]
+        np.fill_diagonal(near, False)
+        li, bj = np.nonzero(near)
+        pair_lidar.append(np.repeat(li, k))
+        pair_segs.append(body_segs[bj].reshape(-1, 4))
+    lid, segs = np.concatenate(pair_lidar), np.concatenate(pair_segs)
+    ex, ey = segs[:, 2] - segs[:, 0], segs[:, 3] - segs[:, 1]
+    facing = ey * (segs[:, 0] - origins[lid, 0]) - ex * (segs[:, 1] - origins[lid, 1]) < 0.0
+    lid, segs = lid[facing], segs[facing]
+    out = np.full(n * n_beams, np.inf)
+    if lid.size == 0:
+        return out.reshape(n, n_beams)
+    amin = float(lidar.pattern.angles[0])
+    inc = lidar.pattern.angle_increment or 2.0 * np.pi
+    o = lidar_poses[lid, :2]
+    a0 = np.arctan2(segs[:, 1] - o[:, 1], segs[:, 0] - o[:, 0]) - lidar_poses[lid, 2]
+    a1 = np.arctan2(segs[:, 3] - o[:, 1], segs[:, 2] - o[:, 0]) - lidar_poses[lid, 2]
+    sweep = np.mod(a1 - a0 + np.pi, 2.0 * np.pi) - np.pi
+    lo = np.mod(np.minimum(a0, a0 + sweep) - amin, 2.0 * np.pi) - 1e-9
+    hi = lo + np.abs(sweep) + 2e-9
+    starts, stops, owners = [], [], []
+    for shift in (-2.0 * np.pi, 0.0, 2.0 * np.pi):
+        k0 = np.maximum(np.ceil((lo - shift) / inc), 0).astype(int)
+        k1 = np.minimum(np.floor((hi - shift) / inc), n_beams - 1).astype(int)
+        ok = k1 >= k0
+        starts.append(k0[ok])
+        stops.append(k1[ok] + 1)
+        owners.append(np.flatnonzero(ok))
+    k0 = np.concatenate(starts)
+    counts = np.concatenate(stops) - k0
+    owner = np.concatenate(owners)
+    pair = np.repeat(owner, counts)
+    first = np.repeat(np.cumsum(counts) - counts, counts)
+    beam_k = np.repeat(k0, counts) + (np.arange(pair.size) - first)
+    beam_lidar, beam_seg = lid[pair], pair
+    yaw = lidar_poses[beam_lidar, 2]
+    ca, sa = np.cos(lidar.pattern.angles)[beam_k], np.sin(lidar.pattern.angles)[beam_k]
+    cy, sy = np.cos(yaw), np.sin(yaw)
+    dx, dy = cy * ca - sy * sa, sy * ca + cy * sa
+    seg = segs[beam_seg]
+    px = seg[:, 0] - origins[beam_lidar, 0]
+    py = seg[:, 1] - origins[beam_lidar, 1]
+    ex, ey = seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1]
+    denom = dx * ey - dy * ex
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (px * ey - py * ex) / denom
+        u = (px * dy - py * dx) / denom
+    hit = (np.abs(denom) > 1e-12) & (t >= 0.0) & (u >= 0.0) & (u <= 1.0)
+    np.minimum.at(out, beam_lidar[hit] * n_beams + beam_k[hit], t[hit])
+    return out.reshape(n, n_beams)
+
+
+@pytest.mark.parametrize("pattern", PATTERNS.values(), ids=PATTERNS.keys())
+@pytest.mark.parametrize("kind, seed", [("grid", 0), ("random", 2), ("random", 3), ("crowd", 4),
+                                        ("crowd", 5), ("random", 6), ("crowd", 7)])
+def test_compiled_caster_equals_the_numpy_code_bit_for_bit(slim, waffle, pattern, kind, seed):
+    poses = scene(slim, waffle, kind, seed)
+    lidar = static_lidar(slim, waffle, pattern)
+    lidar_poses, bodies = mount(waffle, poses), feet(waffle, poses)
+    got = lidar.true_ranges(lidar_poses, bodies)
+    want = numpy_true_ranges(lidar, lidar_poses, bodies)
+    assert np.isfinite(want).sum() > 100  # the scenes hit things
+    np.testing.assert_array_equal(got, want)
