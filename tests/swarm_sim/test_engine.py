@@ -383,3 +383,19 @@ def test_a_held_robot_stops_at_once_stays_put_and_is_still_seen(empty, waffle, m
     # Released, it drives again.
     drive(engine, [-0.2, 0.0], [0.0, 0.0], 5)
     assert engine.v[0] < 0.0 and engine.poses[0, 0] < where[0]
+
+
+def test_footprints_equal_transforming_each_robots_footprint_bit_for_bit(slim, waffle,
+                                                                          make_engine):
+    """All robots' footprints at once are what ``transform_points`` gives robot by robot (the
+    lidar and the minimum separation see exactly the bodies they saw before)."""
+    from swarm_common.geometry import transform_points
+    from swarm_sim.lidar import counter_clockwise
+
+    engine = make_engine(slim, waffle, [[0.0, 0.0, math.pi], [1.0, 0.0, 3.1], [2.0, 1.0, -2.9]])
+    rng = np.random.default_rng(3)
+    poses = np.column_stack((rng.uniform(-8, 9, 200), rng.uniform(-4, 9, 200),
+                             rng.uniform(-4.0, 4.0, 200)))
+    want = np.stack([transform_points(p, counter_clockwise(waffle.footprint)) for p in poses])
+    np.testing.assert_array_equal(engine.footprints(poses), want)
+    assert engine.footprints().shape == (3, len(waffle.footprint), 2)
