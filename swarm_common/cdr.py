@@ -31,7 +31,8 @@ import struct
 
 import numpy as np
 
-__all__ = ["LaserScanWriter", "OdometryWriter", "TwistStampedWriter", "diagnostic_status",
+__all__ = ["LaserScanWriter", "OdometryWriter", "PoseArrayWriter", "TwistStampedWriter",
+           "diagnostic_status",
            "odom_pose", "path_points", "pose_array", "scan_ranges", "twist_stamped"]
 
 _CDR_LE = b"\x00\x01"
@@ -332,6 +333,37 @@ class LaserScanWriter:
         data = np.ascontiguousarray(ranges, dtype="<f4")
         return b"".join((_ENCAPSULATION, _stamp(stamp_ns), self._middle,
                          _U32.pack(len(data)), data.tobytes(), _EMPTY_SEQUENCE))
+
+
+class PoseArrayWriter:
+    """Serialized ``geometry_msgs/PoseArray`` of planar poses (``/swarm/poses``).
+
+    Args:
+        frame_id: the header's frame (``map``).
+    """
+
+    def __init__(self, frame_id: str):
+        self._head = _header_tail(frame_id)
+
+    def write(self, stamp_ns: int, poses: np.ndarray) -> bytes:
+        """The message's bytes.
+
+        Args:
+            stamp_ns: header stamp [ns] (>= 0).
+            poses: (N, 3) x [m], y [m], yaw [rad]; each written as a position with z = 0 and a
+                rotation about z (quaternion ``(0, 0, sin(yaw / 2), cos(yaw / 2))``).
+        """
+        poses = np.asarray(poses, dtype=float).reshape(-1, 3)
+        pos = _STAMP.size + len(self._head)
+        parts = [_ENCAPSULATION, _stamp(stamp_ns), self._head, _pad(pos, 4),
+                 _U32.pack(len(poses))]
+        if len(poses):  # an empty sequence has no padding after its count
+            pos = _align(pos, 4) + 4
+            body = np.zeros((len(poses), 7), dtype="<f8")
+            body[:, 0], body[:, 1] = poses[:, 0], poses[:, 1]
+            body[:, 5], body[:, 6] = np.sin(poses[:, 2] / 2.0), np.cos(poses[:, 2] / 2.0)
+            parts += [_pad(pos, 8), body.tobytes()]
+        return b"".join(parts)
 
 
 class TwistStampedWriter:

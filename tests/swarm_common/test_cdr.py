@@ -16,6 +16,7 @@ from sensor_msgs.msg import LaserScan
 from swarm_common.cdr import (
     LaserScanWriter,
     OdometryWriter,
+    PoseArrayWriter,
     TwistStampedWriter,
     diagnostic_status,
     odom_pose,
@@ -214,3 +215,25 @@ def test_diagnostic_status_reads_back_with_rclpy(name, values):
     assert {kv.key: kv.value for kv in msg.values} == values
     assert [kv.key for kv in msg.values] == list(values)
     assert len(buf) == len(serialize_message(msg))
+
+
+@pytest.mark.parametrize("frame", FRAMES)
+@pytest.mark.parametrize("n", [0, 1, 100])
+def test_pose_array_writer_reads_back_with_rclpy(frame, n):
+    rng = np.random.default_rng(n)
+    poses = np.column_stack((rng.uniform(-9, 9, n), rng.uniform(-5, 9, n),
+                             rng.uniform(-math.pi, math.pi, n)))
+    buf = PoseArrayWriter(frame).write(7_000_000_123, poses)
+    msg = deserialize_message(buf, PoseArray)
+    assert (msg.header.stamp.sec, msg.header.stamp.nanosec, msg.header.frame_id) == (
+        7, 123, frame)
+    assert len(msg.poses) == n
+    for p, (x, y, yaw) in zip(msg.poses, poses, strict=True):
+        assert (p.position.x, p.position.y, p.position.z) == (x, y, 0.0)
+        q = p.orientation
+        assert (q.x, q.y) == (0.0, 0.0)
+        assert (q.z, q.w) == pytest.approx((math.sin(yaw / 2), math.cos(yaw / 2)), abs=1e-15)
+    assert len(buf) == len(serialize_message(msg))
+    stamp, got = pose_array(buf)
+    assert stamp == 7_000_000_123
+    np.testing.assert_allclose(got, poses.reshape(-1, 3), atol=1e-12)
