@@ -31,8 +31,8 @@ import struct
 
 import numpy as np
 
-__all__ = ["LaserScanWriter", "OdometryWriter", "PoseArrayWriter", "TwistStampedWriter",
-           "diagnostic_status",
+__all__ = ["LaserScanWriter", "OdometryWriter", "PathWriter", "PoseArrayWriter",
+           "TwistStampedWriter", "diagnostic_status",
            "odom_pose", "path_points", "pose_array", "scan_ranges", "twist_stamped"]
 
 _CDR_LE = b"\x00\x01"
@@ -333,6 +333,49 @@ class LaserScanWriter:
         data = np.ascontiguousarray(ranges, dtype="<f4")
         return b"".join((_ENCAPSULATION, _stamp(stamp_ns), self._middle,
                          _U32.pack(len(data)), data.tobytes(), _EMPTY_SEQUENCE))
+
+
+class PathWriter:
+    """Serialized ``nav_msgs/Path`` of planar positions, every pose in the path's frame and at
+    its stamp with the identity orientation (a navigator's ``plan``).
+
+    Args:
+        frame_id: the frame of the path and of its poses (``map``).
+    """
+
+    def __init__(self, frame_id: str):
+        self._head = _header_tail(frame_id)
+        # one PoseStamped after the first: 8-aligned, so always the same bytes but for its data
+        head = len(self._head)
+        self._dtype = np.dtype([("stamp", "<i4", 2), ("frame", f"V{head}"),
+                                ("pad", f"V{_align(8 + head, 8) - 8 - head}"),
+                                ("pose", "<f8", 7)])
+
+    def write(self, stamp_ns: int, points: np.ndarray) -> bytes:
+        """The message's bytes.
+
+        Args:
+            stamp_ns: stamp [ns] (>= 0) of the path and of every pose.
+            points: (N, 2) x, y [m].
+        """
+        points = np.asarray(points, dtype=float).reshape(-1, 2)
+        stamp = _stamp(stamp_ns)
+        pos = _STAMP.size + len(self._head)
+        parts = [_ENCAPSULATION, stamp, self._head, _pad(pos, 4), _U32.pack(len(points))]
+        pos = _align(pos, 4) + 4
+        if len(points):
+            x, y = points[0]
+            first = stamp + self._head
+            parts += [first, _pad(pos + len(first), 8),
+                      _POSE.pack(x, y, 0.0, 0.0, 0.0, 0.0, 1.0)]
+        if len(points) > 1:
+            rest = np.zeros(len(points) - 1, dtype=self._dtype)
+            rest["stamp"] = _STAMP.unpack(stamp)
+            rest["frame"] = np.frombuffer(self._head, dtype=f"V{len(self._head)}")[0]
+            rest["pose"][:, 0], rest["pose"][:, 1] = points[1:, 0], points[1:, 1]
+            rest["pose"][:, 6] = 1.0
+            parts.append(rest.tobytes())
+        return b"".join(parts)
 
 
 class PoseArrayWriter:

@@ -20,7 +20,6 @@ import time
 
 import numpy as np
 import rclpy
-from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
@@ -33,9 +32,15 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profi
 from sensor_msgs.msg import LaserScan
 from std_srvs.srv import Trigger
 
-from swarm_common.cdr import TwistStampedWriter, diagnostic_status, odom_pose, scan_ranges
+from swarm_common.cdr import (
+    PathWriter,
+    TwistStampedWriter,
+    diagnostic_status,
+    odom_pose,
+    scan_ranges,
+)
 from swarm_common.errors import InputError
-from swarm_common.geometry import quaternion_to_yaw, transform_points, yaw_to_quaternion
+from swarm_common.geometry import quaternion_to_yaw, transform_points
 from swarm_common.nav_status import TERMINAL, NavState, NavStatusRecord, encode, level_of
 from swarm_common.occupancy import OccupancyMap
 from swarm_common.stamps import NS_PER_S, format_stamp
@@ -129,6 +134,7 @@ class NavigatorNode(Node):
         self.lidar = robot.lidar
         # cmd_vel goes out every tick: written as CDR bytes (swarm_common.cdr), no message object
         self._cmd_writer = TwistStampedWriter(f"{self.ns}/base_footprint")
+        self._plan_writer = PathWriter("map")
         self.core = NavigatorCore(self.cfg, robot.footprint, sites)
         took = jit.warm_up()  # before the first tick needs the compiled kernels (once a process)
         if took > 2.0:
@@ -382,7 +388,6 @@ class NavigatorNode(Node):
             return
         self._now_ns = t
         self._answered = True
-        stamp = Time(sec=t // NS_PER_S, nanosec=t % NS_PER_S)
         pose = np.array([x, y, yaw])
         now = t / NS_PER_S
         due = [g for g in self._goals if g[0] < t]
@@ -410,7 +415,7 @@ class NavigatorNode(Node):
             self.get_logger().info("ready: map and odometry received")
         if self.ready:
             self._publish_status()
-            self._publish_plan(stamp)
+            self._publish_plan()
 
     def _scan_points(self, pose: np.ndarray) -> np.ndarray:
         """(M, 2) end points in ``map`` of the valid beams of the tick's scan."""
@@ -449,7 +454,7 @@ class NavigatorNode(Node):
         self.status_pub.publish(diagnostic_status(  # CDR bytes: no 13 KeyValue objects
             level_of(state), f"{self.ns}/navigator", state.value, self.ns, encode(record)))
 
-    def _publish_plan(self, stamp) -> None:
+    def _publish_plan(self) -> None:
         """Publish the global plan when it changed and someone reads ``plan``.
 
         With no reader the message is not even built (at 100 robots that was 2-3 % of a group
@@ -461,20 +466,9 @@ class NavigatorNode(Node):
         if not self.plan_pub.get_subscription_count():
             return
         self._path_version = self.core.path_version
-        msg = Path()
-        msg.header.frame_id = "map"
-        msg.header.stamp = stamp
         path = self.core.path
-        if path is not None:
-            qz, qw = yaw_to_quaternion(0.0)[2:]
-            for x, y in path:
-                ps = PoseStamped()
-                ps.header = msg.header
-                ps.pose.position.x = float(x)
-                ps.pose.position.y = float(y)
-                ps.pose.orientation.z, ps.pose.orientation.w = qz, qw
-                msg.poses.append(ps)
-        self.plan_pub.publish(msg)
+        self.plan_pub.publish(self._plan_writer.write(  # CDR bytes: no PoseStamped objects
+            self._now_ns, np.zeros((0, 2)) if path is None else path))
 
 
 def spin_forever(executor, context) -> None:

@@ -16,6 +16,7 @@ from sensor_msgs.msg import LaserScan
 from swarm_common.cdr import (
     LaserScanWriter,
     OdometryWriter,
+    PathWriter,
     PoseArrayWriter,
     TwistStampedWriter,
     diagnostic_status,
@@ -237,3 +238,22 @@ def test_pose_array_writer_reads_back_with_rclpy(frame, n):
     stamp, got = pose_array(buf)
     assert stamp == 7_000_000_123
     np.testing.assert_allclose(got, poses.reshape(-1, 3), atol=1e-12)
+
+
+@pytest.mark.parametrize("frame", FRAMES)
+@pytest.mark.parametrize("n", [0, 1, 2, 3, 301])
+def test_path_writer_reads_back_with_rclpy(frame, n):
+    rng = np.random.default_rng(n)
+    points = np.column_stack((rng.uniform(-9, 9, n), rng.uniform(-5, 9, n)))
+    buf = PathWriter(frame).write(12_500_000_000, points)
+    msg = deserialize_message(buf, Path)
+    assert (msg.header.stamp.sec, msg.header.stamp.nanosec, msg.header.frame_id) == (
+        12, 500_000_000, frame)
+    assert len(msg.poses) == n
+    for ps, (x, y) in zip(msg.poses, points, strict=True):
+        assert (ps.header.stamp.sec, ps.header.stamp.nanosec, ps.header.frame_id) == (
+            12, 500_000_000, frame)
+        p, q = ps.pose.position, ps.pose.orientation
+        assert (p.x, p.y, p.z, q.x, q.y, q.z, q.w) == (x, y, 0.0, 0.0, 0.0, 0.0, 1.0)
+    assert len(buf) == len(serialize_message(msg))
+    np.testing.assert_array_equal(path_points(buf), points.reshape(-1, 2))
