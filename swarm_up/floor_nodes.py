@@ -53,6 +53,7 @@ from swarm_commander.robot_navigator import NAV_STATUS_QOS
 from swarm_common.cdr import (
     LaserScanWriter,
     OdometryWriter,
+    PathWriter,
     TwistStampedWriter,
     diagnostic_status,
     odom_pose,
@@ -360,6 +361,7 @@ class FloorNavigatorNode(Node):
         # State.
         self.ns = ns
         self._cmd_writer = TwistStampedWriter(f"{ns}/base_footprint")
+        self._plan_writer = PathWriter("map")
         self.cfg = cfg
         self.tick_ns = round(NS_PER_S / cfg.control_rate_hz)
         self.goal_period_ns = round(cfg.goal_period_s * NS_PER_S)
@@ -507,16 +509,9 @@ class FloorNavigatorNode(Node):
         if not self.plan_pub.get_subscription_count():  # as the navigator: only when read
             return
         self._published_path = self.path_version
-        msg = PathMsg()
-        msg.header.frame_id = "map"
-        msg.header.stamp = stamp
-        for k in range(self.cfg.plan_poses):
-            ps = PoseStamped()
-            ps.header = msg.header
-            ps.pose.position.x = 0.05 * k
-            ps.pose.orientation.w = 1.0
-            msg.poses.append(ps)
-        self.plan_pub.publish(msg)
+        n = self.cfg.plan_poses
+        self.plan_pub.publish(self._plan_writer.write(  # bytes, as swarm_nav.node
+            self._now_ns, np.column_stack((0.05 * np.arange(n), np.zeros(n)))))
 
 
 # ------------------------------------------------------------------------------------ commander
