@@ -465,7 +465,6 @@ class FloorNavigatorNode(Node):
     def _tick(self, odom: tuple) -> None:
         _Cpu.begin()
         t = odom[0]
-        stamp = _time_msg(t)
         self._now_ns = t
         self.answered = True
         due = [g for g in self._goals if g[0] < t]
@@ -486,7 +485,7 @@ class FloorNavigatorNode(Node):
             self._terminal_ns = None
         if self.has_map:
             self._publish_status()
-            self._publish_plan(stamp)
+            self._publish_plan()
 
     def _publish_status(self) -> None:
         key = (self.state, self.goal_id)
@@ -503,7 +502,7 @@ class FloorNavigatorNode(Node):
         self.status_pub.publish(diagnostic_status(  # bytes, as swarm_nav.node
             0, f"{self.ns}/navigator", self.state, self.ns, kv))
 
-    def _publish_plan(self, stamp) -> None:
+    def _publish_plan(self) -> None:
         if self.path_version == self._published_path:
             return
         if not self.plan_pub.get_subscription_count():  # as the navigator: only when read
