@@ -131,3 +131,122 @@ def _better(costs, res, ox, oy, pts, cell_cost, cum, a, b, penalty, allow_unknow
     for i in range(a, b + 1):
         limit = max(limit, cell_cost[i])
     return worst <= limit and weighted <= cum[b] - cum[a] + 1e-9
+
+
+# The 8 moves of the planner's cell graph, in the slot order of ``swarm_nav.planner._MOVES``.
+_DR = np.array([0, 0, 1, -1, 1, 1, -1, -1], dtype=np.int64)
+_DC = np.array([1, -1, 0, 0, 1, -1, 1, -1], dtype=np.int64)
+
+
+@njit(cache=True, nogil=True)
+def _heap_push(keys, ticks, items, n, key, tick, item):
+    """Push onto the binary min-heap ``keys[:n]`` ordered by ``(key, tick)``; returns the
+    arrays (grown when full) and the new size."""
+    if n == keys.shape[0]:
+        keys = np.concatenate((keys, np.empty(n)))
+        ticks = np.concatenate((ticks, np.empty(n, dtype=np.int64)))
+        items = np.concatenate((items, np.empty(n, dtype=np.int64)))
+    i = n
+    while i > 0:
+        p = (i - 1) // 2
+        if keys[p] < key or (keys[p] == key and ticks[p] < tick):
+            break
+        keys[i], ticks[i], items[i] = keys[p], ticks[p], items[p]
+        i = p
+    keys[i], ticks[i], items[i] = key, tick, item
+    return keys, ticks, items, n + 1
+
+
+@njit(cache=True, nogil=True)
+def _heap_pop(keys, ticks, items, n):
+    """Remove the heap's least entry (``n`` >= 1); returns ``(key, item, new size)``."""
+    key, item = keys[0], items[0]
+    n -= 1
+    lk, lt, li = keys[n], ticks[n], items[n]
+    i = 0
+    while True:
+        c = 2 * i + 1
+        if c >= n:
+            break
+        if c + 1 < n and (keys[c + 1] < keys[c]
+                          or (keys[c + 1] == keys[c] and ticks[c + 1] < ticks[c])):
+            c += 1
+        if lk < keys[c] or (lk == keys[c] and lt < ticks[c]):
+            break
+        keys[i], ticks[i], items[i] = keys[c], ticks[c], items[c]
+        i = c
+    keys[i], ticks[i], items[i] = lk, lt, li
+    return key, item, n
+
+
+@njit(cache=True, nogil=True)
+def astar(data, slots, height, width, heuristic, s, t):
+    """The cheapest cell path from flat cell ``s`` to flat cell ``t`` by A* (Hart, Nilsson and
+    Raphael 1968) on the planner's reversed cell graph.
+
+    Args:
+        data: (E,) float64 the graph's move costs [m] (``csr_matrix.data``; ``inf`` = forbidden).
+        slots: (H*W, 8) int32 data index of the move from cell ``v + _MOVES[k]`` into cell ``v``
+            (slot ``k``), -1 where there is none.
+        height: H [cells].
+        width: W [cells].
+        heuristic: (H*W,) float64 a consistent lower bound [m] of every cell's cost to ``t``
+            (``inf``: ``t`` cannot be reached from there).
+        s: the start cell.
+        t: the goal cell.
+
+    Returns:
+        ``(cells, cost)``: (K,) int64 the flat cells from ``s`` to ``t`` and the path's cost [m],
+        or an empty array and ``inf`` when ``t`` cannot be reached.  Ties are broken first in,
+        first out, so the result depends on the inputs alone.
+    """
+    n_cells = height * width
+    g = np.full(n_cells, np.inf)
+    parent = np.full(n_cells, -1, dtype=np.int64)
+    cap = 1024
+    keys = np.empty(cap)
+    ticks = np.empty(cap, dtype=np.int64)
+    items = np.empty(cap, dtype=np.int64)
+    g[s] = 0.0
+    size = 0
+    tick = 0
+    if np.isfinite(heuristic[s]):
+        keys, ticks, items, size = _heap_push(keys, ticks, items, size, heuristic[s], tick, s)
+    found = False
+    while size > 0:
+        f, u, size = _heap_pop(keys, ticks, items, size)
+        gu = g[u]
+        if f > gu + heuristic[u]:
+            continue  # stale entry: u was reached more cheaply since
+        if u == t:
+            found = True
+            break
+        ru, cu = u // width, u % width
+        for k in range(8):
+            rv, cv = ru - _DR[k], cu - _DC[k]
+            if rv < 0 or rv >= height or cv < 0 or cv >= width:
+                continue
+            v = rv * width + cv
+            at = slots[v, k]
+            if at < 0:
+                continue
+            nd = gu + data[at]
+            if nd < g[v] and np.isfinite(heuristic[v]):
+                g[v] = nd
+                parent[v] = u
+                tick += 1
+                keys, ticks, items, size = _heap_push(keys, ticks, items, size,
+                                                      nd + heuristic[v], tick, v)
+    if not found:
+        return np.empty(0, dtype=np.int64), np.inf
+    count = 1
+    c = t
+    while c != s:
+        c = parent[c]
+        count += 1
+    cells = np.empty(count, dtype=np.int64)
+    c = t
+    for i in range(count - 1, -1, -1):
+        cells[i] = c
+        c = parent[c]
+    return cells, g[t]
