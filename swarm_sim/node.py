@@ -424,16 +424,19 @@ class SimulatorNode(Node):
         stamp = _time_msg(self.t_ns)
         self.clock_pub.publish(Clock(clock=stamp))
         eng = self.engine
+        scans = None
         if eng.lidar_due():
             if self._scans is None:
                 self._scans = eng.scans()
             scans = self._scans
-            mute = self._silenced | self._drops.scan if self.faults is not None else ()
-            for i, pub in enumerate(self.scan_pubs):
-                if i not in mute:
-                    pub.publish(self._scan_writers[i].write(self.t_ns, scans[i]))
+            mute_scan = self._silenced | self._drops.scan if self.faults is not None else ()
         mute = self._silenced | self._drops.odom if self.faults is not None else ()
+        # Robot after robot, its scan then its odometry: a navigator answers once it has both,
+        # so the first robots' navigators start while the last robots' messages are still being
+        # written (all scans first held every navigator back by the 100 scans' writing time).
         for i in range(self.n):
+            if scans is not None and i not in mute_scan:
+                self.scan_pubs[i].publish(self._scan_writers[i].write(self.t_ns, scans[i]))
             if i not in mute:
                 self.odom_pubs[i].publish(self._odom_bytes(i, self._odom_writers[i]))
             # Ground truth only while someone listens (a probe, a recorder, ros2 topic echo):
