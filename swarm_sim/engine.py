@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from swarm_common.world import World, world_polygons
+from swarm_sim import separation_kernels
 from swarm_sim.kinematics import DriveLimits, integrate_unicycle, limit_twist
 from swarm_sim.lidar import PlanarLidar, ScanPattern, counter_clockwise, polygons_to_segments
 
@@ -149,6 +150,7 @@ class SimEngine:
         self._build_world(world)
         self._bodies = self._build_robots()
         self._body_index = {b: i for i, b in enumerate(self._bodies)}
+        separation_kernels.warm_up()
         self._update_min_separation()
 
     # -- construction --------------------------------------------------------------------------
@@ -342,9 +344,9 @@ class SimEngine:
         ii, jj = np.nonzero(np.triu(d < reach, k=1))
         if ii.size == 0:
             return
-        feet = self.footprints()
-        gaps = polygon_distances(feet[ii], feet[jj])
-        self.min_separation = min(self.min_separation, float(gaps.min()))
+        gap = separation_kernels.min_pair_distance(self.footprints(), ii.astype(np.int64),
+                                                   jj.astype(np.int64))
+        self.min_separation = min(self.min_separation, float(gap))
 
     def close(self) -> None:
         """Disconnect from PyBullet."""

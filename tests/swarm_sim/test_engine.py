@@ -399,3 +399,27 @@ def test_footprints_equal_transforming_each_robots_footprint_bit_for_bit(slim, w
     want = np.stack([transform_points(p, counter_clockwise(waffle.footprint)) for p in poses])
     np.testing.assert_array_equal(engine.footprints(poses), want)
     assert engine.footprints().shape == (3, len(waffle.footprint), 2)
+
+
+def test_compiled_min_separation_equals_polygon_distances():
+    """``separation_kernels.min_pair_distance`` (the engine's per-tick minimum separation) against
+    the numpy :func:`polygon_distances`: random boxes apart, touching and overlapping (0), the
+    least of the pairs equal to the last bit."""
+    from swarm_sim import separation_kernels
+
+    rng = np.random.default_rng(11)
+    box = np.array([[-0.197, -0.133], [0.069, -0.133], [0.069, 0.133], [-0.197, 0.133]])
+    for _ in range(200):
+        n = int(rng.integers(2, 9))
+        poses = np.column_stack((rng.uniform(-0.8, 0.8, (n, 2)), rng.uniform(-4, 4, n)))
+        c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+        feet = np.stack([box @ np.array([[ci, si], [-si, ci]]) + p[:2]
+                         for ci, si, p in zip(c, s, poses, strict=True)])
+        ii, jj = np.nonzero(np.triu(np.ones((n, n), dtype=bool), k=1))
+        want = polygon_distances(feet[ii], feet[jj])
+        got = separation_kernels.min_pair_distance(feet, ii.astype(np.int64), jj.astype(np.int64))
+        assert got == want.min()
+    overlapping = np.stack((box, box + 0.05))
+    pair = np.array([0], dtype=np.int64), np.array([1], dtype=np.int64)
+    assert separation_kernels.min_pair_distance(overlapping, *pair) == 0.0
+    assert separation_kernels.min_pair_distance(overlapping, *(p[:0] for p in pair)) == math.inf

@@ -1,0 +1,78 @@
+"""The compiled pair loop of the simulator's minimum separation (:mod:`swarm_sim.engine`), with
+numba.
+
+Every tick the engine measures the distance between the footprints of every pair of robots near
+each other (``SimEngine._update_min_separation``).  With numpy that was some twenty array
+expressions over (pairs, vertices, edges) temporaries: 8-9 % of the simulator's CPU at 100
+robots, on the lockstep tick's critical path (the navigators wait while the simulator steps).
+Here one loop walks the pairs with the arithmetic of :func:`swarm_sim.engine.polygon_distances`
+(``tests/swarm_sim/test_engine.py`` holds the two against each other).
+
+Compiled on first use and cached beside this file (``cache=True``); :class:`swarm_sim.engine.
+SimEngine` calls :func:`warm_up` when it is built.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True, nogil=True)
+def _vertex_edge(a, b):
+    """Least distance [m] from a vertex of polygon ``a`` to an edge of polygon ``b``, and
+    whether a vertex of ``a`` lies strictly inside ``b`` (both (K, 2), convex, one winding)."""
+    best = math.inf
+    inside = False
+    kb = b.shape[0]
+    for v in range(a.shape[0]):
+        pos = True
+        neg = True
+        for k in range(kb):
+            ex = b[(k + 1) % kb, 0] - b[k, 0]
+            ey = b[(k + 1) % kb, 1] - b[k, 1]
+            rx = a[v, 0] - b[k, 0]
+            ry = a[v, 1] - b[k, 1]
+            len2 = max(ex * ex + ey * ey, 1e-18)
+            u = min(max((rx * ex + ry * ey) / len2, 0.0), 1.0)
+            dx = rx - u * ex
+            dy = ry - u * ey
+            best = min(best, math.sqrt(dx * dx + dy * dy))
+            cross = ex * ry - ey * rx
+            pos = pos and cross > 0.0
+            neg = neg and cross < 0.0
+        inside = inside or pos or neg
+    return best, inside
+
+
+@njit(cache=True, nogil=True)
+def min_pair_distance(feet, ii, jj):
+    """The least distance [m] between polygons ``feet[ii[p]]`` and ``feet[jj[p]]`` over the
+    pairs ``p`` (``inf`` without pairs).
+
+    Args:
+        feet: (N, K, 2) convex polygons x, y [m] (the robots' footprints in ``map``).
+        ii: (P,) int64 first polygon of each pair.
+        jj: (P,) int64 second polygon of each pair.
+
+    Returns:
+        The distance [m]: the least vertex-to-edge distance either way, 0 for polygons that
+        overlap (a vertex of one strictly inside the other).
+    """
+    best = math.inf
+    for p in range(ii.shape[0]):
+        a = feet[ii[p]]
+        b = feet[jj[p]]
+        dab, ia = _vertex_edge(a, b)
+        dba, ib = _vertex_edge(b, a)
+        best = min(best, 0.0 if ia or ib else min(dab, dba))
+    return best
+
+
+def warm_up() -> None:
+    """Compile :func:`min_pair_distance`, or load it from numba's cache."""
+    square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    min_pair_distance(np.stack((square, square + 2.0)), np.array([0], dtype=np.int64),
+                      np.array([1], dtype=np.int64))
