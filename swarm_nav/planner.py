@@ -16,6 +16,8 @@ The search is Dijkstra from the goal (``scipy.sparse.csgraph``), which returns t
 grid: a heapq A* in plain Python needs 75-110 ms for cross-map queries, because the detour around
 the blockage defeats the octile heuristic (~35k expansions), while csgraph's Dijkstra over all
 cells takes ~20-25 ms whatever the query, and its cost-to-go is reused by replans to the same goal.
+A replan around the robots seen (an overlay of the static costmap) is an A* from the start whose
+heuristic is that exact static cost-to-go (:func:`cell_path`): about a millisecond.
 Reachability is decided before any search from the 4-connected components of the traversable
 cells (the connectivity of moves that cut no corner), so an unreachable goal (a closed pocket)
 fails in about a millisecond with ``"no path"``.
