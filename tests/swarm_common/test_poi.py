@@ -239,3 +239,19 @@ def test_factory_floor_aisles_and_holding_bays():
     assert dist.min() >= 1.0 - 1e-9
     assert len(poi.spawn.grid_points()) == 117
     assert "shipping" in poi.points
+
+
+def test_a_file_is_parsed_once_per_content(tmp_path):
+    """A group process loads the same file for every navigator and commander: an unchanged file
+    gives the same (immutable) object, a changed one is read again, a broken one still fails."""
+    f = tmp_path / "poi.yaml"
+    f.write_text("workstations:\n  - {name: a, x: 1.0, y: 2.0}\n")
+    first = load_poi(f)
+    assert load_poi(f) is first
+    f.write_text("workstations:\n  - {name: a, x: 3.0, y: 2.0}\n")  # same size, new content
+    second = load_poi(f)
+    assert second is not first and second.workstations[0].pose[0] == 3.0
+    f.write_text("workstations:\n  - {name: a, xx: 3.0, y: 2.0}\n")
+    for _ in range(2):
+        with pytest.raises(InputError, match="unknown key 'xx'"):
+            load_poi(f)
