@@ -55,6 +55,7 @@ from swarm_nav.perception import RobotTracker, SeenArrays, SeenRobot, dynamic_po
 from swarm_nav.planner import PlanResult, plan_path
 from swarm_nav.recovery import SEQUENCE, ProgressChecker, Recovery, RecoveryKind
 from swarm_nav.traffic import (
+    KEEP_RIGHT_LATERAL,
     Yield,
     YieldStep,
     keep_right,
@@ -336,10 +337,17 @@ class NavigatorCore:
         if self._state in TERMINAL or self._path is None:
             return self._out(0.0, 0.0)
 
-        local = keep_right(self._local_path(), pose,
-                           oncoming_centres(self._seen.centres, self._seen.velocity, pose[:2],
-                                            self.cfg.holding.moving_speed),
-                           self.costmap, self.cfg.traffic)
+        local = self._local_path()
+        seen, tc = self._seen, self.cfg.traffic
+        if len(seen.centres) and core_kernels.may_keep_right(  # (no shift: most ticks)
+                seen.centres, seen.velocity, float(pose[0]), float(pose[1]), float(pose[2]),
+                self.cfg.holding.moving_speed, tc.keep_right_distance, math.pi / 2,
+                np.ascontiguousarray(local[:, 0]), np.ascontiguousarray(local[:, 1]),
+                KEEP_RIGHT_LATERAL):
+            local = keep_right(local, pose,
+                               oncoming_centres(seen.centres, seen.velocity, pose[:2],
+                                                self.cfg.holding.moving_speed),
+                               self.costmap, tc, lateral=KEEP_RIGHT_LATERAL)
         obstacles = self._obstacles(pose)
         cmd = dwa_command(state, local, obstacles, self.cfg.dwa, footprint=self.footprint,
                           dt=self.cfg.control_period)

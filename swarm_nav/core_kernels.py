@@ -54,3 +54,52 @@ def robots_near_path(centres, points, starts, sizes, ax, ay, rx, ry, reach, radi
             out[n] = j
             n += 1
     return out[:n]
+
+
+_SLACK = 1e-9  # [m] or [rad]: what rounding may differ by between this kernel and numpy
+
+
+@njit(cache=True, nogil=True)
+def may_keep_right(centres, velocities, rx, ry, ryaw, moving_speed, distance, half_angle,
+                   px, py, lateral):
+    """Whether :func:`swarm_nav.traffic.keep_right` of the robots coming toward us may shift the
+    path: some robot seen drives toward us faster than ``moving_speed``, lies within
+    ``distance`` and ``half_angle`` ahead, and within ``lateral`` of a path point.
+
+    The tests of :func:`~swarm_nav.traffic.oncoming_centres`, :func:`~swarm_nav.traffic.
+    robots_ahead` and ``keep_right``, with ``_SLACK`` added to the limits: when this says False,
+    ``keep_right`` returns the path unchanged (most robots, most ticks); when True, the caller
+    runs it (``tests/swarm_nav/test_traffic.py`` checks that False is never wrong).
+
+    Args:
+        centres: (K, 2) centres x, y [m] in ``map`` of the robots seen.
+        velocities: (K, 2) their velocities [m/s] (NaN: unknown).
+        rx: our x [m] in ``map``.
+        ry: our y [m].
+        ryaw: our yaw [rad].
+        moving_speed: [m/s] the speed toward us above which a robot is oncoming.
+        distance: [m] how far ahead a robot counts.
+        half_angle: [rad] half the opening of the cone ahead.
+        px: (N,) x [m] of the local path's points.
+        py: (N,) y [m] of those points.
+        lateral: [m] how near the path a robot counts as on it.
+    """
+    for j in range(centres.shape[0]):
+        cx, cy = centres[j, 0], centres[j, 1]
+        vx, vy = velocities[j, 0], velocities[j, 1]
+        if not (math.isfinite(vx) and math.isfinite(vy)):
+            continue
+        dx, dy = rx - cx, ry - cy
+        n = math.hypot(dx, dy)
+        if n <= 1e-6 or (vx * dx + vy * dy) / n <= moving_speed - _SLACK:
+            continue
+        if n > distance + _SLACK:
+            continue
+        a = math.atan2(-dy, -dx) - ryaw
+        bearing = abs(a - 2.0 * math.pi * math.floor((a + math.pi) / (2.0 * math.pi)))
+        if bearing > half_angle + _SLACK:
+            continue
+        for i in range(px.shape[0]):
+            if math.hypot(cx - px[i], cy - py[i]) <= lateral + _SLACK:
+                return True
+    return False

@@ -112,8 +112,12 @@ def must_yield(robot_xy, other_xy, axis_angle: float) -> bool:
     return bool(d[0] * math.cos(axis_angle) + d[1] * math.sin(axis_angle) > 0.0)
 
 
+KEEP_RIGHT_LATERAL = 0.7  # [m] keep_right's default: a robot this near the path is on it
+
+
 def keep_right(path: Path2D, pose, centres: np.ndarray, costmap: Costmap,
-               cfg: TrafficConfig, lateral: float = 0.7, max_cost: int = 200) -> Path2D:
+               cfg: TrafficConfig, lateral: float = KEEP_RIGHT_LATERAL, max_cost: int = 200
+               ) -> Path2D:
     """Shift the local path to the robot's right while another robot is ahead on it.
 
     Every robot applies the same rule to its own path, so two robots meeting head-on move apart

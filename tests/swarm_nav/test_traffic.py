@@ -208,3 +208,43 @@ def test_oncoming_centres_is_oncoming_on_arrays():
                   if np.hypot(*r.centre) > 1e-6 and np.all(np.isfinite(r.velocity))
                   and (r.velocity @ -r.centre) / np.hypot(*r.centre) > 0.08]
     assert np.allclose(got, np.array(one_by_one))
+
+
+def test_compiled_keep_right_precheck_is_never_wrong_when_it_says_no_shift():
+    """``core_kernels.may_keep_right`` lets the navigator skip :func:`keep_right` on most ticks:
+    whenever it says False, ``keep_right`` of the oncoming robots must return the path
+    unchanged; and it must say True for the shifts (random crowds around random paths, with
+    robots exactly at the limits' edges too)."""
+    from swarm_nav import core_kernels
+    from swarm_nav.traffic import KEEP_RIGHT_LATERAL
+
+    rng = np.random.default_rng(21)
+    cm = build_costmap(grid_map(np.zeros((80, 80), dtype=np.int8), 0.05), CostmapConfig())
+    cfg = TrafficConfig()
+    said_no = shifted = 0
+    for _ in range(3000):
+        pose = np.array([*rng.uniform(1.0, 3.0, 2), rng.uniform(-4, 4)])
+        heading = pose[2] + rng.normal(0.0, 0.3)
+        n = int(rng.integers(1, 30))
+        path = pose[:2] + np.outer(np.arange(n) * 0.05, [math.cos(heading), math.sin(heading)])
+        k = int(rng.integers(0, 6))
+        centres = pose[:2] + rng.uniform(-3.0, 3.0, (k, 2))
+        velocities = rng.uniform(-0.3, 0.3, (k, 2))
+        velocities[rng.random(k) < 0.2] = np.nan  # unknown velocity
+        if k and rng.random() < 0.3:  # one robot exactly keep_right_distance away, dead ahead
+            centres[0] = pose[:2] + cfg.keep_right_distance * np.array(
+                [math.cos(pose[2]), math.sin(pose[2])])
+            velocities[0] = -0.25 * np.array([math.cos(pose[2]), math.sin(pose[2])])
+        oncoming = oncoming_centres(centres, velocities, pose[:2], 0.05)
+        out = keep_right(path, pose, oncoming, cm, cfg)
+        maybe = core_kernels.may_keep_right(
+            centres, velocities, *pose, 0.05, cfg.keep_right_distance, math.pi / 2,
+            np.ascontiguousarray(path[:, 0]), np.ascontiguousarray(path[:, 1]),
+            KEEP_RIGHT_LATERAL)
+        if not maybe:
+            said_no += 1
+            assert np.array_equal(out, path)
+        if not np.array_equal(out, path):
+            shifted += 1
+            assert maybe
+    assert said_no > 500 and shifted > 100
