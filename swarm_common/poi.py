@@ -217,9 +217,10 @@ def _spawn(check: _Checker, value) -> SpawnArea:
 def load_poi(path: str | Path) -> PointsOfInterest:
     """Load a points-of-interest YAML file, strictly.
 
-    A file already loaded by this process with the same content is not parsed again: a group process of 50 robots loaded it 100 times at its start
-    (each navigator, each commander's route), 20-30 ms of pure-Python YAML each. The result is
-    immutable (frozen dataclasses, read-only arrays), so sharing it is safe.
+    A file already loaded by this process with the same content is not parsed again: a group
+    process of 50 robots loaded it 100 times at its start (each navigator, each commander's
+    route), 20-30 ms of pure-Python YAML each. The result is immutable (frozen dataclasses,
+    read-only arrays), so sharing it is safe.
 
     Args:
         path: the YAML file (schema in the module docstring).
