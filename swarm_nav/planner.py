@@ -16,8 +16,6 @@ The search is Dijkstra from the goal (``scipy.sparse.csgraph``), which returns t
 grid: a heapq A* in plain Python needs 75-110 ms for cross-map queries, because the detour around
 the blockage defeats the octile heuristic (~35k expansions), while csgraph's Dijkstra over all
 cells takes ~20-25 ms whatever the query, and its cost-to-go is reused by replans to the same goal.
-A replan around the robots seen (an overlay of the static costmap) is an A* from the start whose
-heuristic is that exact static cost-to-go (:func:`cell_path`): about a millisecond.
 Reachability is decided before any search from the 4-connected components of the traversable
 cells (the connectivity of moves that cut no corner), so an unreachable goal (a closed pocket)
 fails in about a millisecond with ``"no path"``.
@@ -168,14 +166,12 @@ def cell_path(costmap: Costmap, start_rc: tuple[int, int], goal_rc: tuple[int, i
     cell's cost-to-go; the path follows the predecessors from the start.  The graph is built once
     per costmap and the cost-to-go once per goal cell, both shared by all the robots of a process
     that use the same map, so a replan to the same goal (the robot left its path) only walks the
-    predecessors.  On an overlay of a shareable costmap (a replan around robots seen) the path is
-    searched by A* from the start (:func:`swarm_nav.planner_kernels.astar`) with the base's
-    cost-to-go as its heuristic: the overlay only raises costs, so the base's cost-to-go is a
-    consistent lower bound of the overlay's, and A* returns an optimal path while expanding
-    little more than the cells along it and around the robots it detours (measured at 100 robots
-    on slim_blockage: the Dijkstra searches it replaced, bounded at 1.25 times the base's cost
-    or over the whole map, took 8-18 ms each and a fifth of a group process's CPU).  Among
-    paths of equal cost it may choose another than the search from the goal would.
+    predecessors.  On an overlay of a shareable costmap (a replan around robots seen) the search
+    first stops at ``OVERLAY_BOUND_RATIO`` times the base's cost from the start plus
+    ``OVERLAY_BOUND_SLACK``: the overlay only raises costs, so the base's cost bounds the
+    overlay's from below, and when the start lies within that bound the bounded search has
+    settled the optimal path exactly (Dijkstra settles cells in order of cost); only a longer
+    detour, or none, needs the search over the whole map.
 
     Args:
         costmap: the costmap.
@@ -190,17 +186,9 @@ def cell_path(costmap: Costmap, start_rc: tuple[int, int], goal_rc: tuple[int, i
     w = costmap.width
     s = int(start_rc[0]) * w + int(start_rc[1])
     t = int(goal_rc[0]) * w + int(goal_rc[1])
-    base = costmap.base
-    if (not costmap.shareable and base is not None and base.shareable
-            and costmap.changed is not None):  # the base's graph, patched: its slots hold
-        heuristic = _cost_to_go(base, t, cfg)[0]
-        _, slots, _ = _shared_graph(base, cfg)
-        with _search_graph(costmap, cfg) as graph:
-            found, cost = kernels.astar(graph.data, slots, costmap.height, w, heuristic, s, t)
-        if len(found) == 0:
-            return [], math.inf
-        return [(c // w, c % w) for c in found.tolist()], float(cost)
-    togo, nxt = _cost_to_go(costmap, t, cfg)
+    togo, nxt = _bounded_cost_to_go(costmap, s, t, cfg)
+    if togo is None:
+        togo, nxt = _cost_to_go(costmap, t, cfg)
     if not np.isfinite(togo[s]):
         return [], math.inf
     cells = [s]
@@ -228,6 +216,35 @@ def _lru(cache: OrderedDict, key, make, size: int):
     while len(cache) > size:
         cache.popitem(last=False)
     return value
+
+
+OVERLAY_BOUND_RATIO = 1.25  # [-] first search bound of a replan around robots: ratio ...
+OVERLAY_BOUND_SLACK = 1.0  # [m] ... and slack over the static cost (a search-cost setting only)
+
+
+def _bounded_cost_to_go(costmap: Costmap, s: int, t: int, cfg: PlannerConfig
+                        ) -> tuple[np.ndarray, np.ndarray] | tuple[None, None]:
+    """An overlay's cost-to-go to ``t`` searched only up to a bound, if that reaches ``s``.
+
+    Returns ``(None, None)`` when the costmap is no overlay of a shareable one, the start is
+    unreachable on the base, or the optimal path costs more than the bound.
+    """
+    base = costmap.base
+    if costmap.shareable or base is None or not base.shareable:
+        return None, None
+    static = float(_cost_to_go(base, t, cfg)[0][s])
+    if not math.isfinite(static):
+        return None, None
+    key = ("togo-bounded", s, t, cfg.cost_penalty, cfg.allow_unknown)
+    if key not in costmap._cache:
+        bound = OVERLAY_BOUND_RATIO * static + OVERLAY_BOUND_SLACK
+        with _search_graph(costmap, cfg) as graph:
+            costmap._cache[key] = dijkstra(graph, directed=True, indices=t,
+                                           return_predecessors=True, limit=bound)
+    togo, nxt = costmap._cache[key]
+    if not np.isfinite(togo[s]):
+        return None, None
+    return togo, nxt
 
 
 def _cost_to_go(costmap: Costmap, t: int, cfg: PlannerConfig) -> tuple[np.ndarray, np.ndarray]:

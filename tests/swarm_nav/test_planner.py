@@ -93,11 +93,9 @@ def test_cost_equals_brute_force_dijkstra(seed, penalty):
 @pytest.mark.parametrize("seed", range(8))
 @pytest.mark.parametrize("penalty", [0.0, 3.0])
 def test_replans_around_overlaid_points_equal_brute_force_dijkstra(seed, penalty):
-    """An overlay's search graph is its base's, patched around the points (not rebuilt), and
-    searched by A* with the base's cost-to-go as heuristic: the costs must equal a search
-    written from the definition on the overlay's costs, including windows at the map's edge,
-    and the paths must cost what the search from the goal on a rebuilt graph finds (A* may
-    choose another path of the same cost)."""
+    """An overlay's search graph is its base's, patched around the points (not rebuilt): the
+    costs must equal a search written from the definition on the overlay's costs, including
+    windows at the map's edge."""
     rng = np.random.default_rng(100 + seed)
     occ = random_grid(rng, 24, 30, 0.08)
     base = build_costmap(occ, SMALL)
@@ -112,10 +110,8 @@ def test_replans_around_overlaid_points_equal_brute_force_dijkstra(seed, penalty
         dense_p = graph.toarray()
     rebuilt = planner._build_graph(cm, cfg)[0]
     plain = dataclasses.replace(cm, base=None, changed=None, _cache={})  # searched on `rebuilt`
-    def check(res, s, g):  # (the cell path's moves are checked in the A* test below)
-        assert np.allclose(res.path[0], s) and np.allclose(res.path[-1], g)
-        assert res.cost == pytest.approx(plan_path(plain, s, g, cfg).cost, rel=1e-9, abs=1e-9)
-
+    check = lambda res, s, g: np.testing.assert_array_equal(  # noqa: E731
+        res.path, plan_path(plain, s, g, cfg).path)
     assert_costs_match_brute_force(cm, cfg, rng, check)
     # the same graph as a rebuild, bar the slots of forbidden moves (infinite in the patch)
     dense_r = rebuilt.toarray()
@@ -249,51 +245,3 @@ def test_paths_keep_out_of_other_docks(start):
     d_other = np.hypot(dense[:, None, 0] - LOADERS[None, 1:, 0],
                        dense[:, None, 1] - LOADERS[None, 1:, 1]).min(axis=1)
     assert np.all(d_other[far_from_start] > 0.45)
-
-
-@pytest.mark.parametrize("seed", range(3))
-def test_astar_on_overlays_of_slim_blockage_is_optimal(seed):
-    """A* with the base's cost-to-go as heuristic against Dijkstra on the same patched graph:
-    the same cost, and a path of adjacent cells whose moves' costs add up to it; ``inf`` and no
-    cells exactly where Dijkstra cannot reach the goal either."""
-    from scipy.sparse.csgraph import dijkstra
-
-    from swarm_nav import planner_kernels
-
-    rng = np.random.default_rng(900 + seed)
-    ccfg = CostmapConfig()
-    base = build_costmap(slim_blockage_map(), ccfg)
-    free = np.argwhere(base.costs < INSCRIBED)
-    w = base.width
-    checked = unreachable = 0
-    for _ in range(15):
-        # a crowd of robots (16 outline points each) somewhere on the floor
-        centres = base.cell_to_world(free[rng.choice(len(free), int(rng.integers(1, 25)))])
-        ring = 0.14 * np.column_stack((np.cos(np.linspace(0, 2 * np.pi, 16, endpoint=False)),
-                                       np.sin(np.linspace(0, 2 * np.pi, 16, endpoint=False))))
-        cm = overlay_obstacles(base, (centres[:, None, :] + ring[None]).reshape(-1, 2), ccfg)
-        ok = np.argwhere(cm.costs < INSCRIBED)
-        s_rc, t_rc = ok[rng.choice(len(ok), 2, replace=False)]
-        s, t = int(s_rc[0] * w + s_rc[1]), int(t_rc[0] * w + t_rc[1])
-        heuristic = planner._cost_to_go(base, t, PCFG)[0]
-        _, slots, _ = planner._shared_graph(base, PCFG)
-        with planner._search_graph(cm, PCFG) as graph:
-            want = dijkstra(graph, directed=True, indices=t)[s]
-            cells, cost = planner_kernels.astar(graph.data, slots, cm.height, w, heuristic,
-                                                s, t)
-            data = graph.data.copy()
-        if math.isinf(want):
-            assert math.isinf(cost) and len(cells) == 0
-            unreachable += 1
-            continue
-        assert cost == pytest.approx(want, rel=1e-12)
-        assert cells[0] == s and cells[-1] == t
-        moves = {(dr, dc): k for k, (dr, dc) in enumerate(planner._MOVES)}
-        total = 0.0
-        for u, v in zip(cells[:-1].tolist(), cells[1:].tolist(), strict=True):
-            k = moves[(u // w - v // w, u % w - v % w)]  # slot k of row v: the move from v + k
-            assert slots[v, k] >= 0
-            total += data[slots[v, k]]
-        assert math.isfinite(total) and total == pytest.approx(cost, rel=1e-12)
-        checked += 1
-    assert checked >= 10
