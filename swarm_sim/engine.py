@@ -88,22 +88,12 @@ def polygon_distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Distances [m] between pairs of convex polygons given as (P, K, 2) vertex arrays.
 
     The distance of two disjoint convex polygons is the least vertex-to-edge distance either
-    way; overlapping ones (a vertex of one inside the other) give 0.
+    way; overlapping ones (a vertex of one inside the other) give 0. Compiled
+    (:func:`swarm_sim.separation_kernels.pair_distances`): the engine measures every pair of
+    nearby robots every tick.
     """
-    def vert_edge(v, poly):
-        p0 = poly
-        e = np.roll(poly, -1, axis=1) - p0  # (P, K, 2)
-        rel = v[:, :, None, :] - p0[:, None, :, :]  # (P, Kv, K, 2)
-        len2 = np.maximum(np.einsum("pki,pki->pk", e, e), 1e-18)[:, None, :]
-        u = np.clip(np.einsum("pvki,pki->pvk", rel, e) / len2, 0.0, 1.0)
-        d = np.linalg.norm(rel - u[..., None] * e[:, None, :, :], axis=-1)
-        cross = e[:, None, :, 0] * rel[..., 1] - e[:, None, :, 1] * rel[..., 0]
-        inside = np.all(cross > 0, axis=2) | np.all(cross < 0, axis=2)  # (P, Kv)
-        return d.min(axis=(1, 2)), inside.any(axis=1)
-
-    dab, ia = vert_edge(a, b)
-    dba, ib = vert_edge(b, a)
-    return np.where(ia | ib, 0.0, np.minimum(dab, dba))
+    return separation_kernels.pair_distances(np.ascontiguousarray(a, dtype=float),
+                                             np.ascontiguousarray(b, dtype=float))
 
 
 class SimEngine:
@@ -344,9 +334,9 @@ class SimEngine:
         ii, jj = np.nonzero(np.triu(d < reach, k=1))
         if ii.size == 0:
             return
-        gap = separation_kernels.min_pair_distance(self.footprints(), ii.astype(np.int64),
-                                                   jj.astype(np.int64))
-        self.min_separation = min(self.min_separation, float(gap))
+        feet = self.footprints()
+        gaps = polygon_distances(feet[ii], feet[jj])
+        self.min_separation = min(self.min_separation, float(gaps.min()))
 
     def close(self) -> None:
         """Disconnect from PyBullet."""

@@ -5,8 +5,9 @@ Every tick the engine measures the distance between the footprints of every pair
 each other (``SimEngine._update_min_separation``).  With numpy that was some twenty array
 expressions over (pairs, vertices, edges) temporaries: 8-9 % of the simulator's CPU at 100
 robots, on the lockstep tick's critical path (the navigators wait while the simulator steps).
-Here one loop walks the pairs with the arithmetic of :func:`swarm_sim.engine.polygon_distances`
-(``tests/swarm_sim/test_engine.py`` holds the two against each other).
+Here one loop walks the pairs with the arithmetic of that numpy code
+(``tests/swarm_sim/test_engine.py`` holds the kernel against a frozen copy of it, bit for bit);
+:func:`swarm_sim.engine.polygon_distances` is this kernel.
 
 Compiled on first use and cached beside this file (``cache=True``); :class:`swarm_sim.engine.
 SimEngine` calls :func:`warm_up` when it is built.
@@ -48,31 +49,26 @@ def _vertex_edge(a, b):
 
 
 @njit(cache=True, nogil=True)
-def min_pair_distance(feet, ii, jj):
-    """The least distance [m] between polygons ``feet[ii[p]]`` and ``feet[jj[p]]`` over the
-    pairs ``p`` (``inf`` without pairs).
+def pair_distances(a, b):
+    """Distances [m] between the convex polygons ``a[p]`` and ``b[p]`` of every pair ``p``.
 
     Args:
-        feet: (N, K, 2) convex polygons x, y [m] (the robots' footprints in ``map``).
-        ii: (P,) int64 first polygon of each pair.
-        jj: (P,) int64 second polygon of each pair.
+        a: (P, K, 2) polygons x, y [m] (the robots' footprints in ``map``), one winding.
+        b: (P, K, 2) the other polygon of each pair.
 
     Returns:
-        The distance [m]: the least vertex-to-edge distance either way, 0 for polygons that
-        overlap (a vertex of one strictly inside the other).
+        (P,) the least vertex-to-edge distance either way, 0 for polygons that overlap (a vertex
+        of one strictly inside the other).
     """
-    best = math.inf
-    for p in range(ii.shape[0]):
-        a = feet[ii[p]]
-        b = feet[jj[p]]
-        dab, ia = _vertex_edge(a, b)
-        dba, ib = _vertex_edge(b, a)
-        best = min(best, 0.0 if ia or ib else min(dab, dba))
-    return best
+    out = np.empty(a.shape[0])
+    for p in range(a.shape[0]):
+        dab, ia = _vertex_edge(a[p], b[p])
+        dba, ib = _vertex_edge(b[p], a[p])
+        out[p] = 0.0 if ia or ib else min(dab, dba)
+    return out
 
 
 def warm_up() -> None:
-    """Compile :func:`min_pair_distance`, or load it from numba's cache."""
-    square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
-    min_pair_distance(np.stack((square, square + 2.0)), np.array([0], dtype=np.int64),
-                      np.array([1], dtype=np.int64))
+    """Compile :func:`pair_distances`, or load it from numba's cache."""
+    square = np.array([[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]])
+    pair_distances(square, square + 2.0)
