@@ -16,6 +16,8 @@ The search is Dijkstra from the goal (``scipy.sparse.csgraph``), which returns t
 grid: a heapq A* in plain Python needs 75-110 ms for cross-map queries, because the detour around
 the blockage defeats the octile heuristic (~35k expansions), while csgraph's Dijkstra over all
 cells takes ~20-25 ms whatever the query, and its cost-to-go is reused by replans to the same goal.
+A replan around the robots seen (an overlay, searched once) runs the same search compiled and stops
+at the start (:func:`swarm_nav.planner_kernels.dijkstra`, scipy's result to the last bit).
 Reachability is decided before any search from the 4-connected components of the traversable
 cells (the connectivity of moves that cut no corner), so an unreachable goal (a closed pocket)
 fails in about a millisecond with ``"no path"``.
@@ -166,12 +168,10 @@ def cell_path(costmap: Costmap, start_rc: tuple[int, int], goal_rc: tuple[int, i
     cell's cost-to-go; the path follows the predecessors from the start.  The graph is built once
     per costmap and the cost-to-go once per goal cell, both shared by all the robots of a process
     that use the same map, so a replan to the same goal (the robot left its path) only walks the
-    predecessors.  On an overlay of a shareable costmap (a replan around robots seen) the search
-    first stops at ``OVERLAY_BOUND_RATIO`` times the base's cost from the start plus
-    ``OVERLAY_BOUND_SLACK``: the overlay only raises costs, so the base's cost bounds the
-    overlay's from below, and when the start lies within that bound the bounded search has
-    settled the optimal path exactly (Dijkstra settles cells in order of cost); only a longer
-    detour, or none, needs the search over the whole map.
+    predecessors.  On an overlay of a shareable costmap (a replan around robots seen, used once)
+    the same search, compiled (:func:`swarm_nav.planner_kernels.dijkstra`), stops once it has
+    settled the start: Dijkstra settles cells in order of cost, so the start's path is then final
+    and the same, to the last bit, as the whole-map search's.
 
     Args:
         costmap: the costmap.
@@ -186,7 +186,7 @@ def cell_path(costmap: Costmap, start_rc: tuple[int, int], goal_rc: tuple[int, i
     w = costmap.width
     s = int(start_rc[0]) * w + int(start_rc[1])
     t = int(goal_rc[0]) * w + int(goal_rc[1])
-    togo, nxt = _bounded_cost_to_go(costmap, s, t, cfg)
+    togo, nxt = _overlay_cost_to_go(costmap, s, t, cfg)
     if togo is None:
         togo, nxt = _cost_to_go(costmap, t, cfg)
     if not np.isfinite(togo[s]):
@@ -218,33 +218,28 @@ def _lru(cache: OrderedDict, key, make, size: int):
     return value
 
 
-OVERLAY_BOUND_RATIO = 1.25  # [-] first search bound of a replan around robots: ratio ...
-OVERLAY_BOUND_SLACK = 1.0  # [m] ... and slack over the static cost (a search-cost setting only)
-
-
-def _bounded_cost_to_go(costmap: Costmap, s: int, t: int, cfg: PlannerConfig
+def _overlay_cost_to_go(costmap: Costmap, s: int, t: int, cfg: PlannerConfig
                         ) -> tuple[np.ndarray, np.ndarray] | tuple[None, None]:
-    """An overlay's cost-to-go to ``t`` searched only up to a bound, if that reaches ``s``.
+    """An overlay's cost-to-go to ``t``, searched only until the start ``s`` is settled.
 
-    Returns ``(None, None)`` when the costmap is no overlay of a shareable one, the start is
-    unreachable on the base, or the optimal path costs more than the bound.
+    Returns ``(None, None)`` when the costmap is no overlay of a shareable one; the base's
+    cost-to-go when ``s`` cannot reach ``t`` on the base (nor, then, on the overlay, which only
+    raises costs).  Otherwise the distances and next cells are scipy's whole-map search's for
+    ``s`` and every cell on its path (:func:`swarm_nav.planner_kernels.dijkstra`), not for the
+    cells settled after ``s``: the result is cached per start.
     """
     base = costmap.base
     if costmap.shareable or base is None or not base.shareable:
         return None, None
-    static = float(_cost_to_go(base, t, cfg)[0][s])
-    if not math.isfinite(static):
-        return None, None
-    key = ("togo-bounded", s, t, cfg.cost_penalty, cfg.allow_unknown)
+    static = _cost_to_go(base, t, cfg)
+    if not math.isfinite(float(static[0][s])):
+        return static
+    key = ("togo-to", s, t, cfg.cost_penalty, cfg.allow_unknown)
     if key not in costmap._cache:
-        bound = OVERLAY_BOUND_RATIO * static + OVERLAY_BOUND_SLACK
         with _search_graph(costmap, cfg) as graph:
-            costmap._cache[key] = dijkstra(graph, directed=True, indices=t,
-                                           return_predecessors=True, limit=bound)
-    togo, nxt = costmap._cache[key]
-    if not np.isfinite(togo[s]):
-        return None, None
-    return togo, nxt
+            costmap._cache[key] = kernels.dijkstra(graph.data, graph.indices, graph.indptr, t,
+                                                   s, math.inf)
+    return costmap._cache[key]
 
 
 def _cost_to_go(costmap: Costmap, t: int, cfg: PlannerConfig) -> tuple[np.ndarray, np.ndarray]:

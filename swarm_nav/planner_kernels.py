@@ -131,3 +131,98 @@ def _better(costs, res, ox, oy, pts, cell_cost, cum, a, b, penalty, allow_unknow
     for i in range(a, b + 1):
         limit = max(limit, cell_cost[i])
     return worst <= limit and weighted <= cum[b] - cum[a] + 1e-9
+
+
+NO_PREDECESSOR = -9999  # scipy.sparse.csgraph's predecessor of the source and unreached cells
+
+
+@njit(cache=True, nogil=True)
+def _before(d1, v1, d2, v2):
+    """Whether heap entry ``(d1, v1)`` pops before ``(d2, v2)``: the smaller distance first,
+    between equal distances the larger vertex index (scipy's ``std::priority_queue`` of
+    ``(-distance, vertex)`` pairs pops its largest pair)."""
+    return d1 < d2 or (d1 == d2 and v1 > v2)
+
+
+@njit(cache=True, nogil=True)
+def dijkstra(data, indices, indptr, source, stop, limit):
+    """``scipy.sparse.csgraph.dijkstra(graph, indices=source, return_predecessors=True,
+    limit=limit)`` to the last bit, optionally stopped once vertex ``stop`` is settled.
+
+    scipy 1.17's search (``_dijkstra`` in ``_shortest_path.pyx``) pushes ``(-distance, vertex)``
+    pairs onto a C++ ``std::priority_queue`` whenever a relaxation lowers a distance, skips popped
+    pairs whose distance was lowered since, and relaxes ``next = distance + weight`` only when
+    ``next <= limit``.  No pair is pushed twice, so the pop order is the total order of the
+    pairs, whatever the heap's inner layout, and this search, popping in the same order from its
+    own binary heap and doing the same additions, gives every distance and predecessor scipy's
+    gives.  Stopped at ``stop``, every vertex settled before it (its path to the source among
+    them) has its final distance and predecessor already: the others are not final.
+
+    Args:
+        data: (E,) float64 the CSR graph's edge weights (>= 0; ``inf`` = no edge).
+        indices: (E,) int32 column of each edge.
+        indptr: (N + 1,) int32 row pointers.
+        source: the vertex searched from.
+        stop: the vertex to stop at once settled; -1 to settle everything within ``limit``.
+        limit: the largest distance searched [the graph's unit] (``inf``: no limit).
+
+    Returns:
+        ``(dist, pred)``: (N,) float64 distance from ``source`` (``inf`` unreached) and (N,)
+        int32 predecessor on the shortest path (:data:`NO_PREDECESSOR` for the source and the
+        unreached), as scipy returns them (final only for the settled vertices when stopped).
+    """
+    n = indptr.shape[0] - 1
+    dist = np.full(n, np.inf)
+    pred = np.full(n, NO_PREDECESSOR, dtype=np.int32)
+    cap = 4096
+    heap = np.empty((cap, 2))  # rows (distance, vertex); the vertex as a float (exact < 2**53)
+    dist[source] = 0.0
+    heap[0, 0], heap[0, 1] = 0.0, source
+    size = 1
+    while size > 0:
+        d, v = heap[0, 0], int(heap[0, 1])
+        # pop from the 4-ary heap: the hole goes down along the earliest child, the last
+        # entry back up
+        size -= 1
+        lk, li = heap[size, 0], heap[size, 1]
+        i = 0
+        c = 1
+        while c < size:
+            b = c
+            for k in range(c + 1, min(c + 4, size)):
+                if _before(heap[k, 0], heap[k, 1], heap[b, 0], heap[b, 1]):
+                    b = k
+            heap[i, 0], heap[i, 1] = heap[b, 0], heap[b, 1]
+            i = b
+            c = 4 * i + 1
+        while i > 0:
+            p = (i - 1) // 4
+            if not _before(lk, li, heap[p, 0], heap[p, 1]):
+                break
+            heap[i, 0], heap[i, 1] = heap[p, 0], heap[p, 1]
+            i = p
+        heap[i, 0], heap[i, 1] = lk, li
+        if dist[v] < d:
+            continue  # lowered since this pair was pushed
+        if v == stop:
+            break
+        for j in range(indptr[v], indptr[v + 1]):
+            u = indices[j]
+            nd = d + data[j]
+            if nd <= limit and dist[u] > nd:
+                dist[u] = nd
+                pred[u] = v
+                if size == cap:  # push: grow, then sift up from the end
+                    heap = np.concatenate((heap, np.empty((cap, 2))))
+                    cap *= 2
+                fu = float(u)
+                i = size
+                while i > 0:
+                    p = (i - 1) // 4
+                    if not _before(nd, fu, heap[p, 0], heap[p, 1]):
+                        break
+                    heap[i, 0], heap[i, 1] = heap[p, 0], heap[p, 1]
+                    i = p
+                heap[i, 0], heap[i, 1] = nd, fu
+                size += 1
+    return dist, pred

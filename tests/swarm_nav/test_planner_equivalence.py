@@ -5,17 +5,19 @@ The reference below is ``swarm_nav.planner.shortcut_path`` and ``swarm_nav.costm
 segment_profile`` before they were compiled (commit 005dbd3).  The new code must keep exactly the
 same points (``==``) on random cell paths over random costmaps (with unknown cells allowed and
 not, a start escaping the inscribed zone, exact starts and goals off the cell centres) and on
-cross-map plans of slim_blockage.
+cross-map plans of slim_blockage.  The compiled Dijkstra of a replan around robots must give
+scipy's distances and predecessors to the last bit.
 """
 
 import math
 
 import numpy as np
 import pytest
+from scipy.sparse.csgraph import dijkstra as scipy_dijkstra
 
-from swarm_nav import costmap_kernels
+from swarm_nav import costmap_kernels, planner, planner_kernels
 from swarm_nav.config import CostmapConfig, PlannerConfig
-from swarm_nav.costmap import INSCRIBED, UNKNOWN, build_costmap, segment_profile
+from swarm_nav.costmap import INSCRIBED, UNKNOWN, build_costmap, overlay_obstacles, segment_profile
 from swarm_nav.planner import cell_path, plan_path, shortcut_path
 from tests.swarm_nav.helpers import random_grid, slim_blockage_map
 
@@ -159,3 +161,99 @@ def test_cross_map_plans_on_slim_blockage_equal_the_numpy_shortcuts():
         pts = cm.cell_to_world(np.asarray(cells)).reshape(-1, 2)
         pts[0], pts[-1] = start, goal
         assert np.array_equal(shortcut_path(cm, pts, cfg), ref_shortcut_path(cm, pts, cfg))
+
+
+# The overlay replan's search (planner_kernels.dijkstra) against scipy.sparse.csgraph.dijkstra,
+# whose result it must give to the last bit: every distance and predecessor of a whole search,
+# with and without a limit, and the start's path and cost when it stops at the start.
+
+def _random_graphs(seed):
+    """A random costmap's search graph, and an overlay's (its forbidden moves infinite)."""
+    rng = np.random.default_rng(seed)
+    base = build_costmap(random_grid(rng, 40, 55, 0.1), CostmapConfig(
+        robot_radius=0.1, inflation_radius=0.35, cost_scaling_factor=3.0))
+    cfg = PlannerConfig(cost_penalty=float(rng.choice([0.0, 3.0])))
+    graph = planner._shared_graph(base, cfg)[0]
+    extent = np.array([base.width, base.height]) * base.resolution
+    overlay = overlay_obstacles(base, rng.uniform(0.0, 1.0, (4, 2)) * extent, CostmapConfig(
+        robot_radius=0.1, inflation_radius=0.35, cost_scaling_factor=3.0))
+    with planner._search_graph(overlay, cfg) as patched:
+        patched = patched.copy()
+    free = np.flatnonzero(base.costs.ravel() < INSCRIBED)
+    return rng, free, (graph, patched)
+
+
+def _walk(pred, s, t):
+    cells = [s]
+    while cells[-1] != t:
+        cells.append(int(pred[cells[-1]]))
+    return cells
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_compiled_dijkstra_equals_scipys_to_the_last_bit(seed):
+    rng, free, graphs = _random_graphs(seed)
+    for graph in graphs:
+        for limit in (np.inf, float(rng.uniform(0.5, 3.0))):
+            t = int(rng.choice(free))
+            want_d, want_p = scipy_dijkstra(graph, directed=True, indices=t,
+                                            return_predecessors=True, limit=limit)
+            got_d, got_p = planner_kernels.dijkstra(graph.data, graph.indices, graph.indptr, t,
+                                                    -1, limit)
+            np.testing.assert_array_equal(got_d, want_d)
+            np.testing.assert_array_equal(got_p, want_p)
+            assert got_p.dtype == want_p.dtype
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_compiled_dijkstra_stopped_at_the_start_has_its_whole_search_path(seed):
+    rng, free, graphs = _random_graphs(seed)
+    for graph in graphs:
+        t = int(rng.choice(free))
+        want_d, want_p = scipy_dijkstra(graph, directed=True, indices=t,
+                                        return_predecessors=True)
+        reached = free[np.isfinite(want_d[free])]
+        for s in rng.choice(reached, 20):
+            got_d, got_p = planner_kernels.dijkstra(graph.data, graph.indices, graph.indptr, t,
+                                                    int(s), np.inf)
+            assert got_d[s] == want_d[s]
+            assert _walk(got_p, int(s), t) == _walk(want_p, int(s), t)
+        unreached = free[~np.isfinite(want_d[free])]
+        if len(unreached):
+            got_d, _ = planner_kernels.dijkstra(graph.data, graph.indices, graph.indptr, t,
+                                                int(unreached[0]), np.inf)
+            assert got_d[unreached[0]] == np.inf
+
+
+def test_replans_around_robots_on_slim_blockage_keep_the_whole_map_search_paths():
+    """cell_path on overlays (robots standing on and beside cross-map paths) gives the path that
+    scipy's whole-map search from the goal gives (the definition the navigator was built on)."""
+    rng = np.random.default_rng(7)
+    cfg = PlannerConfig()
+    base = build_costmap(slim_blockage_map(), CostmapConfig())
+    free = np.argwhere(base.costs == 0)
+    checked = 0
+    while checked < 12:
+        s_rc, t_rc = (tuple(int(v) for v in free[i]) for i in rng.choice(len(free), 2))
+        cells, _ = cell_path(base, s_rc, t_rc, cfg)
+        if len(cells) < 40:
+            continue
+        on_path = base.cell_to_world(np.asarray(cells[10:-10:15]))
+        robots = on_path[rng.choice(len(on_path), min(3, len(on_path)), replace=False)]
+        points = (robots[:, None, :] + 0.15 * np.stack(
+            (np.cos(np.linspace(0, 6.2, 12)), np.sin(np.linspace(0, 6.2, 12))), -1)).reshape(-1, 2)
+        overlay = overlay_obstacles(base, points, CostmapConfig())
+        if overlay.costs[s_rc] >= INSCRIBED or overlay.costs[t_rc] >= INSCRIBED:
+            continue
+        w = base.width
+        s, t = s_rc[0] * w + s_rc[1], t_rc[0] * w + t_rc[1]
+        with planner._search_graph(overlay, cfg) as graph:
+            want_d, want_p = scipy_dijkstra(graph, directed=True, indices=t,
+                                            return_predecessors=True)
+        got_cells, got_cost = cell_path(overlay, s_rc, t_rc, cfg)
+        if np.isfinite(want_d[s]):
+            assert got_cost == want_d[s]
+            assert [r * w + c for r, c in got_cells] == _walk(want_p, s, t)
+        else:
+            assert got_cells == [] and got_cost == math.inf
+        checked += 1
