@@ -145,6 +145,19 @@ def _before(d1, v1, d2, v2):
 
 
 @njit(cache=True, nogil=True)
+def _sift_up(heap, i, d, v):
+    """Put entry ``(d, v)`` into the 4-ary heap's hole at row ``i``, moving it up past every
+    parent it pops before."""
+    while i > 0:
+        p = (i - 1) // 4
+        if not _before(d, v, heap[p, 0], heap[p, 1]):
+            break
+        heap[i, 0], heap[i, 1] = heap[p, 0], heap[p, 1]
+        i = p
+    heap[i, 0], heap[i, 1] = d, v
+
+
+@njit(cache=True, nogil=True)
 def dijkstra(data, indices, indptr, source, stop, limit):
     """``scipy.sparse.csgraph.dijkstra(graph, indices=source, return_predecessors=True,
     limit=limit)`` to the last bit, optionally stopped once vertex ``stop`` is settled.
@@ -154,7 +167,7 @@ def dijkstra(data, indices, indptr, source, stop, limit):
     pairs whose distance was lowered since, and relaxes ``next = distance + weight`` only when
     ``next <= limit``.  No pair is pushed twice, so the pop order is the total order of the
     pairs, whatever the heap's inner layout, and this search, popping in the same order from its
-    own binary heap and doing the same additions, gives every distance and predecessor scipy's
+    own 4-ary heap and doing the same additions, gives every distance and predecessor scipy's
     gives.  Stopped at ``stop``, every vertex settled before it (its path to the source among
     them) has its final distance and predecessor already: the others are not final.
 
@@ -184,7 +197,6 @@ def dijkstra(data, indices, indptr, source, stop, limit):
         # pop from the 4-ary heap: the hole goes down along the earliest child, the last
         # entry back up
         size -= 1
-        lk, li = heap[size, 0], heap[size, 1]
         i = 0
         c = 1
         while c < size:
@@ -195,13 +207,7 @@ def dijkstra(data, indices, indptr, source, stop, limit):
             heap[i, 0], heap[i, 1] = heap[b, 0], heap[b, 1]
             i = b
             c = 4 * i + 1
-        while i > 0:
-            p = (i - 1) // 4
-            if not _before(lk, li, heap[p, 0], heap[p, 1]):
-                break
-            heap[i, 0], heap[i, 1] = heap[p, 0], heap[p, 1]
-            i = p
-        heap[i, 0], heap[i, 1] = lk, li
+        _sift_up(heap, i, heap[size, 0], heap[size, 1])
         if dist[v] < d:
             continue  # lowered since this pair was pushed
         if v == stop:
@@ -215,14 +221,6 @@ def dijkstra(data, indices, indptr, source, stop, limit):
                 if size == cap:  # push: grow, then sift up from the end
                     heap = np.concatenate((heap, np.empty((cap, 2))))
                     cap *= 2
-                fu = float(u)
-                i = size
-                while i > 0:
-                    p = (i - 1) // 4
-                    if not _before(nd, fu, heap[p, 0], heap[p, 1]):
-                        break
-                    heap[i, 0], heap[i, 1] = heap[p, 0], heap[p, 1]
-                    i = p
-                heap[i, 0], heap[i, 1] = nd, fu
+                _sift_up(heap, size, nd, float(u))
                 size += 1
     return dist, pred
