@@ -71,8 +71,7 @@
     const now = performance.now();
     S.recv.push(now);
     while (S.recv.length && now - S.recv[0] > 5000) S.recv.shift();
-    showKpis(msg.kpi);
-    draw();
+    schedule();
   }
 
   function onRobot(msg) {
@@ -81,7 +80,21 @@
       status: msg.status, message: msg.message,
       scan: msg.scan !== null ? msg.scan : prev.scan,
     };
-    showStatus();
+    schedule();
+  }
+
+  // A frame and the robot messages sent with it are shown in one animation frame: the page is
+  // laid out, painted and composited once per server frame instead of once per message.
+  let scheduled = false;
+  function schedule() {
+    if (scheduled) return;
+    scheduled = true;
+    requestAnimationFrame(() => {
+      scheduled = false;
+      if (S.frame) showKpis(S.frame.kpi);
+      showStatus();
+      draw();
+    });
   }
 
   function fps() {
@@ -90,16 +103,23 @@
     return (r.length - 1) / ((r[r.length - 1] - r[0]) / 1000);
   }
 
+  // Text is written only when it changed: a write re-lays out and repaints the page. Measured
+  // with headless Chromium (software raster), 100 robots, 6 frames a second: rewriting the KPIs
+  // every frame cost about 3 % of a core and rebuilding the status table 5 %.
+  function setText(el, text) {
+    if (el.textContent !== text) el.textContent = text;
+  }
+
   function showKpis(k) {
     const fmt = (v, d) => (v === null || v === undefined) ? "-" : (d === undefined ? String(v) : v.toFixed(d));
-    $("kpi-sim_time_s").textContent = fmt(k.sim_time_s, 1);
-    $("kpi-rtf").textContent = fmt(k.rtf, 2);
-    $("kpi-tasks").textContent = fmt(k.tasks);
-    $("kpi-throughput_per_hour").textContent = fmt(k.throughput_per_hour, 1);
-    $("kpi-goals_aborted").textContent = fmt(k.goals_aborted);
-    $("kpi-collisions").textContent = fmt(k.collisions);
-    $("kpi-late_ticks").textContent = fmt(k.late_ticks);
-    $("kpi-fps").textContent = fps().toFixed(1);
+    setText($("kpi-sim_time_s"), fmt(k.sim_time_s, 1));
+    setText($("kpi-rtf"), fmt(k.rtf, 2));
+    setText($("kpi-tasks"), fmt(k.tasks));
+    setText($("kpi-throughput_per_hour"), fmt(k.throughput_per_hour, 1));
+    setText($("kpi-goals_aborted"), fmt(k.goals_aborted));
+    setText($("kpi-collisions"), fmt(k.collisions));
+    setText($("kpi-late_ticks"), fmt(k.late_ticks));
+    setText($("kpi-fps"), fps().toFixed(1));
   }
 
   // ------------------------------------------------------------------ selection
@@ -120,22 +140,27 @@
     return S.hello && S.selected ? S.hello.robots.indexOf(S.selected) : -1;
   }
 
+  // The rows are kept and their cells rewritten only where a value changed.
   function showStatus() {
     const i = selectedIndex();
     const table = $("status");
-    table.textContent = "";
-    if (i < 0) return;
+    if (i < 0) {
+      if (table.rows.length) table.textContent = "";
+      return;
+    }
     const r = S.robot[i];
     const pose = S.frame && S.frame.robots[i];
     const rows = [];
     if (pose) rows.push(["pose", `${pose[0].toFixed(2)}, ${pose[1].toFixed(2)}, ${(pose[2] * 180 / Math.PI).toFixed(0)}°`]);
     if (r && r.status) for (const [k, v] of Object.entries(r.status)) rows.push([k, v]);
     else rows.push(["nav_status", r ? "none yet" : "waiting"]);
-    for (const [k, v] of rows) {
-      const tr = table.insertRow();
-      tr.insertCell().textContent = k;
-      tr.insertCell().textContent = v;
-    }
+    while (table.rows.length > rows.length) table.deleteRow(-1);
+    rows.forEach(([k, v], n) => {
+      const tr = n < table.rows.length ? table.rows[n] : table.insertRow();
+      if (!tr.cells.length) { tr.insertCell(); tr.insertCell(); }
+      setText(tr.cells[0], k);
+      setText(tr.cells[1], String(v));
+    });
   }
 
   // ------------------------------------------------------------------ geometry
@@ -277,38 +302,76 @@
     ctx.globalAlpha = 1;
   }
 
-  function drawRobot(ctx, T, name, r, holding, highlight, labels) {
-    const [x, y, yaw, state] = r;
-    const c = Math.cos(yaw), s = Math.sin(yaw);
-    const color = STATE_COLOR[state] || "#999";
-    ctx.beginPath();
+  function footprintPath(ctx, T, x, y, c, s) {
     S.hello.footprint.forEach(([fx, fy], k) => {
       const u = T.px(x + c * fx - s * fy), v = T.py(y + s * fx + c * fy);
       if (k === 0) ctx.moveTo(u, v); else ctx.lineTo(u, v);
     });
     ctx.closePath();
-    ctx.fillStyle = color;
-    ctx.fill();
-    ctx.strokeStyle = highlight ? "#fff" : "#111";
-    ctx.lineWidth = highlight ? 2 : 1;
-    ctx.stroke();
+  }
+
+  // Every robot: footprint filled in its state's colour and outlined, heading, a ring when it
+  // holds, its name when `labels`: one fill per colour and one stroke per kind of line (about
+  // 8 draw calls a frame instead of 300 at 100 robots); robots off the canvas are skipped. The
+  // selected robot `sel` gets a white outline, stroked after the others.
+  function drawRobots(ctx, T, f, sel, labels) {
+    const names = S.hello.robots;
+    const holding = new Set(f.holding);
+    const byColor = {};
+    const outline = new Path2D(), heading = new Path2D(), rings = new Path2D();
+    const ring = Math.max(0.35 * T.scale, 7);
+    const margin = 0.5 * T.scale + 20;  // [px] a robot this far outside the canvas is not drawn
+    const w = ctx.canvas.width + margin, h = ctx.canvas.height + margin;
+    let drawn = 0;
+    f.robots.forEach((r, i) => {
+      if (!r) return;
+      drawn += 1;
+      const [x, y, yaw, state] = r;
+      const u = T.px(x), v = T.py(y);
+      if (u < -margin || v < -margin || u > w || v > h) return;
+      const c = Math.cos(yaw), s = Math.sin(yaw);
+      const color = STATE_COLOR[state] || "#999";
+      const fill = byColor[color] || (byColor[color] = new Path2D());
+      footprintPath(fill, T, x, y, c, s);
+      if (i !== sel) footprintPath(outline, T, x, y, c, s);
+      heading.moveTo(T.px(x), T.py(y));
+      heading.lineTo(T.px(x + 0.3 * c), T.py(y + 0.3 * s));
+      if (holding.has(i)) {
+        rings.moveTo(T.px(x) + ring, T.py(y));
+        rings.arc(T.px(x), T.py(y), ring, 0, 2 * Math.PI);
+      }
+    });
+    for (const [color, path] of Object.entries(byColor)) {
+      ctx.fillStyle = color;
+      ctx.fill(path);
+    }
+    ctx.strokeStyle = "#111";
+    ctx.lineWidth = 1;
+    ctx.stroke(outline);
+    const r = sel >= 0 ? f.robots[sel] : null;
+    if (r) {
+      const selected = new Path2D();
+      footprintPath(selected, T, r[0], r[1], Math.cos(r[2]), Math.sin(r[2]));
+      ctx.strokeStyle = "#fff";
+      ctx.lineWidth = 2;
+      ctx.stroke(selected);
+    }
     ctx.strokeStyle = "#fff";
     ctx.lineWidth = Math.max(1, 0.03 * T.scale);
-    ctx.beginPath();
-    ctx.moveTo(T.px(x), T.py(y));
-    ctx.lineTo(T.px(x + 0.3 * c), T.py(y + 0.3 * s));
-    ctx.stroke();
-    if (holding) {
-      ctx.strokeStyle = "#ff8c00";
-      ctx.lineWidth = 2;
-      ctx.beginPath();
-      ctx.arc(T.px(x), T.py(y), Math.max(0.35 * T.scale, 7), 0, 2 * Math.PI);
-      ctx.stroke();
-    }
+    ctx.stroke(heading);
+    ctx.strokeStyle = "#ff8c00";
+    ctx.lineWidth = 2;
+    ctx.stroke(rings);
     if (labels) {
       ctx.font = `${Math.max(9, Math.min(13, 0.22 * T.scale))}px sans-serif`;
-      label(ctx, name, T.px(x) + 0.25 * T.scale + 2, T.py(y) + 4);
+      f.robots.forEach((r, i) => {
+        if (!r) return;
+        const u = T.px(r[0]), v = T.py(r[1]);
+        if (u < -margin || v < -margin || u > w || v > h) return;
+        label(ctx, names[i], u + 0.25 * T.scale + 2, v + 4);
+      });
     }
+    return drawn;
   }
 
   // The scan in map: the outline of what the lidar sees (a beam without a return reaches
@@ -343,8 +406,10 @@
     ctx.closePath();
     ctx.fill();
     ctx.stroke();
+    const dots = new Path2D();
+    for (const [x, y] of hits) dots.rect(T.px(x) - 1.5, T.py(y) - 1.5, 3, 3);
     ctx.fillStyle = "#ff3030";
-    for (const [x, y] of hits) ctx.fillRect(T.px(x) - 1.5, T.py(y) - 1.5, 3, 3);
+    ctx.fill(dots);
   }
 
   function drawGoal(ctx, T, status) {
@@ -365,21 +430,13 @@
     drawBackground(canvas, ctx, T);
     const f = S.frame;
     if (!f) return 0;
-    const names = S.hello.robots;
     const sel = selectedIndex();
-    const holding = new Set(f.holding);
     if (opts.allPaths) drawPaths(ctx, T, f, sel);
     if (sel >= 0) drawPath(ctx, T, S.paths[sel], "#7fffd4", 2);
     const rs = sel >= 0 ? S.robot[sel] : null;
     if (rs && rs.scan) drawScan(ctx, T, rs.scan);
     if (rs && rs.status) drawGoal(ctx, T, rs.status);
-    let drawn = 0;
-    f.robots.forEach((r, i) => {
-      if (!r) return;
-      drawRobot(ctx, T, names[i], r, holding.has(i), i === sel, opts.labels);
-      drawn += 1;
-    });
-    return drawn;
+    return drawRobots(ctx, T, f, sel, opts.labels);
   }
 
   function draw() {
@@ -391,7 +448,7 @@
       // dearest thing to draw).
       const n = S.hello.robots.length;
       S.drawn = drawScene(mapCanvas, T, { allPaths: true, labels: T.scale > (n <= 40 ? 18 : 60) });
-      $("kpi-robots").textContent = S.frame ? `${S.drawn}/${S.hello.robots.length}` : "-";
+      setText($("kpi-robots"), S.frame ? `${S.drawn}/${S.hello.robots.length}` : "-");
     }
     const i = selectedIndex();
     if (i >= 0 && S.frame && S.frame.robots[i]) {
@@ -400,7 +457,7 @@
       const drawn = drawScene(robotCanvas, T, { allPaths: false, labels: true });
       if (ROBOT_PAGE) {
         S.drawn = drawn;
-        $("kpi-robots").textContent = `${drawn}/${S.hello.robots.length}`;
+        setText($("kpi-robots"), `${drawn}/${S.hello.robots.length}`);
       }
     }
   }
