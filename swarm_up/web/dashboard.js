@@ -323,22 +323,24 @@
     const margin = 0.5 * T.scale + 20;  // [px] a robot this far outside the canvas is not drawn
     const w = ctx.canvas.width + margin, h = ctx.canvas.height + margin;
     let drawn = 0;
+    const shown = [];  // [index, u, v] of the robots on the canvas
     f.robots.forEach((r, i) => {
       if (!r) return;
       drawn += 1;
       const [x, y, yaw, state] = r;
       const u = T.px(x), v = T.py(y);
       if (u < -margin || v < -margin || u > w || v > h) return;
+      shown.push([i, u, v]);
       const c = Math.cos(yaw), s = Math.sin(yaw);
       const color = STATE_COLOR[state] || "#999";
       const fill = byColor[color] || (byColor[color] = new Path2D());
       footprintPath(fill, T, x, y, c, s);
       if (i !== sel) footprintPath(outline, T, x, y, c, s);
-      heading.moveTo(T.px(x), T.py(y));
+      heading.moveTo(u, v);
       heading.lineTo(T.px(x + 0.3 * c), T.py(y + 0.3 * s));
       if (holding.has(i)) {
-        rings.moveTo(T.px(x) + ring, T.py(y));
-        rings.arc(T.px(x), T.py(y), ring, 0, 2 * Math.PI);
+        rings.moveTo(u + ring, v);
+        rings.arc(u, v, ring, 0, 2 * Math.PI);
       }
     });
     for (const [color, path] of Object.entries(byColor)) {
@@ -364,12 +366,7 @@
     ctx.stroke(rings);
     if (labels) {
       ctx.font = `${Math.max(9, Math.min(13, 0.22 * T.scale))}px sans-serif`;
-      f.robots.forEach((r, i) => {
-        if (!r) return;
-        const u = T.px(r[0]), v = T.py(r[1]);
-        if (u < -margin || v < -margin || u > w || v > h) return;
-        label(ctx, names[i], u + 0.25 * T.scale + 2, v + 4);
-      });
+      for (const [i, u, v] of shown) label(ctx, names[i], u + 0.25 * T.scale + 2, v + 4);
     }
     return drawn;
   }
