@@ -187,11 +187,18 @@ def dijkstra(data, indices, indptr, source, stop, limit):
     n = indptr.shape[0] - 1
     dist = np.full(n, np.inf)
     pred = np.full(n, NO_PREDECESSOR, dtype=np.int32)
-    cap = 4096
-    heap = np.empty((cap, 2))  # rows (distance, vertex); the vertex as a float (exact < 2**53)
+    heap = np.empty((4096, 2))  # rows (distance, vertex); the vertex as a float (exact < 2**53)
     dist[source] = 0.0
     heap[0, 0], heap[0, 1] = 0.0, source
-    size = 1
+    _settle(data, indices, indptr, dist, pred, heap, 1, np.ones(n, dtype=np.bool_), stop, limit)
+    return dist, pred
+
+
+@njit(cache=True, nogil=True)
+def _settle(data, indices, indptr, dist, pred, heap, size, open_, stop, limit):
+    """Dijkstra's loop of :func:`dijkstra` from a heap of ``size`` pushed entries, relaxing only
+    into the vertices where ``open_`` is True; stops once ``stop`` is settled (-1: never)."""
+    cap = heap.shape[0]
     while size > 0:
         d, v = heap[0, 0], int(heap[0, 1])
         # pop from the 4-ary heap: the hole goes down along the earliest child, the last
@@ -215,7 +222,7 @@ def dijkstra(data, indices, indptr, source, stop, limit):
         for j in range(indptr[v], indptr[v + 1]):
             u = indices[j]
             nd = d + data[j]
-            if nd <= limit and dist[u] > nd:
+            if open_[u] and nd <= limit and dist[u] > nd:
                 dist[u] = nd
                 pred[u] = v
                 if size == cap:  # push: grow, then sift up from the end
@@ -223,4 +230,85 @@ def dijkstra(data, indices, indptr, source, stop, limit):
                     cap *= 2
                 _sift_up(heap, size, nd, float(u))
                 size += 1
+
+
+@njit(cache=True, nogil=True)
+def repair_dijkstra(data, base_data, indices, indptr, base_dist, base_pred, changed, source,
+                    stop):
+    """:func:`dijkstra` from ``source`` on a graph whose weights only rose from a base graph's,
+    stopped once ``stop`` is settled, re-searching only what the rise can change.
+
+    A vertex whose base shortest-path tree branch (its predecessors up to the source) uses no
+    edge whose weight rose keeps its distance and predecessor: no path got cheaper (IEEE addition
+    is monotonic), its own path costs what it did, and every rival that tied with it pops no
+    earlier than before.  The others (the subtrees below the risen edges: the *affected*
+    vertices) are searched again by Dijkstra's loop, seeded with the unaffected vertices next to
+    them at their final distances and relaxing only into affected vertices: the pops that can
+    change an affected vertex come in the whole search's order, so each affected vertex settled
+    before ``stop`` gets the whole search's distance and predecessor to the last bit
+    (``tests/swarm_nav/test_planner_equivalence.py`` holds it against :func:`dijkstra` and
+    scipy).  The graph's pattern must be symmetric (``v`` in row ``u`` iff ``u`` in row ``v``),
+    as an 8-connected grid's is.
+
+    Args:
+        data: (E,) float64 the graph's weights (the base's pattern, some weights risen; ``inf``
+            = no edge).
+        base_data: (E,) float64 the base graph's weights.
+        indices: (E,) int32 column of each edge (shared by both graphs).
+        indptr: (N + 1,) int32 row pointers (shared).
+        base_dist: (N,) float64 the base graph's whole search from ``source`` (scipy's).
+        base_pred: (N,) int32 its predecessors.
+        changed: (K,) int edge indices whose weight may differ from the base's (others do not).
+        source: the vertex searched from.
+        stop: the vertex to stop at once settled.
+
+    Returns:
+        ``(dist, pred)`` as :func:`dijkstra` stopped at ``stop`` gives them for ``stop`` and the
+        vertices on its path (``base_dist`` and ``base_pred`` themselves when ``stop`` is not
+        affected; do not modify them).
+    """
+    n = indptr.shape[0] - 1
+    affected = np.zeros(n, dtype=np.bool_)
+    queue = np.empty(n, dtype=np.int32)
+    count = 0
+    for k in changed:
+        if data[k] == base_data[k]:
+            continue
+        if data[k] < base_data[k]:  # not a rise: the premise fails, search it all
+            return dijkstra(data, indices, indptr, source, stop, np.inf)
+        v = indices[k]
+        if not affected[v] and base_pred[v] == np.searchsorted(indptr, k, side="right") - 1:
+            affected[v] = True  # its tree edge rose: the root of an affected subtree
+            queue[count] = v
+            count += 1
+    head = 0
+    while head < count:  # down the base tree: v's children are the u of row v it precedes
+        v = queue[head]
+        head += 1
+        for j in range(indptr[v], indptr[v + 1]):
+            u = indices[j]
+            if not affected[u] and base_pred[u] == v:
+                affected[u] = True
+                queue[count] = u
+                count += 1
+    if not affected[stop]:
+        return base_dist, base_pred
+    dist = base_dist.copy()
+    pred = base_pred.copy()
+    for i in range(count):
+        dist[queue[i]] = np.inf
+        pred[queue[i]] = NO_PREDECESSOR
+    seeded = np.zeros(n, dtype=np.bool_)
+    heap = np.empty((max(4096, 2 * count), 2))
+    size = 0
+    for i in range(count):  # the unaffected neighbours, at their final distances
+        for j in range(indptr[queue[i]], indptr[queue[i] + 1]):
+            u = indices[j]
+            if not affected[u] and not seeded[u] and dist[u] < np.inf:
+                seeded[u] = True
+                if size == heap.shape[0]:
+                    heap = np.concatenate((heap, np.empty((size, 2))))
+                _sift_up(heap, size, dist[u], float(u))
+                size += 1
+    _settle(data, indices, indptr, dist, pred, heap, size, affected, stop, np.inf)
     return dist, pred

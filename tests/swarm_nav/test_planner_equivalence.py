@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra as scipy_dijkstra
 
 from swarm_nav import costmap_kernels, planner, planner_kernels
@@ -223,6 +224,55 @@ def test_compiled_dijkstra_stopped_at_the_start_has_its_whole_search_path(seed):
             got_d, _ = planner_kernels.dijkstra(graph.data, graph.indices, graph.indptr, t,
                                                 int(unreached[0]), np.inf)
             assert got_d[unreached[0]] == np.inf
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_repaired_search_gives_the_whole_search_path_of_every_start(seed):
+    """repair_dijkstra (the base's search, re-searched where the overlay's rises change it) gives
+    every start the distance and path of scipy's whole search on the overlay, to the last bit."""
+    rng, free, (graph, patched) = _random_graphs(seed)
+    changed = np.flatnonzero(patched.data != graph.data)
+    assert len(changed), "the overlay must raise some weights"
+    repaired = 0
+    for t in rng.choice(free, 4):
+        t = int(t)
+        base_d, base_p = scipy_dijkstra(graph, directed=True, indices=t,
+                                        return_predecessors=True)
+        want_d, want_p = scipy_dijkstra(patched, directed=True, indices=t,
+                                        return_predecessors=True)
+        for s in free[np.isfinite(base_d[free])]:
+            s = int(s)
+            got_d, got_p = planner_kernels.repair_dijkstra(
+                patched.data, graph.data, patched.indices, patched.indptr, base_d, base_p,
+                changed, t, s)
+            assert got_d[s] == want_d[s]
+            if np.isfinite(want_d[s]):
+                assert _walk(got_p, s, t) == _walk(want_p, s, t)
+            repaired += got_d is not base_d
+    assert repaired > 10  # starts below a risen edge: the repair itself is tested
+
+
+def test_repaired_search_takes_every_edge_index_and_a_fall_searches_it_all():
+    """Edge indices that did not change are skipped; a weight that fell (no overlay does that)
+    makes the repair search the whole graph rather than give a wrong answer."""
+    rng, free, (graph, patched) = _random_graphs(3)
+    t, s = (int(v) for v in rng.choice(free, 2))
+    base_d, base_p = scipy_dijkstra(graph, directed=True, indices=t, return_predecessors=True)
+    want_d, want_p = scipy_dijkstra(patched, directed=True, indices=t, return_predecessors=True)
+    every = np.arange(len(graph.data))
+    got_d, got_p = planner_kernels.repair_dijkstra(patched.data, graph.data, patched.indices,
+                                                   patched.indptr, base_d, base_p, every, t, s)
+    assert got_d[s] == want_d[s]
+    fell = graph.data.copy()
+    k = int(np.flatnonzero(np.isfinite(fell))[0])
+    fell[k] *= 0.5
+    lower = csr_matrix((fell, graph.indices, graph.indptr), shape=graph.shape)
+    want_d, want_p = scipy_dijkstra(lower, directed=True, indices=t, return_predecessors=True)
+    got_d, got_p = planner_kernels.repair_dijkstra(fell, graph.data, graph.indices,
+                                                   graph.indptr, base_d, base_p, every, t, s)
+    assert got_d[s] == want_d[s]
+    if np.isfinite(want_d[s]):
+        assert _walk(got_p, s, t) == _walk(want_p, s, t)
 
 
 def test_replans_around_robots_on_slim_blockage_keep_the_whole_map_search_paths():
