@@ -158,6 +158,36 @@ def _sift_up(heap, i, d, v):
 
 
 @njit(cache=True, nogil=True)
+def _pop(heap, size):
+    """Take the first entry ``(d, v)`` off the 4-ary heap of ``size`` entries (the caller then
+    has ``size - 1``): the hole goes down along the earliest child, the last entry back up."""
+    d, v = heap[0, 0], heap[0, 1]
+    size -= 1
+    i = 0
+    c = 1
+    while c < size:
+        b = c
+        for k in range(c + 1, min(c + 4, size)):
+            if _before(heap[k, 0], heap[k, 1], heap[b, 0], heap[b, 1]):
+                b = k
+        heap[i, 0], heap[i, 1] = heap[b, 0], heap[b, 1]
+        i = b
+        c = 4 * i + 1
+    _sift_up(heap, i, heap[size, 0], heap[size, 1])
+    return d, int(v)
+
+
+@njit(cache=True, nogil=True)
+def _push(heap, size, d, v):
+    """Put ``(d, v)`` on the heap of ``size`` entries (the caller then has ``size + 1``); returns
+    the heap, grown when it was full."""
+    if size == heap.shape[0]:
+        heap = np.concatenate((heap, np.empty((size, 2))))
+    _sift_up(heap, size, d, float(v))
+    return heap
+
+
+@njit(cache=True, nogil=True)
 def dijkstra(data, indices, indptr, source, stop, limit):
     """``scipy.sparse.csgraph.dijkstra(graph, indices=source, return_predecessors=True,
     limit=limit)`` to the last bit, optionally stopped once vertex ``stop`` is settled.
@@ -190,31 +220,10 @@ def dijkstra(data, indices, indptr, source, stop, limit):
     heap = np.empty((4096, 2))  # rows (distance, vertex); the vertex as a float (exact < 2**53)
     dist[source] = 0.0
     heap[0, 0], heap[0, 1] = 0.0, source
-    _settle(data, indices, indptr, dist, pred, heap, 1, np.ones(n, dtype=np.bool_), stop, limit)
-    return dist, pred
-
-
-@njit(cache=True, nogil=True)
-def _settle(data, indices, indptr, dist, pred, heap, size, open_, stop, limit):
-    """Dijkstra's loop of :func:`dijkstra` from a heap of ``size`` pushed entries, relaxing only
-    into the vertices where ``open_`` is True; stops once ``stop`` is settled (-1: never)."""
-    cap = heap.shape[0]
+    size = 1
     while size > 0:
-        d, v = heap[0, 0], int(heap[0, 1])
-        # pop from the 4-ary heap: the hole goes down along the earliest child, the last
-        # entry back up
+        d, v = _pop(heap, size)
         size -= 1
-        i = 0
-        c = 1
-        while c < size:
-            b = c
-            for k in range(c + 1, min(c + 4, size)):
-                if _before(heap[k, 0], heap[k, 1], heap[b, 0], heap[b, 1]):
-                    b = k
-            heap[i, 0], heap[i, 1] = heap[b, 0], heap[b, 1]
-            i = b
-            c = 4 * i + 1
-        _sift_up(heap, i, heap[size, 0], heap[size, 1])
         if dist[v] < d:
             continue  # lowered since this pair was pushed
         if v == stop:
@@ -222,33 +231,40 @@ def _settle(data, indices, indptr, dist, pred, heap, size, open_, stop, limit):
         for j in range(indptr[v], indptr[v + 1]):
             u = indices[j]
             nd = d + data[j]
-            if open_[u] and nd <= limit and dist[u] > nd:
+            if nd <= limit and dist[u] > nd:
                 dist[u] = nd
                 pred[u] = v
-                if size == cap:  # push: grow, then sift up from the end
-                    heap = np.concatenate((heap, np.empty((cap, 2))))
-                    cap *= 2
-                _sift_up(heap, size, nd, float(u))
+                heap = _push(heap, size, nd, u)
                 size += 1
+    return dist, pred
 
 
 @njit(cache=True, nogil=True)
-def repair_dijkstra(data, base_data, indices, indptr, base_dist, base_pred, changed, source,
-                    stop):
-    """:func:`dijkstra` from ``source`` on a graph whose weights only rose from a base graph's,
-    stopped once ``stop`` is settled, re-searching only what the rise can change.
+def _rose(data, base_data, indices, indptr, v, p):
+    """Whether the move entry ``(p, v)`` (row ``p``, column ``v``) weighs more than the base's."""
+    for j in range(indptr[p], indptr[p + 1]):
+        if indices[j] == v:
+            return data[j] > base_data[j]
+    return False
 
-    A vertex whose base shortest-path tree branch (its predecessors up to the source) uses no
-    edge whose weight rose keeps its distance and predecessor: no path got cheaper (IEEE addition
-    is monotonic), its own path costs what it did, and every rival that tied with it pops no
-    earlier than before.  The others (the subtrees below the risen edges: the *affected*
-    vertices) are searched again by Dijkstra's loop, seeded with the unaffected vertices next to
-    them at their final distances and relaxing only into affected vertices: the pops that can
-    change an affected vertex come in the whole search's order, so each affected vertex settled
-    before ``stop`` gets the whole search's distance and predecessor to the last bit
-    (``tests/swarm_nav/test_planner_equivalence.py`` holds it against :func:`dijkstra` and
-    scipy).  The graph's pattern must be symmetric (``v`` in row ``u`` iff ``u`` in row ``v``),
-    as an 8-connected grid's is.
+
+@njit(cache=True, nogil=True)
+def repair_dijkstra(data, base_data, indices, indptr, base_dist, base_pred, changed, rows,
+                    source, stop):
+    """:func:`dijkstra` from ``source`` on a graph whose weights only rose from a base graph's,
+    stopped once ``stop`` is settled, searching again only what the rise can change.
+
+    A vertex whose branch of the base's shortest-path tree (its predecessors up to the source)
+    uses no risen edge keeps its distance and predecessor: no path got cheaper (IEEE addition is
+    monotonic), its own costs what it did, and every rival that tied with it still pops no
+    earlier.  The others, the subtrees below the risen tree edges (the *affected* vertices), are
+    searched again by Dijkstra's loop, which relaxes only into affected vertices and is fed the
+    unaffected vertices next to them at their final distances, in pop order (sorted once, not
+    pushed): every pop that can change an affected vertex comes in the whole search's order, so
+    each affected vertex settled before ``stop`` gets the whole search's distance and predecessor
+    to the last bit (``tests/swarm_nav/test_planner_equivalence.py`` holds it against scipy).
+    The graph's pattern must be symmetric (``v`` in row ``u`` iff ``u`` in row ``v``), as an
+    8-connected grid's is.
 
     Args:
         data: (E,) float64 the graph's weights (the base's pattern, some weights risen; ``inf``
@@ -259,25 +275,33 @@ def repair_dijkstra(data, base_data, indices, indptr, base_dist, base_pred, chan
         base_dist: (N,) float64 the base graph's whole search from ``source`` (scipy's).
         base_pred: (N,) int32 its predecessors.
         changed: (K,) int edge indices whose weight may differ from the base's (others do not).
+        rows: (K,) int the row of each of them.
         source: the vertex searched from.
         stop: the vertex to stop at once settled.
 
     Returns:
         ``(dist, pred)`` as :func:`dijkstra` stopped at ``stop`` gives them for ``stop`` and the
-        vertices on its path (``base_dist`` and ``base_pred`` themselves when ``stop`` is not
-        affected; do not modify them).
+        vertices on its path (``base_dist`` and ``base_pred`` themselves when ``stop``'s branch
+        did not rise; do not modify them).
     """
     n = indptr.shape[0] - 1
+    for k in changed:
+        if data[k] < base_data[k]:  # not a rise: the premise fails, search it all
+            return dijkstra(data, indices, indptr, source, stop, np.inf)
+    v = stop
+    rose = False
+    while base_pred[v] >= 0 and not rose:  # does stop's own branch use a risen edge?
+        rose = _rose(data, base_data, indices, indptr, v, base_pred[v])
+        v = base_pred[v]
+    if not rose:
+        return base_dist, base_pred
     affected = np.zeros(n, dtype=np.bool_)
     queue = np.empty(n, dtype=np.int32)
     count = 0
-    for k in changed:
-        if data[k] == base_data[k]:
-            continue
-        if data[k] < base_data[k]:  # not a rise: the premise fails, search it all
-            return dijkstra(data, indices, indptr, source, stop, np.inf)
+    for i in range(changed.shape[0]):
+        k = changed[i]
         v = indices[k]
-        if not affected[v] and base_pred[v] == np.searchsorted(indptr, k, side="right") - 1:
+        if data[k] > base_data[k] and not affected[v] and base_pred[v] == rows[i]:
             affected[v] = True  # its tree edge rose: the root of an affected subtree
             queue[count] = v
             count += 1
@@ -291,24 +315,48 @@ def repair_dijkstra(data, base_data, indices, indptr, base_dist, base_pred, chan
                 affected[u] = True
                 queue[count] = u
                 count += 1
-    if not affected[stop]:
-        return base_dist, base_pred
     dist = base_dist.copy()
     pred = base_pred.copy()
+    fed = np.zeros(n, dtype=np.bool_)
+    feed = np.empty(count, dtype=np.int64)  # the unaffected neighbours, at final distances
+    n_feed = 0
     for i in range(count):
-        dist[queue[i]] = np.inf
-        pred[queue[i]] = NO_PREDECESSOR
-    seeded = np.zeros(n, dtype=np.bool_)
-    heap = np.empty((max(4096, 2 * count), 2))
+        x = queue[i]
+        dist[x] = np.inf
+        pred[x] = NO_PREDECESSOR
+        for j in range(indptr[x], indptr[x + 1]):
+            y = indices[j]
+            if not affected[y] and not fed[y] and base_dist[y] < np.inf:
+                fed[y] = True
+                if n_feed == feed.shape[0]:
+                    feed = np.concatenate((feed, np.empty(n_feed, dtype=np.int64)))
+                feed[n_feed] = y
+                n_feed += 1
+    feed = feed[:n_feed][::-1]
+    feed = feed[np.argsort(-feed)]  # the larger vertex first between equal distances ...
+    feed = feed[np.argsort(base_dist[feed], kind="mergesort")]  # ... the smaller distance first
+    heap = np.empty((4096, 2))
     size = 0
-    for i in range(count):  # the unaffected neighbours, at their final distances
-        for j in range(indptr[queue[i]], indptr[queue[i] + 1]):
+    f = 0
+    while size > 0 or f < n_feed:
+        if f < n_feed and (size == 0 or _before(base_dist[feed[f]], feed[f], heap[0, 0],
+                                                   heap[0, 1])):
+            v = feed[f]
+            d = base_dist[v]
+            f += 1
+        else:
+            d, v = _pop(heap, size)
+            size -= 1
+            if dist[v] < d:
+                continue  # lowered since this pair was pushed
+            if v == stop:
+                break
+        for j in range(indptr[v], indptr[v + 1]):
             u = indices[j]
-            if not affected[u] and not seeded[u] and dist[u] < np.inf:
-                seeded[u] = True
-                if size == heap.shape[0]:
-                    heap = np.concatenate((heap, np.empty((size, 2))))
-                _sift_up(heap, size, dist[u], float(u))
+            nd = d + data[j]
+            if affected[u] and dist[u] > nd:
+                dist[u] = nd
+                pred[u] = v
+                heap = _push(heap, size, nd, u)
                 size += 1
-    _settle(data, indices, indptr, dist, pred, heap, size, affected, stop, np.inf)
     return dist, pred

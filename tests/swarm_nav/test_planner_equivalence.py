@@ -233,6 +233,7 @@ def test_repaired_search_gives_the_whole_search_path_of_every_start(seed):
     rng, free, (graph, patched) = _random_graphs(seed)
     changed = np.flatnonzero(patched.data != graph.data)
     assert len(changed), "the overlay must raise some weights"
+    rows = np.searchsorted(graph.indptr, changed, "right") - 1
     repaired = 0
     for t in rng.choice(free, 4):
         t = int(t)
@@ -244,7 +245,7 @@ def test_repaired_search_gives_the_whole_search_path_of_every_start(seed):
             s = int(s)
             got_d, got_p = planner_kernels.repair_dijkstra(
                 patched.data, graph.data, patched.indices, patched.indptr, base_d, base_p,
-                changed, t, s)
+                changed, rows, t, s)
             assert got_d[s] == want_d[s]
             if np.isfinite(want_d[s]):
                 assert _walk(got_p, s, t) == _walk(want_p, s, t)
@@ -260,16 +261,18 @@ def test_repaired_search_takes_every_edge_index_and_a_fall_searches_it_all():
     base_d, base_p = scipy_dijkstra(graph, directed=True, indices=t, return_predecessors=True)
     want_d, want_p = scipy_dijkstra(patched, directed=True, indices=t, return_predecessors=True)
     every = np.arange(len(graph.data))
-    got_d, got_p = planner_kernels.repair_dijkstra(patched.data, graph.data, patched.indices,
-                                                   patched.indptr, base_d, base_p, every, t, s)
+    rows = np.searchsorted(graph.indptr, every, "right") - 1
+    got_d, got_p = planner_kernels.repair_dijkstra(
+        patched.data, graph.data, patched.indices, patched.indptr, base_d, base_p, every, rows,
+        t, s)
     assert got_d[s] == want_d[s]
     fell = graph.data.copy()
     k = int(np.flatnonzero(np.isfinite(fell))[0])
     fell[k] *= 0.5
     lower = csr_matrix((fell, graph.indices, graph.indptr), shape=graph.shape)
     want_d, want_p = scipy_dijkstra(lower, directed=True, indices=t, return_predecessors=True)
-    got_d, got_p = planner_kernels.repair_dijkstra(fell, graph.data, graph.indices,
-                                                   graph.indptr, base_d, base_p, every, t, s)
+    got_d, got_p = planner_kernels.repair_dijkstra(
+        fell, graph.data, graph.indices, graph.indptr, base_d, base_p, every, rows, t, s)
     assert got_d[s] == want_d[s]
     if np.isfinite(want_d[s]):
         assert _walk(got_p, s, t) == _walk(want_p, s, t)
