@@ -44,6 +44,7 @@ from swarm_nav.costmap import INSCRIBED, LETHAL, UNKNOWN, Costmap
 
 _UNKNOWN_AS = kernels.UNKNOWN_AS
 _MOVES = ((0, 1), (0, -1), (1, 0), (-1, 0), (1, 1), (1, -1), (-1, 1), (-1, -1))
+_MOVE_ARRAY = np.array(_MOVES, dtype=np.int64)
 
 
 @dataclass(frozen=True)
@@ -371,13 +372,8 @@ def _patch(costmap: Costmap, cfg: PlannerConfig) -> tuple[np.ndarray, np.ndarray
     rs, cs = max(pr0, 0), max(pc0, 0)
     re, ce = min(r1 + 1, h), min(c1 + 1, w)
     pad[rs - pr0:re - pr0, cs - pc0:ce - pc0] = _multipliers(costmap.costs[rs:re, cs:ce], cfg)
-    cost = _edge_costs(pad, costmap.resolution).reshape(-1)
-    rows = (np.arange(r0, r1)[:, None] * w + np.arange(c0, c1)[None, :]).ravel()
-    at = slots[rows].ravel()
-    have = at >= 0
-    at, cost, rows = at[have], cost[have], np.repeat(rows, 8)[have]
-    risen = cost != base.data[at]
-    return at[risen], cost[risen], rows[risen]
+    steps = np.array([math.hypot(dr, dc) * costmap.resolution for dr, dc in _MOVES])
+    return kernels.patch_moves(pad, steps, _MOVE_ARRAY, r0, r1, c0, c1, w, slots, base.data)
 
 
 def shortcut_path(costmap: Costmap, pts: np.ndarray, cfg: PlannerConfig,

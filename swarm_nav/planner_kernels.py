@@ -360,3 +360,54 @@ def repair_dijkstra(data, base_data, indices, indptr, base_dist, base_pred, chan
                 heap = _push(heap, size, nd, u)
                 size += 1
     return dist, pred
+
+
+@njit(cache=True, nogil=True)
+def patch_moves(pad, steps, moves, r0, r1, c0, c1, width, slots, base_data):
+    """The moves of an overlay's window whose cost differs from the base graph's (the loop of
+    :func:`swarm_nav.planner._patch`, compiled; the costs :func:`swarm_nav.planner._edge_costs`
+    gives, by the same IEEE operations).
+
+    Args:
+        pad: (r1 - r0 + 2, c1 - c0 + 2) float64 the overlay's step multipliers over rows
+            ``r0 - 1 .. r1`` and columns ``c0 - 1 .. c1`` (0 = impassable, and outside the map).
+        steps: (8,) float64 each move's length [m] (``hypot(dr, dc) * resolution``).
+        moves: (8, 2) int64 each move's ``(dr, dc)`` from the neighbour into the cell.
+        r0: first row of the window (cells moved into).
+        r1: one past its last row.
+        c0: first column.
+        c1: one past its last column.
+        width: the map's width [cells].
+        slots: (H * W, 8) int32 the base graph's data index of each (cell, move), -1 if none.
+        base_data: (E,) float64 the base graph's weights.
+
+    Returns:
+        ``(at, cost, rows)``: (K,) int32 data indices, (K,) float64 their new costs [m] (``inf``
+        for a move the overlay forbids) and (K,) int64 their rows (the cells moved into).
+    """
+    n = (r1 - r0) * (c1 - c0) * 8
+    at = np.empty(n, dtype=np.int32)
+    cost = np.empty(n)
+    rows = np.empty(n, dtype=np.int64)
+    count = 0
+    for r in range(r0, r1):
+        i = r - r0 + 1
+        for c in range(c0, c1):
+            j = c - c0 + 1
+            cell = r * width + c
+            here = pad[i, j] > 0.0
+            for k in range(8):
+                slot = slots[cell, k]
+                if slot < 0:
+                    continue
+                dr, dc = moves[k, 0], moves[k, 1]
+                ok = here and pad[i + dr, j + dc] > 0.0
+                if ok and dr != 0 and dc != 0:
+                    ok = pad[i + dr, j] > 0.0 and pad[i, j + dc] > 0.0
+                value = steps[k] * pad[i, j] if ok else np.inf
+                if value != base_data[slot]:
+                    at[count] = slot
+                    cost[count] = value
+                    rows[count] = cell
+                    count += 1
+    return at[:count], cost[:count], rows[:count]

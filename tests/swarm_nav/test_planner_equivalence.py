@@ -278,6 +278,52 @@ def test_repaired_search_takes_every_edge_index_and_a_fall_searches_it_all():
         assert _walk(got_p, s, t) == _walk(want_p, s, t)
 
 
+def ref_patch(costmap, cfg):
+    """planner._patch as numpy code (the compiled loop's definition): the changed window's
+    moves as _edge_costs gives them, those whose cost differs from the base graph's."""
+    base, slots, _ = planner._shared_graph(costmap.base, cfg)
+    h, w = costmap.height, costmap.width
+    r0, r1, c0, c1 = costmap.changed
+    r0, r1, c0, c1 = max(r0 - 1, 0), min(r1 + 1, h), max(c0 - 1, 0), min(c1 + 1, w)
+    pad = np.zeros((r1 - r0 + 2, c1 - c0 + 2))
+    pr0, pc0 = r0 - 1, c0 - 1
+    rs, cs = max(pr0, 0), max(pc0, 0)
+    re, ce = min(r1 + 1, h), min(c1 + 1, w)
+    pad[rs - pr0:re - pr0, cs - pc0:ce - pc0] = planner._multipliers(
+        costmap.costs[rs:re, cs:ce], cfg)
+    cost = planner._edge_costs(pad, costmap.resolution).reshape(-1)
+    rows = (np.arange(r0, r1)[:, None] * w + np.arange(c0, c1)[None, :]).ravel()
+    at = slots[rows].ravel()
+    have = at >= 0
+    at, cost, rows = at[have], cost[have], np.repeat(rows, 8)[have]
+    risen = cost != base.data[at]
+    return at[risen], cost[risen], rows[risen]
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_compiled_patch_equals_the_numpy_one(seed):
+    """The overlay's changed moves (planner_kernels.patch_moves) are the numpy code's, to the
+    last bit, windows at the map's edge and unknown cells included."""
+    rng = np.random.default_rng(300 + seed)
+    cm_cfg = CostmapConfig(robot_radius=0.1, inflation_radius=0.35, cost_scaling_factor=3.0)
+    base = build_costmap(random_grid(rng, 30, 44, 0.1), cm_cfg)
+    cfg = PlannerConfig(cost_penalty=float(rng.choice([0.0, 3.0])),
+                        allow_unknown=bool(seed % 2))
+    extent = np.array([base.width, base.height]) * base.resolution
+    moves = 0
+    for _ in range(5):
+        overlay = overlay_obstacles(base, rng.uniform(-0.1, 1.1, (rng.integers(1, 6), 2))
+                                    * extent, cm_cfg)
+        if overlay.changed is None:
+            continue
+        got = planner._patch(overlay, cfg)
+        want = ref_patch(overlay, cfg)
+        for g, w in zip(got, want):
+            np.testing.assert_array_equal(g, w)
+        moves += len(want[0])
+    assert moves > 0
+
+
 def test_replans_around_robots_on_slim_blockage_keep_the_whole_map_search_paths():
     """cell_path on overlays (robots standing on and beside cross-map paths) gives the path that
     scipy's whole-map search from the goal gives (the definition the navigator was built on)."""
