@@ -207,6 +207,10 @@ def cell_path(costmap: Costmap, start_rc: tuple[int, int], goal_rc: tuple[int, i
 _GRAPHS: OrderedDict = OrderedDict()
 _TOGO: OrderedDict = OrderedDict()
 _GRAPHS_MAX = 2
+# A replan's repair searches again the cells of static cost-to-go up to 1.5 x the start's + 2 m
+# (and all of them when the start's new cost lies beyond): 798 replans recorded at 100 robots
+# cost 15 m median around the robots against 12 m on the static map.
+_REPAIR_BOUND = (1.5, 2.0)
 _TOGO_MAX = 16
 
 
@@ -251,7 +255,8 @@ def _overlay_cost_to_go(costmap: Costmap, s: int, t: int, cfg: PlannerConfig
             else:
                 costmap._cache[key] = kernels.repair_dijkstra(
                     graph.data, _shared_graph(base, cfg)[0].data, graph.indices, graph.indptr,
-                    static[0], static[1], patch[0], patch[2], t, s)
+                    static[0], static[1], patch[0], patch[2], t, s,
+                    _REPAIR_BOUND[0] * float(static[0][s]) + _REPAIR_BOUND[1])
     return costmap._cache[key]
 
 

@@ -250,7 +250,7 @@ def _rose(data, base_data, indices, indptr, v, p):
 
 @njit(cache=True, nogil=True)
 def repair_dijkstra(data, base_data, indices, indptr, base_dist, base_pred, changed, rows,
-                    source, stop):
+                    source, stop, bound=np.inf):
     """:func:`dijkstra` from ``source`` on a graph whose weights only rose from a base graph's,
     stopped once ``stop`` is settled, searching again only what the rise can change.
 
@@ -278,23 +278,40 @@ def repair_dijkstra(data, base_data, indices, indptr, base_dist, base_pred, chan
         rows: (K,) int the row of each of them.
         source: the vertex searched from.
         stop: the vertex to stop at once settled.
+        bound: search again only the affected vertices of base distance up to ``bound`` (none
+            beyond can lie on ``stop``'s path when ``stop``'s new distance is within it, as
+            distances only rose); when ``stop`` is not settled within it, all of them.
 
     Returns:
         ``(dist, pred)`` as :func:`dijkstra` stopped at ``stop`` gives them for ``stop`` and the
         vertices on its path (``base_dist`` and ``base_pred`` themselves when ``stop``'s branch
         did not rise; do not modify them).
     """
+    dist, pred, done = _repair(data, base_data, indices, indptr, base_dist, base_pred, changed,
+                               rows, source, stop, bound)
+    if not done:  # the start lies beyond the bound: search again without one
+        dist, pred, _ = _repair(data, base_data, indices, indptr, base_dist, base_pred, changed,
+                                rows, source, stop, np.inf)
+    return dist, pred
+
+
+@njit(cache=True, nogil=True)
+def _repair(data, base_data, indices, indptr, base_dist, base_pred, changed, rows, source, stop,
+            bound):
+    """:func:`repair_dijkstra` searching again only the affected vertices of base distance up
+    to ``bound``; also whether that settled ``stop`` (always, without a bound)."""
     n = indptr.shape[0] - 1
     for k in changed:
         if data[k] < base_data[k]:  # not a rise: the premise fails, search it all
-            return dijkstra(data, indices, indptr, source, stop, np.inf)
+            dist, pred = dijkstra(data, indices, indptr, source, stop, np.inf)
+            return dist, pred, True
     v = stop
     rose = False
     while base_pred[v] >= 0 and not rose:  # does stop's own branch use a risen edge?
         rose = _rose(data, base_data, indices, indptr, v, base_pred[v])
         v = base_pred[v]
     if not rose:
-        return base_dist, base_pred
+        return base_dist, base_pred, True
     affected = np.zeros(n, dtype=np.bool_)
     queue = np.empty(n, dtype=np.int32)
     count = 0
@@ -311,14 +328,14 @@ def repair_dijkstra(data, base_data, indices, indptr, base_dist, base_pred, chan
         head += 1
         for j in range(indptr[v], indptr[v + 1]):
             u = indices[j]
-            if not affected[u] and base_pred[u] == v:
+            if not affected[u] and base_pred[u] == v and base_dist[u] <= bound:
                 affected[u] = True
                 queue[count] = u
                 count += 1
     dist = base_dist.copy()
     pred = base_pred.copy()
     fed = np.zeros(n, dtype=np.bool_)
-    feed = np.empty(count, dtype=np.int64)  # the unaffected neighbours, at final distances
+    feed = np.empty(max(count, 64), dtype=np.int64)  # the unaffected neighbours, at final distances
     n_feed = 0
     for i in range(count):
         x = queue[i]
@@ -329,7 +346,7 @@ def repair_dijkstra(data, base_data, indices, indptr, base_dist, base_pred, chan
             if not affected[y] and not fed[y] and base_dist[y] < np.inf:
                 fed[y] = True
                 if n_feed == feed.shape[0]:
-                    feed = np.concatenate((feed, np.empty(n_feed, dtype=np.int64)))
+                    feed = np.concatenate((feed, np.empty(n_feed, dtype=np.int64)))  # > 0
                 feed[n_feed] = y
                 n_feed += 1
     feed = feed[:n_feed][::-1]
@@ -338,6 +355,7 @@ def repair_dijkstra(data, base_data, indices, indptr, base_dist, base_pred, chan
     heap = np.empty((4096, 2))
     size = 0
     f = 0
+    settled = False
     while size > 0 or f < n_feed:
         if f < n_feed and (size == 0 or _before(base_dist[feed[f]], feed[f], heap[0, 0],
                                                    heap[0, 1])):
@@ -349,8 +367,11 @@ def repair_dijkstra(data, base_data, indices, indptr, base_dist, base_pred, chan
             size -= 1
             if dist[v] < d:
                 continue  # lowered since this pair was pushed
-            if v == stop:
-                break
+        if d > bound:
+            break  # past the bound: what follows may rest on vertices not searched again
+        if v == stop:
+            settled = True
+            break
         for j in range(indptr[v], indptr[v + 1]):
             u = indices[j]
             nd = d + data[j]
@@ -359,7 +380,7 @@ def repair_dijkstra(data, base_data, indices, indptr, base_dist, base_pred, chan
                 pred[u] = v
                 heap = _push(heap, size, nd, u)
                 size += 1
-    return dist, pred
+    return dist, pred, settled or bound == np.inf
 
 
 @njit(cache=True, nogil=True)

@@ -226,10 +226,12 @@ def test_compiled_dijkstra_stopped_at_the_start_has_its_whole_search_path(seed):
             assert got_d[unreached[0]] == np.inf
 
 
+@pytest.mark.parametrize("bound", [None, 1.0, 1.2, 2.0])
 @pytest.mark.parametrize("seed", range(8))
-def test_repaired_search_gives_the_whole_search_path_of_every_start(seed):
+def test_repaired_search_gives_the_whole_search_path_of_every_start(seed, bound):
     """repair_dijkstra (the base's search, re-searched where the overlay's rises change it) gives
-    every start the distance and path of scipy's whole search on the overlay, to the last bit."""
+    every start the distance and path of scipy's whole search on the overlay, to the last bit,
+    without a bound and with bounds the start's new cost often exceeds (searched again)."""
     rng, free, (graph, patched) = _random_graphs(seed)
     changed = np.flatnonzero(patched.data != graph.data)
     assert len(changed), "the overlay must raise some weights"
@@ -245,7 +247,7 @@ def test_repaired_search_gives_the_whole_search_path_of_every_start(seed):
             s = int(s)
             got_d, got_p = planner_kernels.repair_dijkstra(
                 patched.data, graph.data, patched.indices, patched.indptr, base_d, base_p,
-                changed, rows, t, s)
+                changed, rows, t, s, np.inf if bound is None else bound * base_d[s])
             assert got_d[s] == want_d[s]
             if np.isfinite(want_d[s]):
                 assert _walk(got_p, s, t) == _walk(want_p, s, t)
