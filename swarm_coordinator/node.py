@@ -73,6 +73,10 @@ STATE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
 EVENTS_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 SYNC_POLL_S = 0.05  # [s] wall
 METRICS_MATCH_GRACE_S = 2.0  # [s] wall: discovery matches a reader well within this
+# [s] wall: the writer matches a reader before that reader has matched the writer; a volatile
+# reader takes what a writer sent before it knew the writer as history and drops it (seen once
+# in CI: a restarted coordinator's "up" event lost). Discovery completes both sides within this.
+METRICS_SETTLE_S = 0.5
 
 
 class CoordinatorNode(Node):
@@ -98,6 +102,7 @@ class CoordinatorNode(Node):
         self._syncing = True
         self._sync_deadline: float | None = None
         self._metrics_seen: float | None = None  # time.monotonic() the metrics' reader appeared
+        self._matched_since: float | None = None  # time.monotonic() every reader was matched
         self._batch_timer = None
         self._warned = 0.0
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
@@ -168,14 +173,21 @@ class CoordinatorNode(Node):
         the metrics node is looked for by name, and every reader the graph knows must be matched;
         a reader that never matches (incompatible QoS, e.g. a transient-local ``ros2 topic
         echo``) is given up on :data:`METRICS_MATCH_GRACE_S` after the metrics' reader appeared.
+        The writer's side of a match comes first; the readers' side is given
+        :data:`METRICS_SETTLE_S` more.
         """
         readers = self.get_subscriptions_info_by_topic(EVENTS_TOPIC)
         if not any(r.node_name == METRICS_NODE for r in readers):
             return False
+        now = time.monotonic()
         if self._metrics_seen is None:
-            self._metrics_seen = time.monotonic()
-        return (self._events_pub.get_subscription_count() >= len(readers)
-                or time.monotonic() - self._metrics_seen >= METRICS_MATCH_GRACE_S)
+            self._metrics_seen = now
+        if self._events_pub.get_subscription_count() < len(readers):
+            self._matched_since = None
+            return now - self._metrics_seen >= METRICS_MATCH_GRACE_S
+        if self._matched_since is None:
+            self._matched_since = now
+        return now - self._matched_since >= METRICS_SETTLE_S
 
     def _on_batch_timer(self) -> None:
         if self._batch_timer is not None:

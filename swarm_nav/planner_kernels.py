@@ -335,7 +335,7 @@ def _repair(data, base_data, indices, indptr, base_dist, base_pred, changed, row
     dist = base_dist.copy()
     pred = base_pred.copy()
     fed = np.zeros(n, dtype=np.bool_)
-    feed = np.empty(max(count, 64), dtype=np.int64)  # the unaffected neighbours, at final distances
+    feed = np.empty(max(count, 64), dtype=np.int64)  # unaffected neighbours, at final distances
     n_feed = 0
     for i in range(count):
         x = queue[i]

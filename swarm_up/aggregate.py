@@ -152,7 +152,7 @@ class RunRecorder:
     spawn_events: int = 0
     period_s: float = 0.1  # [s] the control tick (late goals)
     reservation_events: list[dict[str, str]] = field(default_factory=list)
-    coordinator_starts: int = 0
+    coordinator_epochs: set[str] = field(default_factory=set)  # one per coordinator start
     comm_by_topic: dict[str, list[int]] = field(default_factory=dict)  # topic -> [msgs, bytes]
     map_bytes: int | None = None  # serialized size of the latest /map
     comm_resent: int = 0  # byte-identical copies of requests and assignments (re-sends)
@@ -263,7 +263,18 @@ class RunRecorder:
                 rec.tasks.append((t / NS_PER_S, (t - start) / NS_PER_S,
                                   values.get("workstation", "")))
         elif kind == EVENT_COORDINATOR:
-            self.coordinator_starts += 1
+            self.on_coordinator_up(values.get("epoch", ""))
+
+    def on_coordinator_up(self, epoch: str) -> None:
+        """A coordinator started with this epoch: heard as its "up" event on ``/swarm/events``
+        or as its latched ``state`` message (transient local, so a late reader still gets it);
+        each epoch counts once."""
+        self.coordinator_epochs.add(epoch)
+
+    @property
+    def coordinator_starts(self) -> int:
+        """How many coordinators started (distinct epochs heard)."""
+        return len(self.coordinator_epochs)
 
     def on_comm(self, topic: str, robot: str, nbytes: int, key: str | None = None) -> None:
         """One message between a robot and a central node (see *communication load*).

@@ -38,7 +38,9 @@ from swarm_common.coordination import (
     METRICS_NODE,
     REQUEST_TOPIC,
     STATE_TOPIC,
+    ContractError,
     assignment_topic,
+    decode_state,
 )
 from swarm_up.aggregate import RunRecorder
 
@@ -118,9 +120,8 @@ class MetricsNode(Node):
                                      COMM_QOS, raw=True)
             for ns in recorder.robots
         ]
-        self._subs.append(self.create_subscription(
-            String, STATE_TOPIC, lambda raw: self._on_comm("state", "", raw), LATCHED_QOS,
-            raw=True))
+        self._subs.append(self.create_subscription(String, STATE_TOPIC, self._on_state,
+                                                   LATCHED_QOS, raw=True))
         self._subs.append(self.create_subscription(OccupancyGrid, "/map", self._on_map,
                                                    LATCHED_QOS, raw=True))
 
@@ -151,6 +152,15 @@ class MetricsNode(Node):
         key = cdr_string(raw) if topic == "assignment" else None
         with self._lock:
             self._recorder.on_comm(topic, robot, len(raw), key=key)
+
+    def _on_state(self, raw: bytes) -> None:
+        self._on_comm("state", "", raw)
+        try:
+            epoch = decode_state(cdr_string(raw))
+        except ContractError:
+            return  # counted as communication; the coordinator's "up" event counts the start
+        with self._lock:
+            self._recorder.on_coordinator_up(epoch)
 
     def _on_map(self, raw: bytes) -> None:
         with self._lock:

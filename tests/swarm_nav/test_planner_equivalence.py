@@ -320,7 +320,8 @@ def test_compiled_patch_equals_the_numpy_one(seed):
             continue
         got = planner._patch(overlay, cfg)
         want = ref_patch(overlay, cfg)
-        for g, w in zip(got, want):
+        assert len(got) == len(want) == 3
+        for g, w in zip(got, want, strict=True):
             np.testing.assert_array_equal(g, w)
         moves += len(want[0])
     assert moves > 0

@@ -301,3 +301,17 @@ def test_centralized_tasks_waiting_conflicts_and_communication_load():
     assert c["per_robot"]["r2"]["bytes"] == 220 + 60 + 2000
     assert m["comm_bytes_per_s"] == pytest.approx(3540 / 200.0)
     assert m["per_robot"]["r1"]["tasks"] == 1 and m["per_robot"]["r2"]["comm_messages"] == 4
+
+
+def test_coordinator_starts_count_each_epoch_once_from_either_source():
+    """A start is heard as the "up" event or the latched state message (the event can be lost
+    to a reader that matched the writer late); an epoch heard both ways counts once."""
+    rec = RunRecorder(("r1",))
+    rec.on_event("coordinator", {"state": "up", "t": "0.000000000", "epoch": "a"})
+    rec.on_coordinator_up("a")
+    assert rec.coordinator_starts == 1
+    rec.on_coordinator_up("b")  # a restart whose "up" event went unheard
+    assert rec.coordinator_starts == 2
+    m = aggregate(rec, SimSummary(), world="w", seed=0, coordination="centralized",
+                  wall_time_s=1.0, map_deliveries={})
+    assert m["coordinator_starts"] == 2
