@@ -320,6 +320,11 @@ def _run(argv: list[str]) -> int:
         code = runner.finished.result() if runner.finished.done() else EXIT_OK
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except Exception:
+        if rclpy.ok():
+            raise
+        # Ctrl-C shut the context down while a callback was publishing (rcl: "publisher's
+        # context is invalid"): a Ctrl-C like any other
     finally:
         if runner is not None:
             runner.stop()
