@@ -73,9 +73,9 @@ STATE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
 EVENTS_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 SYNC_POLL_S = 0.05  # [s] wall
 METRICS_MATCH_GRACE_S = 2.0  # [s] wall: discovery matches a reader well within this
-# [s] wall: the writer matches a reader before that reader has matched the writer; a volatile
-# reader takes what a writer sent before it knew the writer as history and drops it (seen once
-# in CI: a restarted coordinator's "up" event lost). Discovery completes both sides within this.
+# [s] wall: the writer may match a reader before that reader has matched the writer, and a
+# volatile reader drops what a writer sent before it knew the writer (the likely cause of a
+# restarted coordinator's "up" event lost once in CI). Discovery completes both sides within this.
 METRICS_SETTLE_S = 0.5
 
 
