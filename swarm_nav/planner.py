@@ -234,10 +234,11 @@ def _overlay_cost_to_go(costmap: Costmap, s: int, t: int, cfg: PlannerConfig
     raises costs).  Otherwise the distances and next cells are scipy's whole-map search's for
     ``s`` and every cell on its path, not for the cells settled after ``s``: the result is cached
     per start.  The base's search is repaired below the moves the overlay's patch made dearer
-    (:func:`swarm_nav.planner_kernels.repair_dijkstra`: 5.7 ms median against 13.0 ms for the
-    search from the goal stopped at the start, over 798 replans recorded in a 100-robot run on
-    slim_blockage, every one the same path); an overlay without a patch is searched whole
-    (:func:`swarm_nav.planner_kernels.dijkstra`, stopped at the start).
+    (:func:`swarm_nav.planner_kernels.repair_dijkstra`, bounded by :data:`_REPAIR_BOUND`: 4.7 ms
+    median against 12.3-13.4 ms for the search from the goal stopped at the start, over 798
+    replans recorded in a 100-robot run on slim_blockage, every one the same path); an overlay
+    without a patch is searched whole (:func:`swarm_nav.planner_kernels.dijkstra`, stopped at
+    the start).
     """
     base = costmap.base
     if costmap.shareable or base is None or not base.shareable:
@@ -248,7 +249,7 @@ def _overlay_cost_to_go(costmap: Costmap, s: int, t: int, cfg: PlannerConfig
     key = ("togo-to", s, t, cfg.cost_penalty, cfg.allow_unknown)
     if key not in costmap._cache:
         with _search_graph(costmap, cfg) as graph:
-            patch = costmap._cache.get(("patch", cfg.cost_penalty, cfg.allow_unknown))
+            patch = costmap._cache.get(_patch_key(cfg))
             if patch is None:  # no patched copy of the base's graph: search it all
                 costmap._cache[key] = kernels.dijkstra(graph.data, graph.indices, graph.indptr,
                                                        t, s, math.inf)
@@ -301,7 +302,7 @@ def _search_graph(costmap: Costmap, cfg: PlannerConfig) -> Iterator[csr_matrix]:
         yield costmap._cache[key]
         return
     base, _, scratch = _shared_graph(costmap.base, cfg)
-    key = ("patch", cfg.cost_penalty, cfg.allow_unknown)
+    key = _patch_key(cfg)
     if key not in costmap._cache:
         costmap._cache[key] = _patch(costmap, cfg)
     at, cost, _ = costmap._cache[key]
@@ -310,6 +311,11 @@ def _search_graph(costmap: Costmap, cfg: PlannerConfig) -> Iterator[csr_matrix]:
         yield scratch
     finally:
         scratch.data[at] = base.data[at]
+
+
+def _patch_key(cfg: PlannerConfig) -> tuple:
+    """The key of an overlay's patch (:func:`_patch`) in its ``_cache``."""
+    return ("patch", cfg.cost_penalty, cfg.allow_unknown)
 
 
 def _shared_graph(costmap: Costmap, cfg: PlannerConfig

@@ -349,7 +349,7 @@ def _repair(data, base_data, indices, indptr, base_dist, base_pred, changed, row
                     feed = np.concatenate((feed, np.empty(n_feed, dtype=np.int64)))  # > 0
                 feed[n_feed] = y
                 n_feed += 1
-    feed = feed[:n_feed][::-1]
+    feed = feed[:n_feed]
     feed = feed[np.argsort(-feed)]  # the larger vertex first between equal distances ...
     feed = feed[np.argsort(base_dist[feed], kind="mergesort")]  # ... the smaller distance first
     heap = np.empty((4096, 2))
