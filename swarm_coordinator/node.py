@@ -70,12 +70,15 @@ ASSIGNMENT_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
 STATE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
-EVENTS_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+# Transient local, as the simulator's writer of /swarm/events: the metrics' reader is transient
+# local (it matches no volatile writer) and gets from the history what it missed while matching.
+EVENTS_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
+                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
 SYNC_POLL_S = 0.05  # [s] wall
 METRICS_MATCH_GRACE_S = 2.0  # [s] wall: discovery matches a reader well within this
-# [s] wall: the writer may match a reader before that reader has matched the writer, and a
-# volatile reader drops what a writer sent before it knew the writer (the likely cause of a
-# restarted coordinator's "up" event lost once in CI). Discovery completes both sides within this.
+# [s] wall: the writer may match a reader before that reader has matched the writer; a volatile
+# reader drops what a writer sent before it knew the writer (a restarted coordinator's "up" event
+# lost once in CI, when the metrics' reader was volatile). Discovery completes both sides in this.
 METRICS_SETTLE_S = 0.5
 
 
@@ -167,12 +170,14 @@ class CoordinatorNode(Node):
         """Whether the metrics' reader of ``/swarm/events`` is discovered and matched.
 
         The first batch carries the "up" event and the reservations rebuilt after a restart;
-        ``/swarm/events`` is volatile, so what goes out before discovery has matched the metrics'
-        reader is lost to it (and its conflict check would see releases of unknown reservations).
-        Other readers (the fault nodes of the group processes, a recorder) may match first, so
-        the metrics node is looked for by name, and every reader the graph knows must be matched;
-        a reader that never matches (incompatible QoS, e.g. a transient-local ``ros2 topic
-        echo``) is given up on :data:`METRICS_MATCH_GRACE_S` after the metrics' reader appeared.
+        the metrics' reader is transient local and gets from the writer's history (depth 100)
+        what went out before it matched, but a reader that never matches loses it (and its
+        conflict check would see releases of unknown reservations). Other readers (the fault
+        nodes of the group processes, a recorder) may match first, so the metrics node is looked
+        for by name, and every reader the graph knows must be matched; a reader that never
+        matches (incompatible QoS, e.g. a ``ros2 topic echo`` asking for deadline or liveliness
+        this writer does not offer) is given up on :data:`METRICS_MATCH_GRACE_S` after the
+        metrics' reader appeared.
         The writer's side of a match comes first; the readers' side is given
         :data:`METRICS_SETTLE_S` more.
         """

@@ -219,9 +219,12 @@ class SimulatorNode(Node):
                 TwistStamped, f"/{ns}/cmd_vel", lambda buf, i=i: self._on_cmd_vel(i, buf),
                 reliable, raw=True)  # read with swarm_common.cdr: no message objects
         if self.faults is not None:
+            # transient local (as swarm-up's writers): an acknowledgement sent before this
+            # reader matched its writer comes from the writer's history, not lost
             self.create_subscription(DiagnosticStatus, ACKS_TOPIC, self._on_fault_ack,
                                      QoSProfile(depth=100,
-                                                reliability=ReliabilityPolicy.RELIABLE))
+                                                reliability=ReliabilityPolicy.RELIABLE,
+                                                durability=DurabilityPolicy.TRANSIENT_LOCAL))
         # Odometry, ground truth and scans are published as CDR bytes (swarm_common.cdr): 100
         # robots' messages a tick, each a struct.pack instead of rclpy's conversion.
         self._odom_writers = [OdometryWriter(f"{ns}/odom", f"{ns}/base_footprint")

@@ -29,7 +29,7 @@ from collections.abc import Callable
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
 from swarm_common.faults import (
@@ -47,8 +47,14 @@ from swarm_common.faults import (
 )
 
 GROUP_RESTART_DELAY_S = 0.5  # [s] wall: a group recreates a killed navigator this much later
-ACK_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-EVENTS_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+# Transient local on both sides (the simulator's reader too): an acknowledgement published
+# before the simulator's reader had matched this writer is delivered when it matches.
+ACK_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+# Transient local: a kill announced before this reader matched the simulator's writer is still
+# delivered (see swarm_up.metrics.EVENTS_QOS).
+EVENTS_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
+                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def ack_status(ack: FaultAck) -> DiagnosticStatus:

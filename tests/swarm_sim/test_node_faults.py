@@ -40,7 +40,8 @@ def test_sim_executes_faults_at_their_ticks(tmp_path):
         odom = {1: {}, 2: {}}  # robot -> tick -> (x, v)
         truth = {1: {}, 2: {}}
         events: list[FaultEvent] = []
-        ack_pub = node.create_publisher(DiagnosticStatus, "/swarm/fault_acks", RELIABLE)
+        # transient local, as the simulator reads acknowledgements
+        ack_pub = node.create_publisher(DiagnosticStatus, "/swarm/fault_acks", EVENTS)
         pubs = {r: node.create_publisher(TwistStamped, f"/Srobot{r}/cmd_vel", RELIABLE)
                 for r in (1, 2)}
 

@@ -45,7 +45,8 @@ pytestmark = pytest.mark.node
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
-EVENTS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+EVENTS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
+                  durability=DurabilityPolicy.TRANSIENT_LOCAL)  # as the simulator's writer
 LOADER1 = (-7.74575, -3.57766)
 LOADER2 = (-7.74575, -1.38526)
 POSES = {"Srobot1": (LOADER1[0] + 0.05, LOADER1[1], math.pi),

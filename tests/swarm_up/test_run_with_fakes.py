@@ -41,13 +41,14 @@ if os.environ.get("FAKE_SIM_BAD_INPUT"):
 import rclpy
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 rclpy.init(signal_handler_options=SignalHandlerOptions.NO)  # Ctrl-C: write the summary
 node = rclpy.create_node("swarm_sim")
-events = node.create_publisher(DiagnosticArray, "/swarm/events",
-                               QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
+events = node.create_publisher(DiagnosticArray, "/swarm/events",  # as the simulator's writer
+                               QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
+                                          durability=DurabilityPolicy.TRANSIENT_LOCAL))
 clock = node.create_publisher(Clock, "/clock", 1)
 names = [f"{a.name_prefix}{i}" for i in range(1, a.swarm_size + 1)]
 t_wall0 = time.monotonic()
