@@ -28,7 +28,9 @@ goal or holding target, a blocked path, a path left behind, or a recovery.
 
 from __future__ import annotations
 
+import hashlib
 import math
+from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -38,7 +40,7 @@ from swarm_common.geometry import Path2D, Points2D, Pose2D, wrap_angle
 from swarm_common.nav_status import TERMINAL, NavState
 from swarm_common.occupancy import OccupancyMap
 from swarm_nav import core_kernels, perception_kernels
-from swarm_nav.config import NavigatorConfig
+from swarm_nav.config import CostmapConfig, NavigatorConfig
 from swarm_nav.costmap import INSCRIBED, Costmap, add_keepout, build_costmap, overlay_obstacles
 from swarm_nav.dwa import Footprint, RobotState, dwa_command, point_gaps, rotation_is_safe
 from swarm_nav.holding import (
@@ -100,6 +102,51 @@ class NavStatus:
     recoveries: int
     holding_time: float
     reason: str
+
+
+# Process-wide: the static costmaps of each map (the robots of a group process share the map;
+# its 50 navigators built them 50 times at start-up, a sixth of a group's start-up CPU at 100
+# robots in py-spy). (map digest, settings) -> costmap; the same + keep-out discs -> costmap.
+_STATIC: OrderedDict = OrderedDict()
+_STATIC_MAX = 8
+
+
+def static_costmaps(occ: OccupancyMap, cfg: CostmapConfig, keepout: np.ndarray,
+                    radius: float, cost: int) -> tuple[Costmap, Costmap]:
+    """The static costmap of ``occ`` (:func:`~swarm_nav.costmap.build_costmap`) and the same with
+    keep-out discs about ``keepout`` (:func:`~swarm_nav.costmap.add_keepout`), cached per
+    process: equal inputs give the same two objects, whose arrays are read-only.
+
+    Args:
+        occ: the occupancy map.
+        cfg: the costmap settings.
+        keepout: (K, 2) x, y [m] in ``map`` of the keep-out discs' centres.
+        radius: the discs' radius [m].
+        cost: the discs' cost.
+    """
+    data = np.ascontiguousarray(occ.data)
+    h = hashlib.blake2b(data.tobytes(), digest_size=16)
+    h.update(np.asarray([occ.resolution, *np.asarray(occ.origin, dtype=float).ravel(),
+                         *data.shape], dtype=float).tobytes())
+    key = (h.digest(), cfg)
+    costmap = _cached(key, lambda: build_costmap(occ, cfg))
+    pts = np.ascontiguousarray(keepout, dtype=float).reshape(-1, 2)
+    planning = _cached((*key, pts.tobytes(), float(radius), int(cost)),
+                       lambda: add_keepout(costmap, pts, radius, cost))
+    return costmap, planning
+
+
+def _cached(key, make) -> Costmap:
+    if key in _STATIC:
+        _STATIC.move_to_end(key)
+        return _STATIC[key]
+    cm = make()
+    cm.costs.flags.writeable = False
+    cm.obstacle_distance.flags.writeable = False
+    _STATIC[key] = cm
+    while len(_STATIC) > _STATIC_MAX:
+        _STATIC.popitem(last=False)
+    return cm
 
 
 class NavigatorCore:
@@ -167,10 +214,10 @@ class NavigatorCore:
     # ------------------------------------------------------------------ inputs
     def set_map(self, occ: OccupancyMap) -> None:
         """Use a (new) static map; an active goal is planned again on the next step."""
-        self.costmap = build_costmap(occ, self.cfg.costmap)
         hc = self.cfg.holding
-        self._plan_cm = add_keepout(self.costmap, self._avoid, hc.workstation_keepout_radius,
-                                    hc.workstation_keepout_cost)
+        self.costmap, self._plan_cm = static_costmaps(
+            occ, self.cfg.costmap, self._avoid, hc.workstation_keepout_radius,
+            hc.workstation_keepout_cost)
         if self._state not in TERMINAL:
             self._path = None
 

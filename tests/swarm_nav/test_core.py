@@ -9,6 +9,7 @@ import pytest
 from swarm_common.occupancy import OccupancyMap
 from swarm_nav.config import NavigatorConfig
 from swarm_nav.core import NavigatorCore, NavState, NavStatus
+from swarm_nav.costmap import add_keepout, build_costmap
 from tests.swarm_nav.helpers import (
     SLIM_BLOCKAGE_WALLS,
     WAFFLE_FOOTPRINT,
@@ -283,3 +284,37 @@ def test_static_obstacle_window_from_its_cache_equals_filtering_the_whole_bounda
         m = (np.abs(boundary[:, 0] - pose[0]) < win) & (np.abs(boundary[:, 1] - pose[1]) < win)
         assert np.array_equal(got, boundary[m])  # the same points in the same order
     assert 20 < renewals < 400  # the cache was both reused and renewed
+
+
+def test_navigators_of_one_process_share_the_static_costmaps_of_one_map(occ):
+    """The 50 navigators of a group process get the same map: its static costmaps are built once
+    (static_costmaps), equal to building them, read-only, and a different map gets its own."""
+    sites = [((-5.0, -2.0, 0.0), [(-4.0, -2.0), (-4.0, -1.0)])]
+    a = NavigatorCore(NavigatorConfig(), WAFFLE_FOOTPRINT, sites)
+    b = NavigatorCore(dataclasses.replace(NavigatorConfig(), robot_index=2), WAFFLE_FOOTPRINT,
+                      sites)
+    copy = OccupancyMap(occ.data.copy(), occ.resolution, np.array(occ.origin, dtype=float))
+    a.set_map(occ)
+    b.set_map(copy)  # another message with the same content
+    assert a.costmap is b.costmap and a._plan_cm is b._plan_cm
+    cfg = NavigatorConfig()
+    built = build_costmap(occ, cfg.costmap)
+    planning = add_keepout(built, a._avoid, cfg.holding.workstation_keepout_radius,
+                           cfg.holding.workstation_keepout_cost)
+    np.testing.assert_array_equal(a.costmap.costs, built.costs)
+    np.testing.assert_array_equal(a.costmap.obstacle_distance, built.obstacle_distance)
+    np.testing.assert_array_equal(a._plan_cm.costs, planning.costs)
+    assert (a._plan_cm.costs != a.costmap.costs).any()  # the keep-out discs are there
+    with pytest.raises(ValueError):
+        a.costmap.costs[0, 0] = 0
+    with pytest.raises(ValueError):
+        a._plan_cm.obstacle_distance[0, 0] = 0.0
+    other = copy.data.copy()
+    other[occ.height // 2, occ.width // 2] = 100
+    c = NavigatorCore(NavigatorConfig(), WAFFLE_FOOTPRINT, sites)
+    c.set_map(OccupancyMap(other, occ.resolution, np.array(occ.origin, dtype=float)))
+    assert c.costmap is not a.costmap
+    assert c.costmap.costs[occ.height // 2, occ.width // 2] == 254
+    d = NavigatorCore(NavigatorConfig(), WAFFLE_FOOTPRINT)  # no keep-out discs
+    d.set_map(occ)
+    assert d.costmap is a.costmap and d._plan_cm is d.costmap
