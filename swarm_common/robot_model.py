@@ -24,11 +24,15 @@ The numbers of the bundled robots come from ROBOTIS' ``turtlebot3_description`` 
 
 from __future__ import annotations
 
+import dataclasses
 import functools
+import hashlib
 import io
 import logging
 import math
 import os
+import pickle
+import tempfile
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -213,7 +217,8 @@ def load_robot(
 
     Loads are cached per file (and its modification time, and the limits file's), so loading
     the same robot for every robot of a swarm costs one parse; the returned arrays are
-    read-only.
+    read-only. Models are also cached on disk, keyed by their contents (``_load_cached``;
+    ``SWARM_WB_CACHE_DIR=`` empty turns that off).
 
     Args:
         name_or_path: a name under ``robots/`` or a path to a ``.urdf``/``.xacro``/
@@ -280,12 +285,128 @@ def _load_cached(
     limits_path: Path | None,
     _limits_mtime: int,
 ) -> tuple[RobotModel, tuple[str, ...]]:
-    """The model of ``source`` and the mesh files it names that cannot be found."""
-    disp = _display(source)
+    """The model of ``source`` and the mesh files it names that cannot be found.
+
+    The model is also kept on disk (:func:`_disk_cache_dir`), keyed by everything it is made
+    of: the URDF text after xacro, the source's path, the limits file's bytes, and the code
+    and library versions that read them. A process that finds it there needs no ``yourdfpy``,
+    whose import (trimesh, scipy.spatial) took 0.86 s of the 0.88 s a first load cost; every
+    process of a run loads the robot (``swarm-up``, the simulator, each navigator process).
+    A model whose making logged a warning is not kept, so the warning is logged every time.
+    """
     text = _process(source, dict(args))
+    key = _disk_key(source, text, limits_path)
+    cached = _disk_get(key)
+    if cached is not None:
+        model, meshes = cached
+    else:
+        counter = _WarningCounter()
+        _log.addHandler(counter)
+        try:
+            model, meshes = _build(source, text, limits_path)
+        finally:
+            _log.removeHandler(counter)
+        if not counter.count:
+            _disk_put(key, (model, meshes))
+    missing = tuple(m for m in meshes if _resolve_mesh(m, source) is None)
+    return model, missing
+
+
+#: Bump when what a cached model holds changes meaning (the key also has this file's bytes).
+_DISK_CACHE_VERSION = 1
+
+
+def _disk_cache_dir() -> Path | None:
+    """``$SWARM_WB_CACHE_DIR/robots``, else ``$XDG_CACHE_HOME/swarm-workbench/robots`` (default
+    ``~/.cache``); None when ``SWARM_WB_CACHE_DIR`` is set empty (no disk cache)."""
+    own = os.environ.get("SWARM_WB_CACHE_DIR")
+    if own is not None:
+        return Path(own) / "robots" if own else None
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "swarm-workbench" / "robots"
+
+
+def _disk_key(source: Path, text: str, limits_path: Path | None) -> str | None:
+    """A digest of what the model of ``source`` is made of; None when it cannot be read."""
+    from importlib import metadata
+
+    from swarm_common import geometry
+
+    h = hashlib.blake2b(digest_size=20)
+    try:
+        for part in (str(_DISK_CACHE_VERSION), str(source), text,
+                     np.__version__, metadata.version("yourdfpy")):
+            h.update(part.encode("utf-8") + b"\0")
+        for path in (Path(__file__), Path(geometry.__file__)):
+            h.update(path.read_bytes())
+        h.update(limits_path.read_bytes() if limits_path is not None else b"-")
+    except (OSError, metadata.PackageNotFoundError):
+        return None
+    return h.hexdigest()
+
+
+def _disk_get(key: str | None):
+    """The cached ``(model, mesh names)`` of ``key``, or None (absent, unreadable, stale)."""
+    folder = _disk_cache_dir()
+    if key is None or folder is None:
+        return None
+    try:
+        with open(folder / f"{key}.pickle", "rb") as f:
+            model, meshes = pickle.load(f)
+    except Exception:  # noqa: BLE001 - any unreadable entry is a miss; it is written again
+        return None
+    if not isinstance(model, RobotModel):
+        return None
+    _read_only(model)  # unpickled arrays are writeable again
+    return model, tuple(meshes)
+
+
+def _read_only(obj) -> None:
+    """Make every array of a (nested) dataclass read-only, as a freshly made model's are."""
+    for f in dataclasses.fields(obj):
+        value = getattr(obj, f.name)
+        if isinstance(value, np.ndarray):
+            value.setflags(write=False)
+        elif dataclasses.is_dataclass(value):
+            _read_only(value)
+
+
+def _disk_put(key: str | None, value) -> None:
+    """Write an entry atomically (a temporary file renamed); a cache that cannot be written
+    is no cache."""
+    folder = _disk_cache_dir()
+    if key is None or folder is None:
+        return
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=folder, suffix=".tmp", delete=False) as f:
+            pickle.dump(value, f, protocol=pickle.HIGHEST_PROTOCOL)
+        os.replace(f.name, folder / f"{key}.pickle")
+    except (OSError, pickle.PicklingError):
+        try:
+            os.unlink(f.name)
+        except (OSError, NameError):
+            pass
+
+
+class _WarningCounter(logging.Handler):
+    """Counts the warnings (and worse) logged while a model is made."""
+
+    def __init__(self):
+        super().__init__(logging.WARNING)
+        self.count = 0
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.count += 1
+
+
+def _build(source: Path, text: str, limits_path: Path | None
+           ) -> tuple[RobotModel, tuple[str, ...]]:
+    """The model of ``source`` from its URDF ``text``, and every mesh file name it has."""
+    disp = _display(source)
     root = _parse_xml(text, disp)
     urdf = _parse_urdf(text, disp)
-    missing = _unresolved_meshes(urdf, source)
+    meshes = _mesh_names(urdf)
     tree = _Tree(urdf, disp)
 
     wheels_y, wheel_radius, floor_z = _wheels(urdf, tree, disp)
@@ -316,7 +437,7 @@ def _load_cached(
         lidar=lidar,
         limits=limits,
     )
-    return model, missing
+    return model, meshes
 
 
 def _process(source: Path, args: dict[str, str]) -> str:
@@ -378,15 +499,15 @@ def _parse_urdf(text: str, disp: str):
     return urdf
 
 
-def _unresolved_meshes(urdf, source: Path) -> tuple[str, ...]:
-    """The mesh file names of the URDF's visuals and collisions that cannot be found, once each."""
-    missing: list[str] = []
+def _mesh_names(urdf) -> tuple[str, ...]:
+    """The mesh file names of the URDF's visuals and collisions, once each."""
+    names: list[str] = []
     for link in urdf.robot.links:
         for element in (*link.visuals, *link.collisions):
             mesh = element.geometry.mesh if element.geometry is not None else None
-            if mesh is not None and mesh.filename and _resolve_mesh(mesh.filename, source) is None:
-                missing.append(mesh.filename)
-    return tuple(dict.fromkeys(missing))
+            if mesh is not None and mesh.filename:
+                names.append(mesh.filename)
+    return tuple(dict.fromkeys(names))
 
 
 _meshes_said: set[tuple[Path, bool]] = set()  # (source, as a warning) already logged

@@ -461,3 +461,99 @@ def test_bad_limits_beside_a_robot_fail_its_load(tmp_path):
 def test_resolve_robot_by_name_and_by_path(repo_root):
     assert resolve_robot("linorobot2_2wd") == repo_root / "robots" / "linorobot2_2wd.urdf.xacro"
     assert resolve_robot(DATA / "robot_no_sensor.urdf") == DATA / "robot_no_sensor.urdf"
+
+
+# ------------------------------------------------------------------------------------------
+# The disk cache: a process that finds the model there needs no yourdfpy
+
+_SUBPROCESS_LOAD = """
+import json, sys
+from swarm_common.robot_model import load_robot
+m = load_robot(sys.argv[1])
+print(json.dumps({"yourdfpy": "yourdfpy" in sys.modules, "footprint": m.footprint.tolist(),
+                  "lidar": [m.lidar.frame, m.lidar.samples, m.lidar.range_max,
+                            m.lidar.pose.tolist()],
+                  "max_vel_x": m.limits.max_vel_x, "writeable": m.footprint.flags.writeable
+                  or m.lidar.pose.flags.writeable}))
+"""
+
+
+def _load_in_subprocess(robot, cache_dir: Path) -> dict:
+    import json
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "SWARM_WB_CACHE_DIR": str(cache_dir)}
+    out = subprocess.run([sys.executable, "-c", _SUBPROCESS_LOAD, str(robot)], env=env,
+                         capture_output=True, text=True, check=True, timeout=120)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def _robot_in(folder: Path, repo_root: Path) -> Path:
+    """A copy of the burger (its sensor block: made without a warning) with its own limits."""
+    shutil.copy(repo_root / "robots" / "turtlebot3_burger.urdf.xacro", folder / "r.urdf.xacro")
+    _write(folder, "r.yaml", LIMITS_OK)
+    return folder / "r.urdf.xacro"
+
+
+def test_a_second_process_loads_the_model_from_the_disk_cache(tmp_path):
+    cache = tmp_path / "cache"
+    robot = _load_in_subprocess("turtlebot3_waffle", cache)
+    entries = list((cache / "robots").glob("*.pickle"))
+    assert robot["yourdfpy"] and len(entries) == 1  # made, then kept
+    again = _load_in_subprocess("turtlebot3_waffle", cache)
+    assert not again["yourdfpy"]  # found on disk: no URDF parse
+    assert {k: v for k, v in again.items() if k != "yourdfpy"} == \
+        {k: v for k, v in robot.items() if k != "yourdfpy"}
+    assert again["writeable"] is False
+
+
+def test_the_disk_cache_is_keyed_by_content_and_survives_a_bad_entry(tmp_path, monkeypatch,
+                                                                      caplog, repo_root):
+    monkeypatch.setenv("SWARM_WB_CACHE_DIR", str(tmp_path / "cache"))
+    folder = tmp_path / "robot"
+    folder.mkdir()
+    source = _robot_in(folder, repo_root)
+    with caplog.at_level(logging.WARNING, logger=LOGGER):
+        first = load_robot(source)
+    assert _warnings(caplog) == [] and first.limits.max_vel_x == pytest.approx(0.3)
+    entries = sorted((tmp_path / "cache" / "robots").glob("*.pickle"))
+    assert len(entries) == 1
+    # another limits file: another entry, and the new limits
+    _write(folder, "r.yaml", LIMITS_OK.replace("max_vel_x: 0.3", "max_vel_x: 0.2"))
+    clear_robot_cache()
+    assert load_robot(source).limits.max_vel_x == pytest.approx(0.2)
+    assert len(list((tmp_path / "cache" / "robots").glob("*.pickle"))) == 2
+    # a corrupt entry is a miss, made and written again
+    _write(folder, "r.yaml", LIMITS_OK)
+    entries[0].write_bytes(b"not a pickle")
+    clear_robot_cache()
+    again = load_robot(source)
+    assert again.limits == first.limits
+    assert (again.lidar.frame, again.lidar.samples) == (first.lidar.frame, first.lidar.samples)
+    np.testing.assert_array_equal(again.lidar.pose, first.lidar.pose)
+    np.testing.assert_array_equal(again.footprint, first.footprint)
+    assert entries[0].read_bytes() != b"not a pickle"
+
+
+def test_a_model_made_with_a_warning_is_not_kept_so_the_warning_is_said_again(tmp_path,
+                                                                             monkeypatch,
+                                                                             caplog):
+    monkeypatch.setenv("SWARM_WB_CACHE_DIR", str(tmp_path / "cache"))
+    shutil.copy(DATA / "robot_no_sensor.urdf", tmp_path / "r.urdf")
+    _write(tmp_path, "r.yaml", LIMITS_OK)  # no lidar block: the LDS-01 defaults, warned
+    for _ in range(2):
+        clear_robot_cache()
+        caplog.clear()
+        with caplog.at_level(logging.WARNING, logger=LOGGER):
+            load_robot(tmp_path / "r.urdf")
+        assert len(_warnings(caplog, "LDS-01")) == 1
+    assert not list((tmp_path / "cache").rglob("*.pickle"))
+
+
+def test_an_empty_cache_dir_setting_turns_the_disk_cache_off(tmp_path, monkeypatch):
+    monkeypatch.setenv("SWARM_WB_CACHE_DIR", "")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    load_robot("turtlebot3_burger")
+    assert not (tmp_path / "xdg").exists()
