@@ -318,11 +318,17 @@ _DISK_CACHE_VERSION = 1
 
 def _disk_cache_dir() -> Path | None:
     """``$SWARM_WB_CACHE_DIR/robots``, else ``$XDG_CACHE_HOME/swarm-workbench/robots`` (default
-    ``~/.cache``); None when ``SWARM_WB_CACHE_DIR`` is set empty (no disk cache)."""
+    ``~/.cache``); None when ``SWARM_WB_CACHE_DIR`` is set empty or no home directory is known
+    (no disk cache)."""
     own = os.environ.get("SWARM_WB_CACHE_DIR")
     if own is not None:
         return Path(own) / "robots" if own else None
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    base = os.environ.get("XDG_CACHE_HOME")
+    if not base:
+        home = os.path.expanduser("~")
+        if home.startswith("~"):  # no home directory known: no disk cache
+            return None
+        base = os.path.join(home, ".cache")
     return Path(base) / "swarm-workbench" / "robots"
 
 
