@@ -54,7 +54,7 @@ from swarm_nav.holding import (
     staging_point,
 )
 from swarm_nav.perception import RobotTracker, SeenArrays, SeenRobot, dynamic_points
-from swarm_nav.planner import PlanResult, plan_path
+from swarm_nav.planner import PlanResult, _lru, plan_path  # _lru: the planner's caches' LRU
 from swarm_nav.recovery import SEQUENCE, ProgressChecker, Recovery, RecoveryKind
 from swarm_nav.traffic import (
     KEEP_RIGHT_LATERAL,
@@ -137,16 +137,13 @@ def static_costmaps(occ: OccupancyMap, cfg: CostmapConfig, keepout: np.ndarray,
 
 
 def _cached(key, make) -> Costmap:
-    if key in _STATIC:
-        _STATIC.move_to_end(key)
-        return _STATIC[key]
-    cm = make()
-    cm.costs.flags.writeable = False
-    cm.obstacle_distance.flags.writeable = False
-    _STATIC[key] = cm
-    while len(_STATIC) > _STATIC_MAX:
-        _STATIC.popitem(last=False)
-    return cm
+    def read_only():
+        cm = make()
+        cm.costs.flags.writeable = False
+        cm.obstacle_distance.flags.writeable = False
+        return cm
+
+    return _lru(_STATIC, key, read_only, _STATIC_MAX)
 
 
 class NavigatorCore:

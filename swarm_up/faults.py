@@ -46,15 +46,15 @@ from swarm_common.faults import (
     FaultEvent,
 )
 
+# the metrics' reader's QoS, transient local: a kill announced before this reader matched the
+# simulator's writer is still delivered
+from swarm_up.metrics import EVENTS_QOS
+
 GROUP_RESTART_DELAY_S = 0.5  # [s] wall: a group recreates a killed navigator this much later
 # Transient local on both sides (the simulator's reader too): an acknowledgement published
 # before the simulator's reader had matched this writer is delivered when it matches.
 ACK_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
-# Transient local: a kill announced before this reader matched the simulator's writer is still
-# delivered (see swarm_up.metrics.EVENTS_QOS).
-EVENTS_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
-                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def ack_status(ack: FaultAck) -> DiagnosticStatus:
