@@ -11,7 +11,12 @@
   page shows the figures ``--metrics`` will hold.
 
 The server builds one ``frame`` (:mod:`swarm_up.fleet_view`) ``rate_hz`` times a second, only
-while a browser is connected, and sends the same text to every browser.  A browser whose
+while a browser is connected, and sends the same text to every browser.  The fleet node reads
+the poses and plans only while a browser is connected, ``/swarm/markers`` has a subscriber or
+``/api/state`` was read, and for ``idle_grace_s`` after (:meth:`FleetNode.demand
+<swarm_up.fleet_node.FleetNode.demand>`): a dashboard nobody looks at costs the swarm nothing,
+and the first ``/api/state`` after a quiet spell shows the poses and plans of when someone last
+looked (none before anyone did).  A browser whose
 previous frame is still being written is skipped for that frame (it gets every plan again in
 its next one), so a slow browser never holds the others up, and a closed or silent one
 (WebSocket heartbeat) is dropped with its scan subscriptions.
@@ -123,6 +128,8 @@ class DashboardServer:
         ws_states: callable returning ``(workstation states, holding robots)`` (caller holds
             ``fleet_lock``).
         on_watch: called with the set of robot indices whose scans someone watches.
+        on_demand: called with the number of connected browsers when it changes, and with
+            None when ``/api/state`` is read (:meth:`swarm_up.fleet_node.FleetNode.demand`).
         lidar_pose: (3,) lidar mount in base_footprint [m, rad].
         port: TCP port on :data:`HOST`.
         cfg: the view's settings.
@@ -130,7 +137,7 @@ class DashboardServer:
 
     def __init__(self, *, fleet: FleetState, fleet_lock, recorder, recorder_lock, hello: dict,
                  png: bytes, ws_states, on_watch, lidar_pose, port: int,
-                 cfg: ViewConfig | None = None):
+                 cfg: ViewConfig | None = None, on_demand=None):
         self.fleet = fleet
         self.fleet_lock = fleet_lock
         self.recorder = recorder
@@ -139,6 +146,7 @@ class DashboardServer:
         self.png = png
         self.ws_states = ws_states
         self.on_watch = on_watch
+        self.on_demand = on_demand or (lambda browsers: None)
         self.lidar_pose = np.asarray(lidar_pose, dtype=float)
         self.port = port
         self.cfg = cfg = cfg or ViewConfig()
@@ -243,8 +251,11 @@ class DashboardServer:
         return web.Response(body=self.png, content_type="image/png")
 
     async def _state(self, request):
+        """``/api/state``: the current frame with every plan, as JSON (and a demand for the
+        poses and plans, which the next reads within ``idle_grace_s`` see updated)."""
         from aiohttp import web
 
+        self.on_demand(None)
         frame = self._frame(all_paths=True)
         return web.json_response(frame)
 
@@ -256,6 +267,7 @@ class DashboardServer:
         robot = request.query.get("robot")
         client = Client(ws=ws, robot=robot if robot in self.fleet.index else None)
         self.clients.add(client)
+        self.on_demand(len(self.clients))
         try:
             await ws.send_str(json.dumps(dict(encode_hello(**self.hello, robot=client.robot))))
             async for msg in ws:
@@ -266,6 +278,7 @@ class DashboardServer:
         finally:
             self.clients.discard(client)
             self._update_watch()
+            self.on_demand(len(self.clients))
         return ws
 
     def _on_request(self, client: Client, text: str) -> None:
@@ -408,7 +421,7 @@ class LiveView:
             self.server = DashboardServer(
                 fleet=self.fleet, fleet_lock=self.lock, recorder=listener.recorder,
                 recorder_lock=listener.lock, hello=hello, png=png,
-                ws_states=self._ws_states, on_watch=self._on_watch,
+                ws_states=self._ws_states, on_watch=self._on_watch, on_demand=self._on_demand,
                 lidar_pose=self.lidar_pose, port=cfg.dashboard_port, cfg=view)
 
     def _make_node(self, context):
@@ -430,6 +443,9 @@ class LiveView:
 
     def _on_watch(self, indices: frozenset[int]) -> None:
         self.listener.call_soon(lambda: self.node is not None and self.node.watch(indices))
+
+    def _on_demand(self, browsers: int | None) -> None:
+        self.listener.call_soon(lambda: self.node is not None and self.node.demand(browsers))
 
     def start(self) -> str | None:
         """Start the web server (after the listener started); returns its URL, or None.

@@ -13,6 +13,13 @@ set of subscriptions.  Costs, per robot:
 - ``/<ns>/plan``, latched like the navigator's writer;
 - ``/<ns>/scan`` only while a browser watches the robot (:meth:`FleetNode.watch`).
 
+The poses and plans are subscribed to only while someone looks (:meth:`FleetNode.demand`): a
+browser is connected, ``/swarm/markers`` has a subscriber, or ``/api/state`` was read, and for
+:attr:`~swarm_up.fleet_view.ViewConfig.idle_grace_s` after.  So ``--dashboard`` or ``--markers``
+with nobody looking costs the swarm nothing: the simulator writes no ``/swarm/poses`` and the
+navigators build no plan messages.  The plans are latched, so a new reader gets every robot's
+current plan at once.
+
 Every subscription is ``raw=True`` and read with :mod:`swarm_common.cdr` (rclpy's deserializer was
 8 ms per plan).  The markers are built only while ``/swarm/markers`` has a
 subscriber.
@@ -21,6 +28,7 @@ subscriber.
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Iterable
 
 import numpy as np
@@ -82,20 +90,51 @@ class FleetNode(Node):
         self.malformed = 0
         self.markers_published = 0
         self._scan_subs: dict[int, object] = {}
-        # subscriptions
-        self._subs = [self.create_subscription(PoseArray, POSES_TOPIC, self._on_poses,
-                                               POSES_QOS, raw=True)]
-        for i, ns in enumerate(fleet.robots):
-            self._subs.append(self.create_subscription(
-                Path, f"/{ns}/plan", lambda buf, i=i: self._on_plan(i, buf), PLAN_QOS,
-                raw=True))
+        # the poses and plans, subscribed to while someone looks (demand)
+        self._input_subs: list = []
+        self._browsers = 0
+        self._wanted_until = -np.inf  # time.monotonic() until which the inputs stay [s]
+        self.input_activations = 0
         # publishers and timers
         self.markers_pub = None
         if markers:
             from visualization_msgs.msg import MarkerArray
 
             self.markers_pub = self.create_publisher(MarkerArray, "/swarm/markers", MARKERS_QOS)
-            self.create_timer(1.0 / cfg.markers_hz, self._on_markers_timer)
+        self.create_timer(1.0 / cfg.markers_hz, self._on_timer)
+
+    # -- demand --------------------------------------------------------------------------------
+    def demand(self, browsers: int | None = None) -> None:
+        """Someone looks: ``browsers`` connected now (None: keep the count; a one-off read such as
+        ``/api/state``).  Subscribes to the poses and plans if they are not yet (spin thread
+        only, e.g. through :meth:`swarm_up.metrics.MetricsListener.call_soon`)."""
+        if browsers is not None:
+            self._browsers = browsers
+        self._wanted_until = time.monotonic() + self.cfg.idle_grace_s
+        self._update_inputs()
+
+    @property
+    def inputs_active(self) -> bool:
+        """Whether the poses and plans are subscribed to now."""
+        return bool(self._input_subs)
+
+    def _update_inputs(self) -> None:
+        now = time.monotonic()
+        if self._browsers > 0 or (self.markers_pub is not None
+                                  and self.markers_pub.get_subscription_count() > 0):
+            self._wanted_until = now + self.cfg.idle_grace_s
+        if now < self._wanted_until and not self._input_subs:
+            self.input_activations += 1
+            self._input_subs.append(self.create_subscription(
+                PoseArray, POSES_TOPIC, self._on_poses, POSES_QOS, raw=True))
+            for i, ns in enumerate(self.fleet.robots):
+                self._input_subs.append(self.create_subscription(
+                    Path, f"/{ns}/plan", lambda buf, i=i: self._on_plan(i, buf), PLAN_QOS,
+                    raw=True))
+        elif now >= self._wanted_until and self._input_subs:
+            for sub in self._input_subs:
+                self.destroy_subscription(sub)
+            self._input_subs.clear()
 
     # -- inputs --------------------------------------------------------------------------------
     def _on_poses(self, buf: bytes) -> None:
@@ -162,7 +201,8 @@ class FleetNode(Node):
         f = self.fleet
         return workstation_states(self._ws_xy, f.poses[:, :2], f.states, f.goals, self.cfg)
 
-    def _on_markers_timer(self) -> None:
+    def _on_timer(self) -> None:
+        self._update_inputs()
         if self.markers_pub is None or self.markers_pub.get_subscription_count() == 0:
             return
         from swarm_up.markers import fleet_markers

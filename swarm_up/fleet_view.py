@@ -66,11 +66,15 @@ class ViewConfig:
 
     Attributes:
         rate_hz: frames sent to the browsers per wall second [Hz].
-        markers_hz: ``/swarm/markers`` messages per wall second [Hz].
+        markers_hz: ``/swarm/markers`` messages per wall second, and how often the live view
+            checks whether anyone looks [Hz].
         dock_radius: a robot this close to a workstation's docking pose occupies it [m].
         goal_tolerance: a holding robot whose goal is this close to a workstation holds for it [m].
         rtf_window: wall time over which the live real-time factor is measured [s].
         path_decimals: decimals of the path coordinates sent to the page (2: 1 cm) [-].
+        idle_grace_s: the poses and plans stay subscribed this long after the last browser
+            left, ``/swarm/markers`` lost its last subscriber or ``/api/state`` was read (a page
+            reload does not resubscribe 100 topics) [s].
     """
 
     # 6 Hz: >= 5 updates a second with a margin for jitter; a browser's CPU grows with the rate
@@ -81,6 +85,7 @@ class ViewConfig:
     goal_tolerance: float = 0.05  # [m]
     rtf_window: float = 5.0  # [s]
     path_decimals: int = 2  # [-]
+    idle_grace_s: float = 10.0  # [s]
 
 
 def workstation_states(ws_xy: np.ndarray, robot_xy: np.ndarray, states, goals: np.ndarray,

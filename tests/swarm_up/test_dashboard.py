@@ -36,6 +36,7 @@ from swarm_common.fleet_poses import POSES_DEPTH, POSES_TOPIC
 from swarm_common.nav_status import NavState, NavStatusRecord, encode
 from swarm_up.args import build_parser, validate
 from swarm_up.dashboard import LiveView
+from swarm_up.fleet_view import ViewConfig
 from swarm_up.metrics import MetricsListener
 from tests.support.browser import Chromium, require_chromium
 from tests.support.ros import ros_context, spin_until
@@ -226,15 +227,18 @@ def test_page_in_headless_chromium(live):
     with ros_context() as (ctx, executor):
         swarm = FakeSwarm(ctx)
         executor.add_node(swarm.node)
-        spin_until(executor, lambda: swarm.poses.get_subscription_count() >= 1
-                   and swarm.status["Srobot3"].get_subscription_count() >= 1, 20.0, "the view")
-        swarm.publish_once()
 
         def tick():
             swarm.publish_tick()
             executor.spin_once(timeout_sec=0.02)
 
         with Chromium(url) as browser:
+            # The connected page makes the view subscribe to the poses and plans.
+            spin_until(executor, lambda: swarm.poses.get_subscription_count() >= 1
+                       and swarm.plan["Srobot3"].get_subscription_count() >= 1
+                       and swarm.status["Srobot3"].get_subscription_count() >= 1, 20.0,
+                       "the view")
+            swarm.publish_once()
             deadline = time.monotonic() + 40.0
             stats = None
             while time.monotonic() < deadline:
@@ -270,3 +274,68 @@ def test_page_in_headless_chromium(live):
         while view.node.watched or view.server.clients:
             assert time.monotonic() < deadline, (view.node.watched, view.server.clients)
             tick()
+
+
+def test_poses_and_plans_are_read_only_while_someone_looks(tmp_path):
+    """Nobody looking: no subscription to ``/swarm/poses`` or the plans (the simulator writes no
+    poses, the navigators build no plan messages).  ``/api/state``, a ``/swarm/markers``
+    subscriber and a page each subscribe them, until ``idle_grace_s`` after the last one."""
+    require_chromium()
+    port = _free_port()
+    args = build_parser().parse_args(["--swarm-size", "3", "--dashboard", str(port),
+                                      "--run-dir", str(tmp_path / "run")])
+    listener = MetricsListener(validate(args).robots, time.monotonic())
+    view = LiveView(validate(args), listener, ViewConfig(idle_grace_s=1.0, markers_hz=10.0))
+    listener.start()
+    url = view.start()
+    try:
+        with ros_context() as (ctx, executor):
+            swarm = FakeSwarm(ctx)
+            executor.add_node(swarm.node)
+
+            def readers():
+                return (swarm.poses.get_subscription_count(),
+                        swarm.plan["Srobot2"].get_subscription_count())
+
+            def wait_for(expected, what):
+                spin_until(executor, lambda: readers() == expected, 20.0, what)
+
+            # the listener reads nav_status from the start; the view reads nothing more
+            spin_until(executor, lambda: swarm.status["Srobot3"].get_subscription_count() >= 1,
+                       20.0, "the listener")
+            end = time.monotonic() + 2.0
+            while time.monotonic() < end:
+                executor.spin_once(timeout_sec=0.05)
+                assert readers() == (0, 0)
+            assert not view.node.inputs_active
+
+            # one read of /api/state
+            _state(url)
+            wait_for((1, 1), "the readers after /api/state")
+            wait_for((0, 0), "the readers gone after the grace")
+
+            # a markers subscriber, for as long as it stays
+            markers = swarm.node.create_subscription(MarkerArray, "/swarm/markers",
+                                                     lambda m: None, RELIABLE)
+            wait_for((1, 1), "the readers for a markers subscriber")
+            swarm.node.destroy_subscription(markers)
+            wait_for((0, 0), "the readers gone with the markers subscriber")
+
+            # a page: the latched plan published while nobody looked reaches it
+            swarm.publish_once()
+            with Chromium(url) as browser:
+                wait_for((1, 1), "the readers for a page")
+                deadline = time.monotonic() + 20.0
+                stats = None
+                while time.monotonic() < deadline:
+                    swarm.publish_tick()
+                    executor.spin_once(timeout_sec=0.02)
+                    stats = browser.evaluate("window.dash && window.dash.stats()")
+                    if stats and stats["drawn"] == 3 and stats["paths"] == 1:
+                        break
+                assert stats and stats["drawn"] == 3 and stats["paths"] == 1, stats
+            wait_for((0, 0), "the readers gone after the page closed")
+            assert view.node.input_activations == 3
+    finally:
+        view.stop()
+        listener.stop()
