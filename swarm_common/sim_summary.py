@@ -19,6 +19,10 @@ value of the wrong type (a text where a count belongs, a non-finite number) or a
 a JSON object raises :class:`SimSummaryError` naming the key; a missing key is ``None``; an
 unknown top-level key is kept in :attr:`SimSummary.extras` (and written back), unknown keys
 inside ``collisions`` and the per-robot entries are ignored. Pure: no ROS import.
+
+The simulator's own extras: ``wall_timeline_s``, the wall seconds from the start gate to each
+whole simulated second (``[k]`` for simulated time ``k + 1`` s), to compare two runs of one seed
+second by second; ``faults`` when ``--faults`` was given.
 """
 
 from __future__ import annotations

@@ -180,6 +180,7 @@ class SimulatorNode(Node):
         self.dropped = 0
         self.stop_requested = False
         """Set by :meth:`request_stop` (SIGINT/SIGTERM): the loops end at their next check."""
+        self.wall_timeline: list[float] = []  # [k]: wall s, start gate to simulated s k + 1
         self._last_warn = 0.0
         self._scans = None  # the current tick's scans, cast once (re-publishing reuses them)
         # Fault injection (swarm_sim.faults): this tick's silenced robots, lost messages,
@@ -581,6 +582,7 @@ class SimulatorNode(Node):
         self.wait_for_robots(executor)
         wall0 = time.monotonic()
         sim0_ns = self.t_ns
+        self.wall_timeline = []
         end_ns = None if s.duration is None else round(s.duration * NS_PER_S)
         while rclpy.ok() and not self.stop_requested and (end_ns is None or self.t_ns < end_ns):
             if self.faults is not None:
@@ -592,6 +594,8 @@ class SimulatorNode(Node):
             if commands is None:
                 break
             self.step(*commands)
+            if self.t_ns >= (len(self.wall_timeline) + 1) * NS_PER_S:
+                self.wall_timeline.append(round(time.monotonic() - wall0, 3))
             if s.rtf > 0.0:  # pace: keep servicing callbacks until the wall clock catches up
                 due = wall0 + (self.t_ns - sim0_ns) / NS_PER_S / s.rtf
                 while (left := due - time.monotonic()) > 0.0 and not self.stop_requested:
@@ -608,6 +612,17 @@ class SimulatorNode(Node):
         """
         eng = self.engine
         sim_s = self.t_ns / NS_PER_S
+        # wall_timeline_s[k]: wall seconds from the start gate to simulated second k + 1, for
+        # comparing the speed of two runs of one seed second by second (their
+        # simulated work is the same, so the ratio shows what else differed)
+        extras = {"wall_timeline_s": list(self.wall_timeline)}
+        if self.faults is not None:
+            extras["faults"] = {
+                "injected": [f.label() for f in self.faults.faults],
+                "messages_dropped": {str(k): v for k, v in self.faults.dropped.items()},
+                "ack_timeouts": self.fault_ack_timeouts,
+                "log": self.fault_log,
+            }
         per_robot = {
             ns: RobotSummary(distance_m=round(float(eng.distance[i]), 3),
                              collisions=int(eng.collisions[i]),
@@ -627,12 +642,7 @@ class SimulatorNode(Node):
             min_separation_m=(round(eng.min_separation, 4)
                               if math.isfinite(eng.min_separation) else None),
             per_robot=per_robot,
-            extras={} if self.faults is None else {"faults": {
-                "injected": [f.label() for f in self.faults.faults],
-                "messages_dropped": {str(k): v for k, v in self.faults.dropped.items()},
-                "ack_timeouts": self.fault_ack_timeouts,
-                "log": self.fault_log,
-            }},
+            extras=extras,
         )
 
 

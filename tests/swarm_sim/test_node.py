@@ -149,6 +149,10 @@ def test_stamped_command_moves_robot_expected_distance(tmp_path):
         data = json.loads(summary.read_text())
         assert data["late_ticks"] == 0
         assert data["per_robot"]["Srobot3"]["distance_m"] == pytest.approx(0.6, abs=0.001)
+        # one wall time per simulated second of the 6, increasing, the last within the loop's
+        timeline = data["wall_timeline_s"]
+        assert len(timeline) == 6 and timeline == sorted(timeline) and timeline[0] > 0
+        assert timeline[-1] <= data["wall_time_s"]
     finally:
         stop(proc)
 
