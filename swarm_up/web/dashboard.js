@@ -12,7 +12,7 @@
 
   const S = {
     hello: null, frame: null, paths: {}, robot: {}, selected: ROBOT_PAGE, ws: null,
-    frames: 0, recv: [], drawn: 0, scanPoints: 0, mapImg: null,
+    frames: 0, recv: [], drawn: 0, textAt: -1e9, scanPoints: 0, mapImg: null,
     view: null, // main map: {scale [px/m], x0, y0 (map point at the canvas centre)}
     zoom: 60, // robot view [px/m]
   };
@@ -84,15 +84,26 @@
   }
 
   // A frame and the robot messages sent with it are shown in one animation frame: the page is
-  // laid out, painted and composited once per server frame instead of once per message.
-  let scheduled = false;
+  // laid out, painted and composited once per server frame instead of once per message. The
+  // text (KPIs, the status table) is rewritten at most every TEXT_PERIOD_MS, the latest values
+  // always shown in the end: a text change re-lays out and repaints the page, and at 6 frames a
+  // second it cost headless Chromium about 1 % of a core of its 9-11 % (100 robots, a captured
+  // run replayed, 25 s: 8.5 -> 7.8 % whole floor, 10.7 -> 9.5 % with a robot's view).
+  let scheduled = false, textTimer = null;
+  const TEXT_PERIOD_MS = 480;
   function schedule() {
     if (scheduled) return;
     scheduled = true;
-    requestAnimationFrame(() => {
+    requestAnimationFrame((now) => {
       scheduled = false;
-      if (S.frame) showKpis(S.frame.kpi);
-      showStatus();
+      if (now - S.textAt >= TEXT_PERIOD_MS) {
+        S.textAt = now;
+        if (S.frame) showKpis(S.frame.kpi);
+        showStatus();
+      } else if (textTimer === null) {
+        textTimer = setTimeout(() => { textTimer = null; schedule(); },
+          TEXT_PERIOD_MS - (now - S.textAt));
+      }
       draw();
     });
   }
