@@ -54,7 +54,7 @@ from swarm_nav.holding import (
     staging_point,
 )
 from swarm_nav.perception import RobotTracker, SeenArrays, SeenRobot, dynamic_points
-from swarm_nav.planner import PlanResult, _lru, plan_path  # _lru: the planner's caches' LRU
+from swarm_nav.planner import PlanResult, lru, plan_path
 from swarm_nav.recovery import SEQUENCE, ProgressChecker, Recovery, RecoveryKind
 from swarm_nav.traffic import (
     KEEP_RIGHT_LATERAL,
@@ -143,7 +143,7 @@ def _cached(key, make) -> Costmap:
         cm.obstacle_distance.flags.writeable = False
         return cm
 
-    return _lru(_STATIC, key, read_only, _STATIC_MAX)
+    return lru(_STATIC, key, read_only, _STATIC_MAX)
 
 
 class NavigatorCore:

@@ -214,7 +214,9 @@ _REPAIR_BOUND = (1.5, 2.0)
 _TOGO_MAX = 16
 
 
-def _lru(cache: OrderedDict, key, make, size: int):
+def lru(cache: OrderedDict, key, make, size: int):
+    """``cache[key]``, made by ``make()`` on a miss; the least recently used entry goes once
+    ``cache`` holds more than ``size`` (the process-wide caches of planner and navigator)."""
     if key in cache:
         cache.move_to_end(key)
         return cache[key]
@@ -269,7 +271,7 @@ def _cost_to_go(costmap: Costmap, t: int, cfg: PlannerConfig) -> tuple[np.ndarra
 
     if costmap.shareable:
         key = (costmap.key, t, cfg.cost_penalty, cfg.allow_unknown)
-        return _lru(_TOGO, key, make, _TOGO_MAX)
+        return lru(_TOGO, key, make, _TOGO_MAX)
     key = ("togo", t, cfg.cost_penalty, cfg.allow_unknown)
     if key not in costmap._cache:
         for k in [k for k in costmap._cache if isinstance(k, tuple) and k[0] == "togo"]:
@@ -328,7 +330,7 @@ def _shared_graph(costmap: Costmap, cfg: PlannerConfig
         return graph, slots, scratch
 
     key = (costmap.key, cfg.cost_penalty, cfg.allow_unknown)
-    return _lru(_GRAPHS, key, make, _GRAPHS_MAX)
+    return lru(_GRAPHS, key, make, _GRAPHS_MAX)
 
 
 def _edge_costs(mult_pad: np.ndarray, resolution: float) -> np.ndarray:

@@ -582,7 +582,6 @@ class SimulatorNode(Node):
         self.wait_for_robots(executor)
         wall0 = time.monotonic()
         sim0_ns = self.t_ns
-        self.wall_timeline = []
         end_ns = None if s.duration is None else round(s.duration * NS_PER_S)
         while rclpy.ok() and not self.stop_requested and (end_ns is None or self.t_ns < end_ns):
             if self.faults is not None:
