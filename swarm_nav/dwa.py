@@ -30,7 +30,8 @@ candidate in order of cost until one is admissible.
 The samples form a grid of ``vx x vtheta`` pairs and a rollout's headings depend on its rotational
 speed alone, so headings and their sines and cosines are computed once per ``vtheta`` sample and
 shared by all ``vx`` samples (the same floating-point values as computing them per rollout).  The
-loops over rollout poses and points are compiled (:mod:`swarm_nav.dwa_kernels`) and give the same
+loops over rollout poses and points are compiled (:mod:`swarm_nav.dwa_kernels`): a call is three
+compiled calls with numpy's ``cos``, ``sin`` and ``arctan2`` between them, and gives the same
 answers to the last bit as the numpy expressions they replaced (``tests/swarm_nav/
 test_dwa_equivalence.py`` checks them against the first implementation).
 """
@@ -289,50 +290,39 @@ def dwa_command(state: RobotState, path: Path2D, obstacles: Points2D, cfg: DwaCo
     horizon = max(cfg.sim_time, dt + reach_v / abs(cfg.decel_lim_x))
     n = max(1, math.ceil(reach_v * horizon / cfg.sim_granularity),
             math.ceil(reach_w * horizon / cfg.angular_sim_granularity))
-    times = horizon * np.arange(1, n + 1) / n
-    local = _local_points(obstacles, pose, reach_v * horizon + footprint.radius
-                          + cfg.footprint_padding + 2 * _GRID)
-    need = min(cfg.footprint_padding, _gap_now(pose, local, footprint))
-
-    # rollout k has vs[k // len(ws)], ws[k % len(ws)]; its headings are those of ws[k % len(ws)]
     x0, y0, th0 = (float(c) for c in pose)
-    th = th0 + ws[:, None] * times[None, :]  # (W, T)
-    straight = np.abs(ws) < 1e-6
-    cos_th, sin_th = np.cos(th), np.sin(th)
     cx, cy = footprint.centre
+    hx, hy = footprint.half_size
+    # rollout k has vs[k // len(ws)], ws[k % len(ws)]; its headings are those of ws[k % len(ws)]
+    times, th, px, py, gap_now = kernels.window_setup(
+        x0, y0, th0, ws, horizon, n, np.asarray(obstacles, dtype=float).reshape(-1, 2),
+        reach_v * horizon + footprint.radius + cfg.footprint_padding + 2 * _GRID,
+        float(np.cos(th0)), float(np.sin(th0)), cx, cy, hx, hy)
+    need = min(cfg.footprint_padding, gap_now)
+    cos_th, sin_th = np.cos(th), np.sin(th)
+    path_x, path_y = np.ascontiguousarray(path[:, 0]), np.ascontiguousarray(path[:, 1])
     # between two checked poses no point of the box moves more than `step`, so the gap can dip
     # at most half of it below the checked values: each rollout must keep that much more than
     # `need` (a continuous guarantee)
-    x, y, bx, by, box_bounds, need_s = kernels.rollout_boxes(
-        x0, y0, math.sin(th0), math.cos(th0), vs, ws, np.where(straight, 1.0, ws), straight,
-        times, cos_th, sin_th, cx, cy, footprint.radius, horizon / n, need)
-    lower, upper_min, est_min, unsure = _gap_bounds(bx, by, box_bounds, local, footprint, need_s)
+    (x, y, bx, by, need_s, lower, upper_min, est_min, unsure, to_path, i0, carrot_x, carrot_y,
+     ty, tx, has_tangent, end_dx, end_dy) = kernels.rollouts_and_bounds(
+        x0, y0, math.sin(th0), math.cos(th0), vs, ws, times, cos_th, sin_th, cx, cy,
+        footprint.radius, horizon / n, need, px, py, _GRID, math.hypot(hx, hy), min(hx, hy),
+        path_x, path_y, cfg.lookahead_dist)
+    tangent = math.atan2(ty, tx) if has_tangent else 0.0
+    aim = np.arctan2(end_dy, end_dx)  # rollout end -> carrot
 
-    dxy = path - pose[:2]
-    to_path = np.hypot(dxy[:, 0], dxy[:, 1])  # (N,) [m] from the robot to each path point
-    i0 = int(np.argmin(to_path))
-    carrot, tangent = _lookahead(path, pose[:2], cfg.lookahead_dist, i0)
-    aim = np.arctan2(carrot[1] - y[:, -1], carrot[0] - x[:, -1])  # rollout end -> carrot
-    cost, order = kernels.score_rollouts(
-        x, y, aim, th[:, -1], vs, ws, x0, y0, float(carrot[0]), float(carrot[1]), tangent,
-        np.ascontiguousarray(path[:, 0]), np.ascontiguousarray(path[:, 1]), to_path, i0,
-        est_min, upper_min, need_s, cfg.max_vel_x, cfg.obstacle_influence, np.array(
-            [cfg.path_dist_scale, cfg.goal_dist_scale, cfg.path_align_scale, cfg.obstacle_scale,
-             cfg.speed_scale]))
-
-    # check the candidates exactly in order of cost; the first admissible wins
-    hx, hy = footprint.half_size
-    px, py = np.ascontiguousarray(local[:, 0]), np.ascontiguousarray(local[:, 1])
-    best = kernels.first_admissible(order, unsure, need_s, bx, by, cos_th, sin_th, px, py, hx,
-                                    hy)
+    # score; then check the candidates exactly in order of cost: the first admissible wins
+    cost, best, min_gap = kernels.choose(
+        x, y, aim, th, vs, ws, x0, y0, carrot_x, carrot_y, tangent, path_x, path_y, to_path, i0,
+        est_min, upper_min, need_s, cfg.max_vel_x, cfg.obstacle_influence, _scales(cfg), lower,
+        unsure, bx, by, cos_th, sin_th, px, py, hx, hy)
     if best >= 0:
-        min_gap = kernels.rollout_min_gap(best, lower, unsure, bx, by, cos_th, sin_th, px, py,
-                                          hx, hy)
-        th_best = th[best % len(ws)]
-        traj = np.column_stack((x[best], y[best], wrap_angle(th_best)))
+        traj = np.column_stack((x[best], y[best], wrap_angle(th[best % len(ws)])))
         return Command(float(vs[best // len(ws)]), float(ws[best % len(ws)]), True,
                        float(cost[best]), float(min_gap), traj)
-    return _fallback(pose, carrot, tangent, local, footprint, cfg, (w_lo, w_hi))
+    return _fallback(pose, np.array([carrot_x, carrot_y]), tangent, np.column_stack((px, py)),
+                     footprint, cfg, (w_lo, w_hi))
 
 
 def rotation_is_safe(pose, angle: float, obstacles: Points2D, footprint: Footprint,
@@ -403,69 +393,17 @@ def _local_points(obstacles: Points2D, pose: np.ndarray, radius: float) -> np.nd
     return pts[d2 <= radius * radius]
 
 
-def _gap_now(pose: np.ndarray, pts: np.ndarray, footprint: Footprint) -> float:
-    """The exact gap [m] of the footprint at ``pose`` to the points (``inf`` without points)."""
-    if len(pts) == 0:
-        return math.inf
-    return float(point_gaps(pose, pts, footprint).min())
+_SCALES: dict[DwaConfig, np.ndarray] = {}
 
 
-def _gap_bounds(bx: np.ndarray, by: np.ndarray, box_bounds: np.ndarray, pts: np.ndarray,
-                footprint: Footprint, need: np.ndarray
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Cheap bounds of the gaps [m] between the footprint at the rollout poses and the points.
-
-    A distance transform of the points on a local grid gives every box centre's distance ``d`` to
-    the nearest point within ``e = sqrt(2)`` grid cells.  The gap is at least ``d - e - R`` (``R``
-    the box's half diagonal) and at most ``d + e - r`` (``r`` its half width, the nearest point
-    being at most that far inside the box's inscribed circle).
-
-    Args:
-        bx: (S, T) box centres x [m] in ``map`` at the rollout poses.
-        by: (S, T) box centres y [m].
-        box_bounds: (4,) the least and greatest ``bx`` and ``by`` [m]: ``(bx_min, bx_max,
-            by_min, by_max)``.
-        pts: (M, 2) obstacle points x, y [m] in ``map``.
-        footprint: the footprint box.
-        need: (S,) the gap [m] each rollout must keep.
-
-    Returns:
-        (S, T) lower bounds; (S,) per rollout the least upper bound over its poses; (S,) per
-        rollout the least estimate for the BaseObstacle critic (``d`` minus the mean of ``r`` and
-        ``R``), all ``inf`` without points; and (S, T) bool, the poses whose lower bound is below
-        their rollout's ``need`` (only an exact check can clear them).  (Rounding is monotonic,
-        so the minimum of ``d + c`` over a rollout is ``min(d) + c``, bit for bit.)
-    """
-    if len(pts) == 0:
-        inf = np.full(len(bx), np.inf)
-        return np.full(bx.shape, np.inf), inf, inf.copy(), np.zeros(bx.shape, dtype=bool)
-    hx, hy = footprint.half_size
-    return kernels.gap_bounds(bx, by, box_bounds, np.ascontiguousarray(pts[:, 0]),
-                              np.ascontiguousarray(pts[:, 1]), _GRID, math.hypot(hx, hy),
-                              min(hx, hy), need)
-
-
-def _lookahead(path: np.ndarray, xy: np.ndarray, dist: float, i0: int
-               ) -> tuple[np.ndarray, float]:
-    """The point ``dist`` [m] along the path from its point ``i0`` (the one nearest ``xy``), and
-    the path's heading [rad] there."""
-    rest = path[i0:]
-    if len(rest) == 1:
-        d = rest[0] - xy
-        heading = math.atan2(d[1], d[0]) if np.hypot(*d) > 1e-6 else 0.0
-        if len(path) > 1:
-            seg = path[-1] - path[-2]
-            heading = math.atan2(seg[1], seg[0])
-        return rest[0], heading
-    seg = np.diff(rest, axis=0)
-    s = np.concatenate(([0.0], np.cumsum(np.hypot(seg[:, 0], seg[:, 1]))))
-    k = int(np.searchsorted(s, dist))
-    if k >= len(rest):
-        return rest[-1], math.atan2(seg[-1, 1], seg[-1, 0])
-    k = max(k, 1)
-    f = (dist - s[k - 1]) / max(s[k] - s[k - 1], 1e-9)
-    point = rest[k - 1] + f * (rest[k] - rest[k - 1])
-    return point, math.atan2(seg[k - 1, 1], seg[k - 1, 0])
+def _scales(cfg: DwaConfig) -> np.ndarray:
+    """(5,) the critics' weights: PathDist, GoalDist, PathAlign, BaseObstacle, Speed."""
+    scales = _SCALES.get(cfg)
+    if scales is None:
+        scales = _SCALES[cfg] = np.array([cfg.path_dist_scale, cfg.goal_dist_scale,
+                                          cfg.path_align_scale, cfg.obstacle_scale,
+                                          cfg.speed_scale])
+    return scales
 
 
 def _fallback(pose, carrot, tangent, local, footprint: Footprint, cfg: DwaConfig,

@@ -28,9 +28,10 @@ def rollout_boxes(x0, y0, s0, c0, vs, ws, ws_safe, straight, times, cos_th, sin_
     """Poses and footprint-box centres of the rollouts of every ``vs`` x ``ws`` pair, and the
     gap each rollout must keep.
 
-    The arithmetic of ``dwa._fan`` and ``dwa._box_centres``: for a turning rollout ``x = x0 + v /
-    w (sin th - s0)``, ``y = y0 - v / w (cos th - c0)``; for a straight one ``x = x0 + v t c0``,
-    ``y = y0 + v t s0``; the box centre ``x + c cx - s cy``, ``y + s cx + c cy``.
+    The arithmetic of ``dwa.rollout`` and ``dwa._box_centres``: for a turning rollout
+    ``x = x0 + v / w (sin th - s0)``, ``y = y0 - v / w (cos th - c0)``; for a straight one
+    ``x = x0 + v t c0``, ``y = y0 + v t s0``; the box centre ``x + c cx - s cy``,
+    ``y + s cx + c cy``.
 
     Args:
         x0: start x [m] in ``map``.
@@ -159,7 +160,14 @@ def squared_distance_grid(rows, cols, h, w):
 
 @njit(cache=True, nogil=True)
 def gap_bounds(bx, by, box_bounds, px, py, grid, r_out, r_in, need):
-    """The bounds of ``dwa._gap_bounds``, and which poses they cannot clear.
+    """Cheap bounds of the gaps [m] between the footprint at the rollout poses and the points,
+    and which poses they cannot clear.
+
+    A distance transform of the points on a local grid gives every box centre's distance ``d`` to
+    the nearest point within ``e = sqrt(2)`` grid cells.  The gap is at least ``d - e - R`` (``R``
+    the box's half diagonal) and at most ``d + e - r`` (``r`` its half width, the nearest point
+    being at most that far inside the box's inscribed circle).  (Rounding is monotonic, so the
+    minimum of ``d + c`` over a rollout is ``min(d) + c``, bit for bit.)
 
     The points are marked on a grid of ``grid`` cells spanning them and the box centres with a
     margin of two cells; ``d``, a box centre's distance to the nearest marked cell (the exact
@@ -228,7 +236,7 @@ def _pose_fails(bxi, byi, c, s, px, py, hx, hy, need):
 @njit(cache=True, nogil=True)
 def first_admissible(order, unsure, need, bx, by, cos_th, sin_th, px, py, hx, hy):
     """The first rollout of ``order`` whose unsure poses all keep the Chebyshev gap [m] to every
-    point at least its ``need``, or -1 (``dwa._first_admissible``, checked one by one).
+    point at least its ``need``, or -1 (checked one by one).
 
     Args:
         order: (K,) int candidate rollouts, cheapest first.
@@ -355,3 +363,217 @@ def score_rollouts(x, y, aim_end, th_end, vs, ws, rx, ry, carrot_x, carrot_y, ta
         keep[k] = (abs(v) > 1e-9 or abs(w) > 1e-9) and not upper_min[k] < need[k]
     cand = np.flatnonzero(keep)
     return cost, cand[np.argsort(cost[cand], kind="mergesort")]
+
+
+# ---------------------------------------------------------------- one DWA tick in three calls
+# dwa.dwa_command calls these three in turn, with numpy's sin, cos and arctan2 between them (their
+# SIMD rounding is not the C library's): the numpy glue of some thirty array expressions a call
+# and the dispatch of six kernels were more than half of a DWA call's time at 100 robots.
+
+
+@njit(cache=True, nogil=True)
+def window_setup(x0, y0, th0, ws, horizon, n, obstacles, radius, c, s, cx, cy, hx, hy):
+    """The rollout times and headings, the obstacle points within reach, and the gap now.
+
+    Args:
+        x0: the robot's x [m] in ``map``.
+        y0: its y [m].
+        th0: its yaw [rad].
+        ws: (W,) rotational speeds [rad/s].
+        horizon: the rollouts' duration [s].
+        n: the number of checked poses along a rollout.
+        obstacles: (M, 2) obstacle points x, y [m] in ``map``.
+        radius: [m] points farther from the robot than this are left out (as
+            ``dwa._local_points``).
+        c: ``np.cos`` of the yaw (``dwa.point_gaps``' rounding).
+        s: ``np.sin`` of the yaw.
+        cx: the footprint box's centre x [m] in ``base_footprint``.
+        cy: its centre y [m].
+        hx: its half length [m].
+        hy: its half width [m].
+
+    Returns:
+        ``(times, th, px, py, gap)``: (T,) ``horizon * arange(1, n + 1) / n`` [s]; (W, T) yaws
+        ``th0 + ws * times`` [rad]; (L,) x and (L,) y [m] of the points within ``radius``; and
+        the least Chebyshev gap [m] between the footprint at the robot's pose and those points
+        (``inf`` without), the arithmetic of ``dwa.point_gaps``.
+    """
+    times = np.empty(n)
+    for t in range(n):
+        times[t] = horizon * (t + 1) / n
+    nw = ws.shape[0]
+    th = np.empty((nw, n))
+    for j in range(nw):
+        for t in range(n):
+            th[j, t] = th0 + ws[j] * times[t]
+    r2 = radius * radius
+    m = obstacles.shape[0]
+    keep = np.empty(m, dtype=np.int64)
+    n_keep = 0
+    for i in range(m):
+        dx = obstacles[i, 0] - x0
+        dy = obstacles[i, 1] - y0
+        if dx * dx + dy * dy <= r2:
+            keep[n_keep] = i
+            n_keep += 1
+    px = np.empty(n_keep)
+    py = np.empty(n_keep)
+    bx = x0 + c * cx - s * cy
+    by = y0 + s * cx + c * cy
+    gap = math.inf
+    for i in range(n_keep):
+        px[i] = obstacles[keep[i], 0]
+        py[i] = obstacles[keep[i], 1]
+        dx = px[i] - bx
+        dy = py[i] - by
+        gap = min(gap, max(abs(c * dx + s * dy) - hx, abs(c * dy - s * dx) - hy))
+    return times, th, px, py, gap
+
+
+@njit(cache=True, nogil=True)
+def lookahead(path_x, path_y, rx, ry, dist, i0):
+    """The lookahead point ``dist`` [m] along the path from its point ``i0`` (the one nearest
+    the robot at ``rx, ry``), and the path's heading there.
+
+    The length along the path is summed segment by segment in order (``np.cumsum``'s
+    arithmetic) up to the first point at least ``dist`` along (``np.searchsorted``'s); the point
+    is interpolated on the segment before it.  From the path's last point (or beyond it) the
+    lookahead point is that last point, with the last segment's heading (with a single point,
+    the heading from the robot to it).
+
+    Args:
+        path_x, path_y: (N,) the path [m] in ``map``.
+        rx, ry: the robot's position [m].
+        dist: the lookahead distance [m].
+        i0: the index of the path point nearest the robot.
+
+    Returns:
+        ``(carrot_x, carrot_y, ty, tx, has_tangent)``: the point [m] in ``map``, and the
+        arguments of ``atan2`` for the path's heading there (``has_tangent`` False: heading 0).
+    """
+    n = path_x.shape[0]
+    if n - i0 == 1:
+        dx = path_x[i0] - rx
+        dy = path_y[i0] - ry
+        if n > 1:
+            return path_x[i0], path_y[i0], path_y[n - 1] - path_y[n - 2], \
+                path_x[n - 1] - path_x[n - 2], True
+        return path_x[i0], path_y[i0], dy, dx, math.hypot(dx, dy) > 1e-6
+    # s: the cumulative length along path[i0:], summed in order as np.cumsum; the first s >= dist
+    # is np.searchsorted's (side left) answer
+    s_prev = 0.0
+    s_k = 0.0
+    k = 0
+    if not 0.0 >= dist:
+        k = n - i0
+        for q in range(1, n - i0):
+            s_prev = s_k
+            s_k = s_k + math.hypot(path_x[i0 + q] - path_x[i0 + q - 1],
+                                   path_y[i0 + q] - path_y[i0 + q - 1])
+            if s_k >= dist:
+                k = q
+                break
+    if k >= n - i0:
+        return path_x[n - 1], path_y[n - 1], path_y[n - 1] - path_y[n - 2], \
+            path_x[n - 1] - path_x[n - 2], True
+    if k == 0:  # dist <= 0: the first segment
+        k = 1
+        s_prev = 0.0
+        s_k = math.hypot(path_x[i0 + 1] - path_x[i0], path_y[i0 + 1] - path_y[i0])
+    a = i0 + k - 1
+    f = (dist - s_prev) / max(s_k - s_prev, 1e-9)
+    return (path_x[a] + f * (path_x[a + 1] - path_x[a]),
+            path_y[a] + f * (path_y[a + 1] - path_y[a]),
+            path_y[a + 1] - path_y[a], path_x[a + 1] - path_x[a], True)
+
+
+@njit(cache=True, nogil=True)
+def rollouts_and_bounds(x0, y0, s0, c0, vs, ws, times, cos_th, sin_th, cx, cy, radius, dt_check,
+                        need, px, py, grid, r_out, r_in, path_x, path_y, dist):
+    """The rollouts, their gap bounds, and where they aim: :func:`rollout_boxes`,
+    :func:`gap_bounds` and :func:`lookahead` in one call.
+
+    Args:
+        x0, y0: the robot's position [m] in ``map``.
+        s0, c0: ``math.sin`` and ``math.cos`` of its yaw.
+        vs: (V,) forward speeds [m/s].
+        ws: (W,) rotational speeds [rad/s].
+        times: (T,) times [s] of the checked poses.
+        cos_th, sin_th: (W, T) cos and sin of the rollouts' yaws.
+        cx, cy: the footprint box's centre [m] in ``base_footprint``.
+        radius: the box's circumscribed radius [m].
+        dt_check: time [s] between two checked poses.
+        need: the gap [m] to keep.
+        px, py: (L,) the obstacle points within reach, x and y [m] in ``map``.
+        grid: the distance grid's cell [m].
+        r_out, r_in: the box's half diagonal and half width [m].
+        path_x, path_y: (N,) the local path [m] in ``map``, N > 0.
+        dist: the lookahead distance [m].
+
+    Returns:
+        ``(x, y, bx, by, need_s, lower, upper_min, est_min, unsure, to_path, i0, carrot_x,
+        carrot_y, ty, tx, has_tangent, end_dx, end_dy)``: those of :func:`rollout_boxes` (but the
+        box bounds) and :func:`gap_bounds` (``inf`` and no unsure pose without points); (N,)
+        each path point's distance [m] to the robot and the index of the nearest (the first of
+        equals); those of :func:`lookahead`; and (S,) the offset [m] of the carrot from each
+        rollout's end, for ``np.arctan2``.
+    """
+    nw = ws.shape[0]
+    straight = np.empty(nw, dtype=np.bool_)
+    ws_safe = np.empty(nw)
+    for j in range(nw):
+        straight[j] = abs(ws[j]) < 1e-6
+        ws_safe[j] = 1.0 if straight[j] else ws[j]
+    x, y, bx, by, box_bounds, need_s = rollout_boxes(
+        x0, y0, s0, c0, vs, ws, ws_safe, straight, times, cos_th, sin_th, cx, cy, radius,
+        dt_check, need)
+    ns, nt = bx.shape
+    if px.shape[0] == 0:
+        lower = np.full((ns, nt), math.inf)
+        upper_min = np.full(ns, math.inf)
+        est_min = np.full(ns, math.inf)
+        unsure = np.zeros((ns, nt), dtype=np.bool_)
+    else:
+        lower, upper_min, est_min, unsure = gap_bounds(bx, by, box_bounds, px, py, grid, r_out,
+                                                       r_in, need_s)
+    npath = path_x.shape[0]
+    to_path = np.empty(npath)
+    i0 = 0
+    for i in range(npath):
+        to_path[i] = math.hypot(path_x[i] - x0, path_y[i] - y0)
+        if to_path[i] < to_path[i0]:
+            i0 = i
+    carrot_x, carrot_y, ty, tx, has_tangent = lookahead(path_x, path_y, x0, y0, dist, i0)
+    end_dx = np.empty(ns)
+    end_dy = np.empty(ns)
+    for k in range(ns):
+        end_dx[k] = carrot_x - x[k, nt - 1]
+        end_dy[k] = carrot_y - y[k, nt - 1]
+    return (x, y, bx, by, need_s, lower, upper_min, est_min, unsure, to_path, i0, carrot_x,
+            carrot_y, ty, tx, has_tangent, end_dx, end_dy)
+
+
+@njit(cache=True, nogil=True)
+def choose(x, y, aim_end, th, vs, ws, rx, ry, carrot_x, carrot_y, tangent, path_x, path_y,
+           to_path, i0, est_min, upper_min, need, max_vel_x, influence, scales, lower, unsure, bx,
+           by, cos_th, sin_th, px, py, hx, hy):
+    """The admissible rollout of least cost: :func:`score_rollouts`, then
+    :func:`first_admissible` and :func:`rollout_min_gap` on the candidates (arguments as
+    theirs; ``th`` (W, T) the rollouts' yaws [rad]).
+
+    Returns:
+        ``(cost, best, min_gap)``: (S,) the weighted costs, the chosen rollout (-1: none is
+        admissible) and the least gap [m] along it (``inf`` when none).
+    """
+    nt = th.shape[1]
+    th_end = np.empty(th.shape[0])
+    for j in range(th.shape[0]):
+        th_end[j] = th[j, nt - 1]
+    cost, order = score_rollouts(x, y, aim_end, th_end, vs, ws, rx, ry, carrot_x, carrot_y,
+                                 tangent, path_x, path_y, to_path, i0, est_min, upper_min, need,
+                                 max_vel_x, influence, scales)
+    best = first_admissible(order, unsure, need, bx, by, cos_th, sin_th, px, py, hx, hy)
+    min_gap = math.inf
+    if best >= 0:
+        min_gap = rollout_min_gap(best, lower, unsure, bx, by, cos_th, sin_th, px, py, hx, hy)
+    return cost, best, min_gap

@@ -41,8 +41,8 @@ DT = 0.1
 REF_BATCH = 40
 
 
-def ref_lookahead(path, xy, dist):
-    i0 = int(np.argmin(np.hypot(*(path - xy).T)))
+def ref_lookahead_from(path, xy, dist, i0):
+    """The reference's lookahead from a given nearest point ``i0`` (its own code after argmin)."""
     rest = path[i0:]
     if len(rest) == 1:
         d = rest[0] - xy
@@ -58,8 +58,11 @@ def ref_lookahead(path, xy, dist):
         return rest[-1], math.atan2(seg[-1, 1], seg[-1, 0])
     k = max(k, 1)
     f = (dist - s[k - 1]) / max(s[k] - s[k - 1], 1e-9)
-    point = rest[k - 1] + f * (rest[k] - rest[k - 1])
-    return point, math.atan2(seg[k - 1, 1], seg[k - 1, 0])
+    return rest[k - 1] + f * (rest[k] - rest[k - 1]), math.atan2(seg[k - 1, 1], seg[k - 1, 0])
+
+
+def ref_lookahead(path, xy, dist):
+    return ref_lookahead_from(path, xy, dist, int(np.argmin(np.hypot(*(path - xy).T))))
 
 
 def ref_gaps(x, y, yaw, pts, footprint):
@@ -302,3 +305,31 @@ def test_compiled_distance_transform_equals_scipy(seed):
         ref = ndimage.distance_transform_edt(free)
         got = np.sqrt(dwa_kernels.squared_distance_grid(rows, cols, h, w))
         assert np.array_equal(got, ref), (h, w, n)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_compiled_lookahead_equals_the_reference(seed):
+    """The compiled lookahead (its sum stopped at the first point far enough) gives the
+    reference's point and heading to the last bit: from every path point, with distances of 0,
+    within the path, exactly at a point's distance along it, and beyond its end; on paths with
+    repeated points and on single points."""
+    rng = np.random.default_rng(400 + seed)
+    for case in range(60):
+        n = int(rng.integers(1, 40))
+        path = np.cumsum(rng.normal(0.0, 0.05, size=(n, 2)), axis=0)
+        if case % 5 == 0 and n > 2:
+            path[n // 2] = path[n // 2 - 1]  # a zero-length segment
+        xy = path[0] + rng.normal(0.0, 0.1, size=2)
+        if case % 11 == 0:
+            xy = path[0].copy()  # the robot on a single-point path: heading 0
+        for i0 in range(n):
+            seg = np.hypot(*np.diff(path[i0:], axis=0).T)
+            along = np.cumsum(seg)
+            dists = [0.0, 0.6, float(rng.uniform(0.0, 2.0))] + along[:2].tolist()
+            for dist in dists:
+                want_point, want_heading = ref_lookahead_from(path, xy, dist, i0)
+                cx, cy, ty, tx, has = dwa_kernels.lookahead(
+                    np.ascontiguousarray(path[:, 0]), np.ascontiguousarray(path[:, 1]),
+                    float(xy[0]), float(xy[1]), dist, i0)
+                assert (cx, cy) == (want_point[0], want_point[1]), (case, i0, dist)
+                assert (math.atan2(ty, tx) if has else 0.0) == want_heading, (case, i0, dist)
