@@ -77,6 +77,10 @@ class Chromium:
             raise FileNotFoundError("chromium not found")
         self._profile = tempfile.TemporaryDirectory(prefix="swarm_wb_chromium_")
         self._log = open(Path(self._profile.name) / "chromium.log", "wb")  # noqa: SIM115
+        # Chromium makes its singleton socket's directory under TMPDIR and leaves it behind when
+        # stopped by a signal: keep it in the profile, which close() removes.
+        tmp = Path(self._profile.name) / "tmp"
+        tmp.mkdir()
         self.proc = subprocess.Popen(
             [*_user_priority(), self.exe, "--headless", "--no-sandbox", "--disable-gpu",
              "--no-first-run", "--no-default-browser-check", "--disable-extensions",
@@ -84,7 +88,7 @@ class Chromium:
              f"--user-data-dir={self._profile.name}", f"--window-size={size[0]},{size[1]}",
              url],
             stdin=subprocess.DEVNULL, stdout=self._log, stderr=subprocess.STDOUT,
-            start_new_session=True)
+            start_new_session=True, env={**os.environ, "TMPDIR": str(tmp)})
         self.port = self._devtools_port(timeout=30.0)
         self._page_ws: str | None = None
 
