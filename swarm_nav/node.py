@@ -60,6 +60,10 @@ _CONTEXT_PARAMS = {
     "robot_name": ("", "-", "the robot's namespace without '/', for logs (default: the node's)"),
     "wait_for_commander": (False, "-", "hold the first answer to the simulator until a goal_pose "
                            "publisher (a commander) is connected (swarm-up --commanders)"),
+    "wait_for_status_readers": (0, "-", "hold the first answer to the simulator until nav_status "
+                                "has this many readers (swarm-up: its metrics listener and the "
+                                "commander), so that a restarted navigator's first statuses reach "
+                                "them all"),
     "goal_wait_timeout": (0.5, "s", "wall time the first tick after a goal ended may wait for a "
                           "connected commander's next goal; a wait that times out makes the run "
                           "irreproducible and is counted (nav_status goal_wait_timeouts); "
@@ -279,7 +283,8 @@ class NavigatorNode(Node):
         - on the first tick answered after the goal ended (or the first at all), with a commander
           connected, its next goal has arrived, the commander left, or ``goal_wait_timeout`` wall
           seconds passed (counted in ``goal_wait_timeouts``: the run is no longer reproducible);
-          with ``wait_for_commander``, the very first answer waits for a commander to connect.
+          with ``wait_for_commander``, the very first answer waits for a commander to connect,
+          and with ``wait_for_status_readers`` for that many readers of ``nav_status``.
         """
         odom = self._pending
         if odom is None:
@@ -304,16 +309,8 @@ class NavigatorNode(Node):
     def _awaits_goal(self, t: int) -> bool:
         if any(stamp < t for stamp, _, _ in self._goals):
             return False
-        if not self._answered:  # the start gate: wait for the commander to connect
-            if not self.get_parameter("wait_for_commander").value:
-                return False
-            if self.count_publishers(self._goal_topic) > 0:
-                return False
-            if time.monotonic() - self._started > COMMANDER_WAIT_S:
-                self._warn("commander", f"no commander on {self._goal_topic} after "
-                           f"{COMMANDER_WAIT_S:g} s; starting without one")
-                return False
-            return True
+        if not self._answered:
+            return self._start_gate_closed()
         # The first tick answered after the goal ended (normally the next one; a later one when
         # that tick's odometry or scan was lost, e.g. to a drop fault) waits, once, unless the
         # commander said no goal is coming (a cancel while no goal runs).
@@ -321,6 +318,31 @@ class NavigatorNode(Node):
                 and (self._goal_wait_over is None or self._goal_wait_over <= self._terminal_ns)
                 and self._no_next_goal != self._terminal_ns
                 and self.count_publishers(self._goal_topic) > 0)
+
+    def _start_gate_closed(self) -> bool:
+        """Whether the first answer must still wait: for a commander to connect
+        (``wait_for_commander``) and for ``wait_for_status_readers`` readers of ``nav_status``,
+        up to ``COMMANDER_WAIT_S`` wall seconds after the start (then warned, and answered).
+
+        A navigator restarted mid-run (a kill-nav fault) is a new DDS participant: a reader that
+        discovers it only after a goal ended (its latched ``nav_status`` keeps the last status
+        alone) would never see that goal succeed.  The simulator holds the tick until the
+        restarted navigator answers, so the wait costs wall time, not reproducibility.
+        """
+        waiting = []
+        if (self.get_parameter("wait_for_commander").value
+                and self.count_publishers(self._goal_topic) == 0):
+            waiting.append(f"commander on {self._goal_topic}")
+        readers = int(self.get_parameter("wait_for_status_readers").value)
+        if self.status_pub.get_subscription_count() < readers:
+            waiting.append(f"{readers} readers of nav_status")
+        if not waiting:
+            return False
+        if time.monotonic() - self._started > COMMANDER_WAIT_S:
+            self._warn("start_gate", f"no {' and no '.join(waiting)} after "
+                       f"{COMMANDER_WAIT_S:g} s; starting without")
+            return False
+        return True
 
     def _on_goal_wait_poll(self, t: int) -> None:
         waited = time.monotonic() - self._goal_wait_started

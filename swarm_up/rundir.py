@@ -26,7 +26,8 @@ COMMANDER_GOAL_WAIT_S = 2.5
 # use_sim_time and the node's context parameters (swarm_nav.node), which swarm-up sets per robot
 # in navigator_params.  tests/swarm_up/test_validate.py holds this list to the node's.
 CONTEXT_KEYS = frozenset({"use_sim_time", "robot", "poi_file", "map_yaml_path", "robot_name",
-                          "wait_for_commander", "goal_wait_timeout"})
+                          "wait_for_commander", "wait_for_status_readers",
+                          "goal_wait_timeout"})
 
 
 class RunError(Exception):
@@ -105,6 +106,9 @@ def navigator_params(template: dict, ns: str, index: int, cfg: RunConfig) -> dic
         # With commanders, simulated time starts once each robot's commander is connected, and
         # each goal takes effect at a fixed tick: the same seed gives the same run.
         wait_for_commander=bool(cfg.commanders),
+        # swarm-up's metrics listener, and the commander, must hear every status: a navigator
+        # restarted by a fault waits for them before its first answer
+        wait_for_status_readers=1 + int(bool(cfg.commanders)),
         # Our commanders answer every ended goal at once; a loaded machine may delay that answer
         # by seconds of wall time, and a wait that times out would make the run irreproducible.
         goal_wait_timeout=COMMANDER_GOAL_WAIT_S if cfg.commanders else 0.5,

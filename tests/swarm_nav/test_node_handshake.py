@@ -40,7 +40,7 @@ LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
 class Probe:
     """The simulator and the commander of one robot ``/hs``, at (0, 0) facing +x."""
 
-    def __init__(self, goal_wait_timeout: float):
+    def __init__(self, goal_wait_timeout: float, status_readers: int = 0):
         self.ctx = rclpy.Context()
         rclpy.init(context=self.ctx)
         self.executor = SingleThreadedExecutor(context=self.ctx)
@@ -49,6 +49,7 @@ class Probe:
             parameter_overrides=[
                 Parameter("map_yaml_path", value=str(ROOT / "maps" / "empty.yaml")),
                 Parameter("goal_wait_timeout", value=goal_wait_timeout),
+                Parameter("wait_for_status_readers", value=status_readers),
             ])
         self.node = rclpy.create_node("probe", context=self.ctx)
         self.answers: dict[int, tuple[float, float]] = {}  # tick [ns] -> (v, w)
@@ -119,7 +120,7 @@ class Probe:
 @pytest.fixture
 def probe(request):
     """A :class:`Probe` whose nodes have discovered each other."""
-    p = Probe(request.param)
+    p = Probe(*request.param) if isinstance(request.param, tuple) else Probe(request.param)
     spin_until(p.executor, lambda: p.nav.count_subscribers("/hs/goal_pose") > 0
                and p.node.count_subscribers("/hs/odom") > 0, 10.0, "discovery")
     yield p
@@ -147,6 +148,23 @@ def test_tick_after_the_start_waits_for_the_commanders_goal(probe):
     t2 = t1 + TICK_NS
     probe.tick(t2)
     assert probe.answer(t2, 5.0) < 0.5
+
+
+@pytest.mark.parametrize("probe", [(5.0, 2)], indirect=True)
+def test_the_first_answer_waits_for_the_readers_of_nav_status(probe):
+    """``wait_for_status_readers`` (swarm-up: its metrics listener and the commander): a
+    navigator, restarted or not, answers its first tick only once ``nav_status`` has that many
+    readers, so that none of them misses a goal's end (a reader that joins later gets the
+    latched last status alone)."""
+    t0 = 10 * TICK_NS
+    probe.tick(t0)
+    assert probe.silent_for(t0, 1.5), "answered with one reader of nav_status of two required"
+    probe.node.create_subscription(DiagnosticStatus, "/hs/nav_status", lambda msg: None, LATCHED)
+    deadline = time.monotonic() + 10.0
+    while t0 not in probe.answers and time.monotonic() < deadline:
+        probe.tick(t0)  # the held tick again, as the simulator re-publishes it
+        probe.silent_for(t0, 0.5)
+    assert t0 in probe.answers, "the first tick stayed unanswered with both readers there"
 
 
 @pytest.mark.parametrize("probe", [0.3], indirect=True)

@@ -74,6 +74,7 @@ def test_one_file_per_namespace_rooted_at_ns_navigator(cfg, template):
         assert params["map_yaml_path"] == ""  # navigators take the map from /map
         assert params["robot"] == "turtlebot3_waffle"
         assert params["wait_for_commander"] is True and params["goal_wait_timeout"] == 2.5
+        assert params["wait_for_status_readers"] == 2  # the metrics listener and the commander
 
 
 def test_without_commanders_no_start_gate_and_the_short_goal_wait(cfg, template):
@@ -82,6 +83,7 @@ def test_without_commanders_no_start_gate_and_the_short_goal_wait(cfg, template)
     params = yaml.safe_load(write_params_files(replace(cfg, commanders=False), template)[0]
                             .read_text())["/Srobot1/navigator"]["ros__parameters"]
     assert params["wait_for_commander"] is False and params["goal_wait_timeout"] == 0.5
+    assert params["wait_for_status_readers"] == 1  # the metrics listener
 
 
 def test_missing_poi_and_map_give_empty_strings(cfg, template):
