@@ -41,6 +41,19 @@ Definitions (``docs/ARCHITECTURE.md``, ``/<ns>/nav_status``):
   included (the coordinator's ``duration_s``): the time the robot needed for the task either way.
 - *waiting at spots* (``coordinator_wait_s``, centralized): simulated seconds robots held a
   waiting spot (reserve to release, or to the end of the run).
+- *tasks per window* (``tasks_per_window``): tasks completed in each ``task_window_s`` (600 s)
+  of simulated time, from t = 0; the last window is cut short by the end of the run when the
+  run is not a whole number of windows (``task_windows_full`` says how many are whole).
+  ``task_window_ratio_min`` is the fewest tasks of a whole window after the first, over the mean
+  of those windows (issue 9's steadiness check: >= 0.85 means no jam built up; None with fewer
+  than one whole window after the first).
+- *workstations* (``workstations``): one row per workstation of the world's points of interest,
+  in file order, for the goals whose pose (``goal_x``, ``goal_y`` of ``nav_status``) lies within
+  ``WORKSTATION_MATCH_M`` (0.5 m) of its docking pose: ``goals`` sent there, ``visits`` (goals
+  reached), ``aborted``, ``mean_time_to_goal_s``, ``holding_time_s`` (summed over its goals) and
+  ``mean_wait_s`` (holding time per goal: how long a robot sent there waited in its holding
+  pattern). Goals near no workstation (a centralized run's waiting spots) are the row
+  ``(other)``, listed only when there are any.
 - *late goals*: goals a navigator applied later than the first control tick after the goal's
   stamp (the tick it was applied at is the first status's ``stamp`` minus its
   ``navigation_time_s``): the goal arrived after that tick, so wall-clock timing decided when
@@ -78,6 +91,9 @@ from swarm_common.sim_summary import RobotSummary, SimSummary, SimSummaryError
 from swarm_common.stamps import NS_PER_S, parse_stamp
 
 WARMUP_S = 120.0  # [s] simulated: the protocol's warm-up, left out of the warm-up throughput
+TASK_WINDOW_S = 600.0  # [s] simulated: issue 9's 10-minute windows of tasks completed
+WORKSTATION_MATCH_M = 0.5  # [m] a goal this near a workstation's docking pose is a goal to it
+OTHER_GOALS = "(other)"  # the workstation table's row of goals near no workstation
 COMM_TOPICS = ("map", "request", "assignment", "state")
 
 SIM_SUMMARY_KEYS = (
@@ -121,6 +137,7 @@ class RobotRecord:
     goal_wait_timeouts_before: int = 0  # the counters of earlier (restarted) navigator processes
     task_times: list[float] = field(default_factory=list)  # [s] sim time of each first SUCCEEDED
     reached_at: dict[str, float] = field(default_factory=dict)  # goal id -> sim time [s] reached
+    goal_xy: dict[str, tuple[float, float]] = field(default_factory=dict)  # goal id -> x, y [m]
     applied: set[str] = field(default_factory=set)  # goal ids seen applied
     late_goals: int = 0  # goals applied after the first tick after their stamp
     late_goal_ids: list[str] = field(default_factory=list)  # "<goal id> applied at <t>" (first 10)
@@ -188,6 +205,8 @@ class RunRecorder:
             rec.goal_wait_timeouts = waits
         if goal and status.holding_time is not None:
             rec.holding_s[goal] = status.holding_time
+        if goal and status.goal is not None and goal not in rec.goal_xy:
+            rec.goal_xy[goal] = (status.goal[0], status.goal[1])
         if goal and goal not in rec.applied and status.stamp_ns is not None \
                 and status.navigation_time is not None and state not in (None, NavState.IDLE):
             rec.applied.add(goal)
@@ -403,6 +422,88 @@ def task_records(recorder: RunRecorder, centralized: bool) -> list[tuple[float, 
     return sorted(out)
 
 
+def tasks_per_window(times_s: list[float], sim_time_s: float | None,
+                     window_s: float = TASK_WINDOW_S) -> dict:
+    """Tasks completed per window of simulated time (see *tasks per window*).
+
+    Args:
+        times_s: completion times of the tasks [s] simulated.
+        sim_time_s: the run's simulated length [s] (None: up to the last task).
+        window_s: window length [s] (> 0).
+
+    Returns:
+        ``tasks_per_window`` (list of counts, window k covering ``[k w, (k + 1) w)``; a task at
+        exactly ``sim_time_s`` counts in the last window), ``task_window_s``,
+        ``task_windows_full`` (whole windows) and ``task_window_ratio_min``.
+    """
+    end = sim_time_s if sim_time_s is not None else max(times_s, default=0.0)
+    n_windows = max(1, math.ceil(end / window_s - 1e-9)) if end > 0 else 0
+    counts = [0] * n_windows
+    for t in times_s:
+        if n_windows:
+            counts[min(n_windows - 1, max(0, int(t // window_s)))] += 1
+    full = int(end // window_s + 1e-9) if end > 0 else 0
+    later = counts[1:full]
+    mean = sum(later) / len(later) if later else 0.0
+    return {
+        "tasks_per_window": counts,
+        "task_window_s": window_s,
+        "task_windows_full": full,
+        "task_window_ratio_min": (min(later) / mean) if later and mean > 0 else None,
+    }
+
+
+def workstation_table(recorder: RunRecorder, workstations: Mapping[str, tuple[float, float]],
+                      match_m: float = WORKSTATION_MATCH_M) -> list[dict]:
+    """Goals, visits and waiting per workstation (see *workstations*).
+
+    Args:
+        recorder: the run's recorder.
+        workstations: name -> docking x, y [m] in ``map``, in the table's order.
+        match_m: a goal within this distance [m] of a docking pose is a goal to it (the
+            nearest one when several are).
+
+    Returns:
+        One dict per workstation (name, x, y, goals, visits, aborted, mean_time_to_goal_s,
+        holding_time_s, mean_wait_s), then ``(other)`` when some goals matched none.
+    """
+    names = list(workstations)
+    xy = [tuple(map(float, workstations[n][:2])) for n in names]
+    rows = {n: {"goals": 0, "visits": 0, "aborted": 0, "ttg": [], "holding": 0.0}
+            for n in [*names, OTHER_GOALS]}
+    for rec in recorder.per_robot.values():
+        for goal, (gx, gy) in rec.goal_xy.items():
+            dists = [math.hypot(gx - x, gy - y) for x, y in xy]
+            near = min(range(len(dists)), key=dists.__getitem__) if dists else None
+            row = rows[names[near] if near is not None and dists[near] <= match_m
+                       else OTHER_GOALS]
+            row["goals"] += 1
+            if goal in rec.reached:
+                row["visits"] += 1
+                if rec.reached[goal] is not None:
+                    row["ttg"].append(rec.reached[goal])
+            if goal in rec.aborted:
+                row["aborted"] += 1
+            row["holding"] += rec.holding_s.get(goal, 0.0)
+    out = []
+    for i, name in enumerate([*names, OTHER_GOALS]):
+        row = rows[name]
+        if name == OTHER_GOALS and row["goals"] == 0:
+            continue
+        out.append({
+            "name": name,
+            "x": xy[i][0] if i < len(xy) else None,
+            "y": xy[i][1] if i < len(xy) else None,
+            "goals": row["goals"],
+            "visits": row["visits"],
+            "aborted": row["aborted"],
+            "mean_time_to_goal_s": (sum(row["ttg"]) / len(row["ttg"])) if row["ttg"] else None,
+            "holding_time_s": row["holding"],
+            "mean_wait_s": (row["holding"] / row["goals"]) if row["goals"] else None,
+        })
+    return out
+
+
 def _spot_wait_s(events: list[dict[str, str]], end_s: float | None) -> float:
     """Simulated seconds robots held waiting spots (reserve to release, or to ``end_s``)."""
     since: dict[tuple[str, str], float] = {}
@@ -496,6 +597,7 @@ def aggregate(
     extra: dict | None = None,
     fault_restarts: int = 0,
     map_deliveries: dict[str, int] | None = None,
+    workstations: Mapping[str, tuple[float, float]] | None = None,
 ) -> dict:
     """The ``--metrics`` dict of a run (SPEC §6).
 
@@ -517,6 +619,8 @@ def aggregate(
         fault_restarts: those of ``restarts`` that injected faults caused.
         map_deliveries: ``/map`` copies each robot's navigator received (one per process
             start); None: one each.
+        workstations: name -> docking x, y [m] in ``map`` of the world's workstations, in
+            file order (None or empty: ``workstations`` lists only ``(other)``).
 
     Returns:
         A JSON-serialisable dict with the keys of SPEC §6 (None where unknown).
@@ -587,6 +691,8 @@ def aggregate(
         "time_to_task_median_s": _percentile(durations, 50.0),
         "time_to_task_p95_s": _percentile(durations, 95.0),
         "task_times_s": [round(t, 3) for t, _, _ in tasks],
+        **tasks_per_window([t for t, _, _ in tasks], sim_time),
+        "workstations": workstation_table(recorder, workstations or {}),
         "collisions": _collisions(recorder, sim),
         "min_separation_m": _float(sim.min_separation_m),
         "mean_time_to_goal_s": (sum(ttgs) / len(ttgs)) if ttgs else None,

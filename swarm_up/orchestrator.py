@@ -291,6 +291,7 @@ class Orchestrator:
                 resources=self.sampler.result(), restarts=self.sup.restarts,
                 fault_restarts=self.faults.fault_restarts if self.faults is not None else 0,
                 map_deliveries=self._map_deliveries(summary),
+                workstations=self._workstations(),
                 extra={"ended_by": outcome.ended_by, "run_dir": str(cfg.run_dir),
                        "processes": PER_ROBOT if cfg.groups is None else len(cfg.groups),
                        "commanders": cfg.commanders, "rtf_requested": cfg.rtf,

@@ -80,6 +80,32 @@ def _fmt(value, unit: str = "", digits: int = 2) -> str:
     return f"{text} {unit}".rstrip()
 
 
+def _windows(metrics: dict) -> str:
+    """``70 / 72 / 68 (min/mean 0.96)``: tasks per window, the last one marked when short."""
+    counts = [str(c) for c in metrics["tasks_per_window"]]
+    if metrics.get("task_windows_full", len(counts)) < len(counts):
+        counts[-1] += "*"
+    ratio = metrics.get("task_window_ratio_min")
+    return " / ".join(counts) + (f" (min/mean {ratio:.2f})" if ratio is not None else "")
+
+
+def _workstation_table(rows: list[dict]):
+    """The per-workstation table of the summary (``workstations`` of ``--metrics``)."""
+    from rich.table import Table
+
+    table = Table(title="workstations")
+    for name, justify in (("workstation", "left"), ("goals", "right"), ("visits", "right"),
+                          ("aborted", "right"), ("mean time to goal", "right"),
+                          ("holding time", "right"), ("mean wait", "right")):
+        table.add_column(name, justify=justify)
+    for row in rows:
+        table.add_row(str(row.get("name")), _fmt(row.get("goals")), _fmt(row.get("visits")),
+                      _fmt(row.get("aborted")), _fmt(row.get("mean_time_to_goal_s"), "s", 1),
+                      _fmt(row.get("holding_time_s"), "s", 1),
+                      _fmt(row.get("mean_wait_s"), "s", 1))
+    return table
+
+
 def print_summary(metrics: dict, metrics_files: list[Path]) -> None:
     """Print the run's figures as a table (rich; plain text when not a terminal)."""
     from rich.console import Console
@@ -97,6 +123,8 @@ def print_summary(metrics: dict, metrics_files: list[Path]) -> None:
         ("spawn to all ready", _fmt(metrics.get("spawn_to_ready_s"), "s")),
         ("tasks completed", _fmt(metrics.get("tasks_completed"))),
         ("throughput", _fmt(metrics.get("throughput_per_hour"), "tasks/h", 1)),
+        *([(f"tasks per {_fmt(metrics.get('task_window_s'), '', 0)} s window",
+            _windows(metrics))] if metrics.get("tasks_per_window") else []),
         ("goals reached / aborted",
          f"{_fmt(metrics.get('goals_reached'))} / {_fmt(metrics.get('goals_aborted'))}"),
         ("collisions robot-robot / wall",
@@ -131,6 +159,9 @@ def print_summary(metrics: dict, metrics_files: list[Path]) -> None:
         table.add_row(name, value)
     console = Console()
     console.print(table)
+    stations = metrics.get("workstations") or []
+    if any(row.get("goals") for row in stations):
+        console.print(_workstation_table(stations))
     for path in metrics_files:
         print(f"metrics: {path}", flush=True)
 

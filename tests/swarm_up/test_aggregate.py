@@ -315,3 +315,81 @@ def test_coordinator_starts_count_each_epoch_once_from_either_source():
     m = aggregate(rec, SimSummary(), world="w", seed=0, coordination="centralized",
                   wall_time_s=1.0, map_deliveries={})
     assert m["coordinator_starts"] == 2
+
+
+# ------------------------------------------------ issue 9: tasks per window, workstation table
+@pytest.mark.parametrize("times, sim_time, counts, full, ratio", [
+    # 30 minutes: three whole windows; the ratio is over the two after the first
+    ([10.0, 599.9, 600.0, 700.0, 1300.0, 1799.0], 1800.0, [2, 2, 2], 3, 1.0),
+    ([10.0, 650.0, 700.0, 800.0, 1200.0], 1800.0, [1, 3, 1], 3, 0.5),
+    # a short last window is counted, marked as not whole and left out of the ratio
+    ([10.0, 700.0, 1250.0], 1300.0, [1, 1, 1], 2, 1.0),
+    # a task at exactly the end counts in the last window
+    ([1800.0], 1800.0, [0, 0, 1], 3, 0.0),
+    # one whole window: no ratio; no tasks after the first window: no ratio (mean 0)
+    ([5.0], 600.0, [1], 1, None),
+    ([5.0], 1800.0, [1, 0, 0], 3, None),
+    ([], 0.0, [], 0, None),
+])
+def test_tasks_per_window(times, sim_time, counts, full, ratio):
+    from swarm_up.aggregate import tasks_per_window
+
+    out = tasks_per_window(times, sim_time)
+    assert out["tasks_per_window"] == counts and sum(counts) == len(times)
+    assert out["task_window_s"] == 600.0 and out["task_windows_full"] == full
+    assert out["task_window_ratio_min"] == (pytest.approx(ratio) if ratio is not None else None)
+
+
+def _goal(state, goal, x, y, nav_t=None, hold=None):
+    values = _status(state, goal, nav_t, hold)
+    values.update(goal_x=f"{x:.3f}", goal_y=f"{y:.3f}", goal_yaw="0.0000")
+    return values
+
+
+def test_workstation_table_matches_goals_to_the_nearest_docking_pose():
+    from swarm_up.aggregate import workstation_table
+
+    rec = RunRecorder(robots=("r1", "r2"))
+    stations = {"loader1": (0.0, 0.0), "loader2": (5.0, 0.0), "unused": (9.0, 9.0)}
+    # r1: two goals to loader1 (one reached after holding 4 s, one aborted), one to loader2
+    rec.on_status("r1", _goal("DRIVING", "1.000000000", 0.1, -0.1, 0.0), 1.0)
+    rec.on_status("r1", _goal("HOLDING", "1.000000000", 0.1, -0.1, 5.0, hold=4.0), 2.0)
+    rec.on_status("r1", _goal("SUCCEEDED", "1.000000000", 0.1, -0.1, 20.0, hold=4.0), 3.0)
+    rec.on_status("r1", _goal("ABORTED", "2.000000000", 0.0, 0.3, 0.1), 4.0)
+    rec.on_status("r1", _goal("SUCCEEDED", "3.000000000", 4.8, 0.0, 10.0), 5.0)
+    # r2: one goal to loader1 reached without holding, one to a waiting spot far from both
+    rec.on_status("r2", _goal("SUCCEEDED", "4.000000000", 0.0, 0.0, 30.0, hold=0.0), 6.0)
+    rec.on_status("r2", _goal("SUCCEEDED", "5.000000000", 2.5, 3.0, 7.0, hold=1.5), 7.0)
+    rows = {row["name"]: row for row in workstation_table(rec, stations)}
+    assert list(rows) == ["loader1", "loader2", "unused", "(other)"]
+    one = rows["loader1"]
+    assert (one["goals"], one["visits"], one["aborted"]) == (3, 2, 1)
+    assert one["mean_time_to_goal_s"] == pytest.approx(25.0)
+    assert one["holding_time_s"] == pytest.approx(4.0)
+    assert one["mean_wait_s"] == pytest.approx(4.0 / 3)
+    assert (rows["loader2"]["goals"], rows["loader2"]["visits"]) == (1, 1)
+    assert rows["unused"]["goals"] == 0 and rows["unused"]["mean_wait_s"] is None
+    assert (rows["(other)"]["goals"], rows["(other)"]["holding_time_s"]) == (1, 1.5)
+    assert (rows["(other)"]["x"], rows["loader2"]["x"]) == (None, 5.0)
+    # no goal near no workstation: no (other) row
+    rec2 = RunRecorder(robots=("r1",))
+    rec2.on_status("r1", _goal("SUCCEEDED", "1.000000000", 5.4, 0.0, 3.0), 1.0)
+    rows2 = workstation_table(rec2, stations)
+    assert [r["name"] for r in rows2] == ["loader1", "loader2", "unused"]
+    assert rows2[1]["visits"] == 1  # 0.4 m off: within the 0.5 m match
+
+
+def test_metrics_carry_windows_and_the_workstation_table():
+    rec = RunRecorder(robots=("r1",))
+    rec.on_status("r1", _goal("DRIVING", "1.000000000", 1.0, 1.0, 0.0), 1.0)
+    rec.on_status("r1", {**_goal("SUCCEEDED", "1.000000000", 1.0, 1.0, 12.0),
+                         "stamp": "13.000000000"}, 2.0)
+    m = aggregate(rec, SimSummary.from_dict({**SUMMARY, "sim_time_s": 1300.0}), world="w",
+                  seed=0, coordination="decentralized", wall_time_s=1.0,
+                  workstations={"ws": (1.0, 1.0)})
+    assert m["tasks_per_window"] == [1, 0, 0] and m["task_windows_full"] == 2
+    assert m["workstations"][0]["name"] == "ws" and m["workstations"][0]["visits"] == 1
+    json.dumps(m)  # the metrics file stays JSON
+    m0 = aggregate(rec, SimSummary(), world="w", seed=0, coordination="decentralized",
+                   wall_time_s=1.0)
+    assert [r["name"] for r in m0["workstations"]] == ["(other)"]

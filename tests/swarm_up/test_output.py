@@ -1,0 +1,34 @@
+"""The summary swarm-up prints: the tasks per window and the per-workstation table (pure)."""
+
+from swarm_up.output import print_summary
+
+STATIONS = [
+    {"name": "loader1", "x": 0.0, "y": 0.0, "goals": 12, "visits": 11, "aborted": 1,
+     "mean_time_to_goal_s": 41.25, "holding_time_s": 300.0, "mean_wait_s": 25.0},
+    {"name": "unused", "x": 9.0, "y": 9.0, "goals": 0, "visits": 0, "aborted": 0,
+     "mean_time_to_goal_s": None, "holding_time_s": 0.0, "mean_wait_s": None},
+]
+
+
+def test_summary_shows_tasks_per_window_and_the_workstations(capsys):
+    print_summary({"robots": 20, "tasks_per_window": [70, 72, 61, 5], "task_window_s": 600.0,
+                   "task_windows_full": 3, "task_window_ratio_min": 0.918,
+                   "workstations": STATIONS}, [])
+    out = capsys.readouterr().out
+    assert "tasks per 600 s window" in out
+    assert "70 / 72 / 61 / 5* (min/mean 0.92)" in out
+    lines = {line.split()[1]: line for line in out.splitlines()
+             if line.startswith("│") and ("loader1" in line or "unused" in line)}
+    assert [c.strip() for c in lines["loader1"].split(
+        "│")[2:8]] == ["12", "11", "1", "41.2 s", "300.0 s", "25.0 s"]
+    assert [c.strip() for c in lines["unused"].split("│")[2:8]] == ["0", "0", "0", "-",
+                                                                   "0.0 s", "-"]
+
+
+def test_summary_without_goals_has_no_workstation_table(capsys):
+    print_summary({"robots": 2, "tasks_per_window": [0], "task_window_s": 600.0,
+                   "task_windows_full": 0, "task_window_ratio_min": None,
+                   "workstations": STATIONS[1:]}, [])
+    out = capsys.readouterr().out
+    assert "0*" in out and "min/mean" not in out  # one window, cut short by the end
+    assert "workstations" not in out
