@@ -275,6 +275,16 @@ class Orchestrator:
                     out[entry["robot"]] += 1
         return out
 
+    def _workstations(self) -> dict[str, tuple[float, float]]:
+        """The world's workstations (name -> docking x, y [m] in ``map``), for the metrics'
+        per-workstation table; none without a points-of-interest file."""
+        if self.cfg.poi_path is None:
+            return {}
+        from swarm_common.poi import load_poi
+
+        poi = load_poi(self.cfg.poi_path)  # validated at start: cannot fail here
+        return {ws.name: (float(ws.pose[0]), float(ws.pose[1])) for ws in poi.workstations}
+
     def report(self, outcome: Outcome, wall_s: float) -> dict:
         """Merge the simulator's summary, write the metrics files, print the summary table."""
         from swarm_up.aggregate import aggregate, load_sim_summary
@@ -307,14 +317,32 @@ class Orchestrator:
         return metrics
 
 
+def kernels_cached(package: Path) -> bool:
+    """Whether numba's cache in ``package/__pycache__`` is fresh for every ``*_kernels.py``.
+
+    numba keys a cache index (``<module>.<function>-<line>.py311.nbi``) by its source's
+    modification time and size, and compiles again when they differ: a checkout or an edit makes
+    the cache stale while its files stay (a checkout that kept an older ``__pycache__`` had all
+    five navigators of a bench's first run compile the kernels at once, 90 s inside its wall
+    time, because only the presence of an index was checked). Here a source counts as cached
+    when its newest index is not older than the source.
+    """
+    for src in package.glob("*_kernels.py"):
+        indexes = list((package / "__pycache__").glob(f"{src.stem}.*.nbi"))
+        if not indexes or max(i.stat().st_mtime for i in indexes) < src.stat().st_mtime:
+            return False
+    return True
+
+
 def warm_up_kernels() -> None:
-    """On a machine whose numba cache holds no navigator kernels yet, compile them (about 15 s)
-    in one short-lived process before any navigator starts (:mod:`swarm_nav.jit`), instead of
-    every navigator process compiling them at once; with a cache, each process loads them."""
+    """When numba's cache holds no fresh navigator kernels (:func:`kernels_cached`), compile them
+    (about 15 s) in one short-lived process before any navigator starts (:mod:`swarm_nav.jit`),
+    instead of every navigator process compiling them at once; with a cache, each process loads
+    them."""
     import importlib.util
 
     where = importlib.util.find_spec("swarm_nav").submodule_search_locations or []
-    if any(Path(d, "__pycache__").glob("dwa_kernels.*.nbi") for d in where):
+    if all(kernels_cached(Path(d)) for d in where):
         return
     say("compiling the navigator's kernels (once per machine, about 15 s)")
     t0 = time.monotonic()
