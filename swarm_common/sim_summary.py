@@ -22,7 +22,9 @@ inside ``collisions`` and the per-robot entries are ignored. Pure: no ROS import
 
 The simulator's own extras: ``wall_timeline_s``, the wall seconds from the start gate to each
 whole simulated second (``[k]`` for simulated time ``k + 1`` s), to compare two runs of one seed
-second by second; ``faults`` when ``--faults`` was given.
+second by second; ``standstills``, every episode of a robot standing within 0.1 m for 60 simulated
+s or more (``robot``, ``start_s``, ``duration_s``, ``x``, ``y`` in ``map``, ``open`` when the run
+ended first; :mod:`swarm_sim.standstill`); ``faults`` when ``--faults`` was given.
 """
 
 from __future__ import annotations

@@ -56,6 +56,7 @@ from swarm_common.faults import (
 from swarm_common.fleet_poses import POSES_DEPTH, POSES_TOPIC
 from swarm_common.sim_summary import CollisionCounts, RobotSummary, SimSummary
 from swarm_common.stamps import NS_PER_S
+from swarm_sim.standstill import StandstillTracker
 
 # A manual (zero-stamp) command outranks the navigator's answers for this long after it arrived,
 # as teleop outranks navigation in twist_mux (its default timeout is 0.5 s).
@@ -181,6 +182,7 @@ class SimulatorNode(Node):
         self.stop_requested = False
         """Set by :meth:`request_stop` (SIGINT/SIGTERM): the loops end at their next check."""
         self.wall_timeline: list[float] = []  # [k]: wall s, start gate to simulated s k + 1
+        self.standstills = StandstillTracker(engine.poses)  # robots at rest for 60 s or more
         self._last_warn = 0.0
         self._scans = None  # the current tick's scans, cast once (re-publishing reuses them)
         # Fault injection (swarm_sim.faults): this tick's silenced robots, lost messages,
@@ -523,6 +525,7 @@ class SimulatorNode(Node):
         events = self.engine.step(v, w, held)
         self.t_ns += self.period_ns
         self._scans = None
+        self.standstills.update(self.t_ns / NS_PER_S, self.engine.poses)
         statuses = []
         for ev in events:
             a = self.namespaces[ev.robot]
@@ -614,7 +617,10 @@ class SimulatorNode(Node):
         # wall_timeline_s[k]: wall seconds from the start gate to simulated second k + 1, for
         # comparing the speed of two runs of one seed second by second (their
         # simulated work is the same, so the ratio shows what else differed)
-        extras = {"wall_timeline_s": list(self.wall_timeline)}
+        extras = {"wall_timeline_s": list(self.wall_timeline),
+                  "standstills": [{"robot": self.namespaces[e.robot], "start_s": e.start_s,
+                                   "duration_s": e.duration_s, "x": e.x, "y": e.y,
+                                   "open": e.open} for e in self.standstills.finish()]}
         if self.faults is not None:
             extras["faults"] = {
                 "injected": [f.label() for f in self.faults.faults],

@@ -54,6 +54,10 @@ Definitions (``docs/ARCHITECTURE.md``, ``/<ns>/nav_status``):
   ``mean_wait_s`` (holding time per goal: how long a robot sent there waited in its holding
   pattern). Goals near no workstation (a centralized run's waiting spots) are the row
   ``(other)``, listed only when there are any.
+- *standstills* (``standstills``): the simulator's episodes of a robot standing within 0.1 m
+  for 60 simulated s or more (:mod:`swarm_sim.standstill`), each with ``near``: the workstation
+  whose docking pose or holding points are nearest (within ``STANDSTILL_NEAR_M``, 3 m), else
+  None; ``standstill_s`` sums their durations.
 - *late goals*: goals a navigator applied later than the first control tick after the goal's
   stamp (the tick it was applied at is the first status's ``stamp`` minus its
   ``navigation_time_s``): the goal arrived after that tick, so wall-clock timing decided when
@@ -94,6 +98,7 @@ WARMUP_S = 120.0  # [s] simulated: the protocol's warm-up, left out of the warm-
 TASK_WINDOW_S = 600.0  # [s] simulated: issue 9's 10-minute windows of tasks completed
 WORKSTATION_MATCH_M = 0.5  # [m] a goal this near a workstation's docking pose is a goal to it
 OTHER_GOALS = "(other)"  # the workstation table's row of goals near no workstation
+STANDSTILL_NEAR_M = 3.0  # [m] a standstill this near a workstation's points is "near" it
 COMM_TOPICS = ("map", "request", "assignment", "state")
 
 SIM_SUMMARY_KEYS = (
@@ -504,6 +509,35 @@ def workstation_table(recorder: RunRecorder, workstations: Mapping[str, tuple[fl
     return out
 
 
+def label_standstills(episodes, places: Mapping[str, list[tuple[float, float]]],
+                      near_m: float = STANDSTILL_NEAR_M) -> list[dict]:
+    """The simulator's standstill episodes, each with the workstation it stood nearest.
+
+    Args:
+        episodes: the summary's ``standstills`` (dicts with ``x``, ``y`` [m] in ``map``); entries
+            that are not dicts with finite ``x``, ``y`` are dropped.
+        places: workstation name -> its docking and holding points, x, y [m] in ``map``.
+        near_m: the farthest [m] a standstill may be from a workstation's points to be near it.
+
+    Returns:
+        The episodes as dicts with ``near`` (a workstation name or None) added.
+    """
+    out = []
+    for ep in episodes if isinstance(episodes, list) else []:
+        if not isinstance(ep, Mapping):
+            continue
+        x, y = _float(ep.get("x")), _float(ep.get("y"))
+        if x is None or y is None:
+            continue
+        best, best_d = None, near_m
+        for name, points in places.items():
+            d = min((math.hypot(x - px, y - py) for px, py in points), default=math.inf)
+            if d <= best_d:
+                best, best_d = name, d
+        out.append({**ep, "near": best})
+    return out
+
+
 def _spot_wait_s(events: list[dict[str, str]], end_s: float | None) -> float:
     """Simulated seconds robots held waiting spots (reserve to release, or to ``end_s``)."""
     since: dict[tuple[str, str], float] = {}
@@ -598,6 +632,7 @@ def aggregate(
     fault_restarts: int = 0,
     map_deliveries: dict[str, int] | None = None,
     workstations: Mapping[str, tuple[float, float]] | None = None,
+    holding: Mapping[str, list[tuple[float, float]]] | None = None,
 ) -> dict:
     """The ``--metrics`` dict of a run (SPEC §6).
 
@@ -621,6 +656,8 @@ def aggregate(
             start); None: one each.
         workstations: name -> docking x, y [m] in ``map`` of the world's workstations, in
             file order (None or empty: ``workstations`` lists only ``(other)``).
+        holding: name -> the holding points x, y [m] in ``map`` of each workstation (to say
+            which workstation a standstill was near).
 
     Returns:
         A JSON-serialisable dict with the keys of SPEC §6 (None where unknown).
@@ -663,6 +700,10 @@ def aggregate(
     after = [t for t, _, _ in tasks if t > WARMUP_S]
     warm_hours = (sim_time - WARMUP_S) / 3600.0 if sim_time and sim_time > WARMUP_S else None
     comm = _comm(recorder, map_deliveries, sim_time)
+    places = {name: [tuple(xy), *map(tuple, (holding or {}).get(name, []))]
+              for name, xy in (workstations or {}).items()}
+    standstills = label_standstills(
+        sim.extras.get("standstills") if isinstance(sim.extras, Mapping) else None, places)
     for ns in robots:
         entry = comm["per_robot"][ns]
         per_robot[ns]["tasks"] = (len(recorder.per_robot[ns].tasks) if centralized
@@ -693,6 +734,8 @@ def aggregate(
         "task_times_s": [round(t, 3) for t, _, _ in tasks],
         **tasks_per_window([t for t, _, _ in tasks], sim_time),
         "workstations": workstation_table(recorder, workstations or {}),
+        "standstills": standstills,
+        "standstill_s": round(sum(_float(e.get("duration_s")) or 0.0 for e in standstills), 3),
         "collisions": _collisions(recorder, sim),
         "min_separation_m": _float(sim.min_separation_m),
         "mean_time_to_goal_s": (sum(ttgs) / len(ttgs)) if ttgs else None,

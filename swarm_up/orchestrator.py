@@ -275,15 +275,16 @@ class Orchestrator:
                     out[entry["robot"]] += 1
         return out
 
-    def _workstations(self) -> dict[str, tuple[float, float]]:
-        """The world's workstations (name -> docking x, y [m] in ``map``), for the metrics'
-        per-workstation table; none without a points-of-interest file."""
+    def _workstations(self) -> tuple[dict, dict]:
+        """The world's workstations for the metrics: name -> docking x, y [m] in ``map``, and
+        name -> holding points [(x, y) ...]; none without a points-of-interest file."""
         if self.cfg.poi_path is None:
-            return {}
+            return {}, {}
         from swarm_common.poi import load_poi
 
         poi = load_poi(self.cfg.poi_path)  # validated at start: cannot fail here
-        return {ws.name: (float(ws.pose[0]), float(ws.pose[1])) for ws in poi.workstations}
+        return ({ws.name: (float(ws.pose[0]), float(ws.pose[1])) for ws in poi.workstations},
+                {ws.name: [tuple(map(float, p)) for p in ws.holding] for ws in poi.workstations})
 
     def report(self, outcome: Outcome, wall_s: float) -> dict:
         """Merge the simulator's summary, write the metrics files, print the summary table."""
@@ -294,6 +295,7 @@ class Orchestrator:
         if outcome.code == EXIT_OK:
             for w in warnings:
                 warn(w)
+        stations, holding = self._workstations()
         with self.listener.lock:
             metrics = aggregate(
                 self.listener.recorder, summary, world=cfg.world_name, seed=cfg.seed,
@@ -301,7 +303,7 @@ class Orchestrator:
                 resources=self.sampler.result(), restarts=self.sup.restarts,
                 fault_restarts=self.faults.fault_restarts if self.faults is not None else 0,
                 map_deliveries=self._map_deliveries(summary),
-                workstations=self._workstations(),
+                workstations=stations, holding=holding,
                 extra={"ended_by": outcome.ended_by, "run_dir": str(cfg.run_dir),
                        "processes": PER_ROBOT if cfg.groups is None else len(cfg.groups),
                        "commanders": cfg.commanders, "rtf_requested": cfg.rtf,

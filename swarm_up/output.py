@@ -89,6 +89,18 @@ def _windows(metrics: dict) -> str:
     return " / ".join(counts) + (f" (min/mean {ratio:.2f})" if ratio is not None else "")
 
 
+def _standstills(episodes: list[dict]) -> str:
+    """``5 times (3 robots), 610 s; near loader2 3, (elsewhere) 2``."""
+    robots = {e.get("robot") for e in episodes}
+    total = sum(e.get("duration_s") or 0.0 for e in episodes)
+    near: dict[str, int] = {}
+    for e in episodes:
+        key = e.get("near") or "(elsewhere)"
+        near[key] = near.get(key, 0) + 1
+    places = ", ".join(f"{k} {v}" for k, v in sorted(near.items(), key=lambda kv: -kv[1]))
+    return f"{len(episodes)} times ({len(robots)} robots), {total:.0f} s; near {places}"
+
+
 def _workstation_table(rows: list[dict]):
     """The per-workstation table of the summary (``workstations`` of ``--metrics``)."""
     from rich.table import Table
@@ -132,6 +144,8 @@ def print_summary(metrics: dict, metrics_files: list[Path]) -> None:
         ("min separation", _fmt(metrics.get("min_separation_m"), "m")),
         ("mean time to goal", _fmt(metrics.get("mean_time_to_goal_s"), "s", 1)),
         ("time holding", _fmt(metrics.get("holding_time_s"), "s", 1)),
+        *([("standing still >= 60 s", _standstills(metrics["standstills"]))]
+          if metrics.get("standstills") else []),
         *([("waiting at coordinator's spots", _fmt(metrics.get("coordinator_wait_s"), "s", 1)),
            ("reservation conflicts", _fmt(metrics.get("reservation_conflicts")))]
           if metrics.get("coordination") == "centralized" else []),

@@ -393,3 +393,21 @@ def test_metrics_carry_windows_and_the_workstation_table():
     m0 = aggregate(rec, SimSummary(), world="w", seed=0, coordination="decentralized",
                    wall_time_s=1.0)
     assert [r["name"] for r in m0["workstations"]] == ["(other)"]
+
+
+def test_standstills_are_labelled_with_the_nearest_workstation_within_3_m():
+    summary = SimSummary.from_dict({**SUMMARY, "standstills": [
+        {"robot": "Srobot1", "start_s": 100.0, "duration_s": 75.0, "x": 0.5, "y": 2.5,
+         "open": False},  # 2.5 m from loader1's dock, 0.6 m from its holding spot
+        {"robot": "Srobot2", "start_s": 300.0, "duration_s": 61.5, "x": 20.0, "y": 0.0,
+         "open": True},  # far from both
+        {"robot": "Srobot3", "x": "nan", "y": 1.0},  # malformed: dropped
+        "not an episode",
+    ]})
+    rec, m = _metrics(summary=summary, workstations={"loader1": (0.0, 0.0), "loader2": (6.0, 0.0)},
+                      holding={"loader1": [(0.0, 3.0)], "loader2": []})
+    assert [(e["robot"], e["near"]) for e in m["standstills"]] == [("Srobot1", "loader1"),
+                                                                    ("Srobot2", None)]
+    assert m["standstill_s"] == pytest.approx(136.5)
+    _, m0 = _metrics()  # a summary without standstills
+    assert m0["standstills"] == [] and m0["standstill_s"] == 0.0

@@ -32,3 +32,13 @@ def test_summary_without_goals_has_no_workstation_table(capsys):
     out = capsys.readouterr().out
     assert "0*" in out and "min/mean" not in out  # one window, cut short by the end
     assert "workstations" not in out
+
+
+def test_summary_says_where_robots_stood_still(capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "200")  # one table row on one line
+    print_summary({"robots": 3, "standstills": [
+        {"robot": "Srobot1", "duration_s": 75.0, "near": "loader1"},
+        {"robot": "Srobot1", "duration_s": 300.0, "near": "loader1"},
+        {"robot": "Srobot2", "duration_s": 61.5, "near": None}]}, [])
+    out = capsys.readouterr().out
+    assert "3 times (2 robots), 436 s; near loader1 2, (elsewhere) 1" in out
