@@ -1,10 +1,12 @@
 """Rasterise a world's collision shapes into an occupancy grid (what ``swarm-map`` writes).
 
-A cell is occupied when the plan-view outline of any shape in the robot's height band overlaps
-the cell's square by more than a micrometre (conservative: a wall that touches a sliver of a cell
-takes the whole cell, so a 0.15 m wall is at least 3 cells thick at 0.05 m/cell and never has a
-gap); every other cell is free. The test is exact, per cell, by the separating axis theorem for
-two convex polygons (Gottschalk, Lin & Manocha 1996, "OBBTree"), vectorised with numpy.
+A cell is occupied when the plan-view outline of any obstacle (a shape in the robots' height
+band; floor slabs, ground planes and heightmaps are not obstacles, see
+:func:`swarm_common.world.obstacle_shapes`) overlaps the cell's square by more than a micrometre
+(conservative: a wall that touches a sliver of a cell takes the whole cell, so a 0.15 m wall is
+at least 3 cells thick at 0.05 m/cell and never has a gap); every other cell is free. The test
+is exact, per cell, by the separating axis theorem for two convex polygons (Gottschalk, Lin &
+Manocha 1996, "OBBTree"), vectorised with numpy.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ import numpy as np
 
 from swarm_common.errors import InputError
 from swarm_common.occupancy import FREE, OCCUPIED, OccupancyMap
-from swarm_common.world import World, world_polygons
+from swarm_common.world import BAND_TOP, FLOOR_TOLERANCE, World, world_polygons
 
 OVERLAP_EPS = 1e-6  # [m] a shape must overlap a cell by more than this to occupy it
 
@@ -74,15 +76,17 @@ def rasterize_polygons(polygons: list[np.ndarray], resolution: float,
 
 
 def rasterize_world(world: World, resolution: float = 0.05, padding: float = 0.5,
-                    z_min: float = 0.0, z_max: float = 2.0) -> OccupancyMap:
+                    z_min: float = FLOOR_TOLERANCE, z_max: float = BAND_TOP) -> OccupancyMap:
     """Rasterise a world into an occupancy map (free 0 / occupied 100, nothing unknown).
 
     Args:
         world: the loaded world.
         resolution: cell size [m/cell].
         padding: free margin [m] added around the bounding box of the shapes.
-        z_min: bottom of the robot's height band [m] (see :func:`world_polygons`).
-        z_max: top of the robot's height band [m].
+        z_min: bottom of the robots' height band [m]: shapes whose top is at or below it are
+            floor (default :data:`swarm_common.world.FLOOR_TOLERANCE`, 0.05 m; see
+            :func:`swarm_common.world.obstacle_shapes`).
+        z_max: top of the robots' height band [m] (default ``BAND_TOP``, 2.0 m).
 
     Returns:
         The map; its origin (lower-left corner of cell (0, 0)) is snapped down to a multiple of

@@ -10,6 +10,8 @@ Frames: poses are in ``map`` (= the world frame), (3,) x [m], y [m], yaw [rad] o
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from swarm_common.errors import InputError
@@ -44,7 +46,8 @@ def spawn_poses(spawn, n: int, radius: float, polygons, clearance: float = 0.05,
     if spawn.spacing < 2.0 * radius + clearance:
         raise InputError(
             f"{where}: spacing {spawn.spacing:g} m is too small for robots of radius"
-            f" {radius:.3f} m"
+            f" {radius:.3f} m: neighbours would stand less than {clearance:g} m apart (at"
+            f" least {2.0 * radius + clearance:.3f} m)"
         )
     nodes = spawn.grid_points()
     segs = _edges(polygons)
@@ -72,13 +75,72 @@ def spawn_poses(spawn, n: int, radius: float, polygons, clearance: float = 0.05,
     return np.column_stack((chosen, np.full(n, float(spawn.yaw))))
 
 
+@dataclass(frozen=True)
+class FreeRegion:
+    """Where robots spawn in a world without a spawn area (:func:`largest_free_region`).
+
+    Attributes:
+        origin: (2,) x, y [m] in ``map`` of the region's clearest cell (the first robot).
+        clearance: distance [m] from ``origin`` to the nearest cell outside the region (an
+            obstacle, an unknown cell or the map's edge).
+        area: the region's area [m^2].
+        mask: (H, W) bool, the region's cells in the map's layout (row 0 at the bottom).
+        distance: (H, W) float, distance [m] from each cell's centre to the nearest cell
+            centre outside the region (0 outside it).
+    """
+
+    origin: np.ndarray
+    clearance: float
+    area: float
+    mask: np.ndarray
+    distance: np.ndarray
+
+
+def largest_free_region(occ) -> FreeRegion:
+    """The largest connected free region of a map, and its clearest cell.
+
+    The spawn rule of a world without points of interest (SPEC §4: "spawn in the largest free
+    area"): take the 4-connected region of free cells (value 0) with the most cells, then the
+    cell of that region farthest from anything outside it (Euclidean distance transform, the
+    map's edge counting as outside). Ties go to the first cell in row-major order.
+
+    Args:
+        occ: a :class:`swarm_common.occupancy.OccupancyMap`.
+
+    Returns:
+        The :class:`FreeRegion`.
+
+    Raises:
+        InputError: the map has no free cell.
+    """
+    from scipy import ndimage
+
+    free = occ.data == 0
+    labels, count = ndimage.label(free)
+    if count == 0:
+        raise InputError("the map has no free cell: nowhere to spawn robots")
+    sizes = np.bincount(labels.ravel())[1:]
+    region = labels == int(np.argmax(sizes)) + 1
+    res = float(occ.resolution)
+    clear = ndimage.distance_transform_edt(np.pad(region, 1))[1:-1, 1:-1] * res
+    best = np.unravel_index(int(np.argmax(clear)), clear.shape)
+    origin = occ.cell_to_world(np.array(best))
+    for array in (origin, region, clear):
+        array.setflags(write=False)
+    return FreeRegion(origin=origin, clearance=float(clear[best]),
+                      area=float(region.sum()) * res * res, mask=region, distance=clear)
+
+
 def spawn_poses_free(occ, n: int, radius: float, polygons, clearance: float = 0.05,
                      where: str = "largest free area") -> np.ndarray:
-    """Spawn for a world without a spawn area: a 1 m grid in its largest free region.
+    """Spawn for a world without a spawn area: a grid in its largest free region.
 
-    The grid starts at the free cell farthest from any obstacle (distance transform of the map)
-    and keeps to the connected free region around it, so no robot is shut in a closed pocket.
-    Robots face +x (yaw 0).
+    The grid (spacing 1 m, or the robot's diameter plus twice ``clearance`` if larger) starts at
+    the clearest cell of the largest connected free region (:func:`largest_free_region`) and
+    keeps to that region, so no robot is shut in a closed pocket: a node is used only when the
+    robot's circle plus ``clearance`` stays inside the region (clear of obstacles, unknown cells
+    and the map's edge, to the map's resolution) and of every world polygon. Robots take the grid
+    nodes nearest the start first (the order of :func:`spawn_poses`) and face +x (yaw 0).
 
     Args:
         occ: the world's :class:`swarm_common.occupancy.OccupancyMap`.
@@ -90,24 +152,19 @@ def spawn_poses_free(occ, n: int, radius: float, polygons, clearance: float = 0.
     Raises:
         InputError: the robots do not fit; the message says how many fit.
     """
-    from scipy import ndimage
-
-    free = occ.data == 0
-    labels, _ = ndimage.label(free)
-    clear = ndimage.distance_transform_edt(free)
-    best = np.unravel_index(np.argmax(clear), clear.shape)
-    origin = occ.cell_to_world(np.array(best))
-    region = labels == labels[best]
+    free = largest_free_region(occ)
     x0, y0 = occ.origin[0], occ.origin[1]
     area = np.array([x0, y0, x0 + occ.width * occ.resolution, y0 + occ.height * occ.resolution])
     spacing = max(1.0, 2.0 * radius + 2.0 * clearance)
-    spawn = SpawnArea(origin=origin, spacing=spacing, yaw=0.0, area=area)
+    spawn = SpawnArea(origin=np.array(free.origin), spacing=spacing, yaw=0.0, area=area)
 
     def in_region(points):
         rc = occ.world_to_cell(points)
         inside = occ.in_bounds(rc)
         out = np.zeros(len(points), dtype=bool)
-        out[inside] = region[rc[inside, 0], rc[inside, 1]]
+        # the distance is between cell centres: half a cell more keeps the robot off the edge
+        need = radius + clearance + 0.5 * occ.resolution
+        out[inside] = free.distance[rc[inside, 0], rc[inside, 1]] >= need
         return out
 
     return spawn_poses(spawn, n, radius, polygons, clearance, where, keep=in_region)
@@ -126,3 +183,22 @@ def _edges(polygons) -> np.ndarray:
     segs = [np.hstack((p, np.roll(p, -1, axis=0)))
             for p in (np.asarray(q, dtype=float).reshape(-1, 2) for q in polygons) if len(p) >= 2]
     return np.vstack(segs) if segs else np.zeros((0, 4))
+
+
+def describe_spawn(poses: np.ndarray, from_spawn_area: bool) -> str:
+    """Where the robots went, for a log line: the rule used and the block they stand in.
+
+    Args:
+        poses: (N, 3) spawn poses x, y [m], yaw [rad] in ``map``.
+        from_spawn_area: True when they came from the world's spawn area (its ``.yaml``),
+            False when from :func:`spawn_poses_free`.
+
+    Returns:
+        e.g. ``"in the largest free area, x 3.05..6.05 m, y -2.95..-0.95 m, first at (3.05,
+        -2.95)"``.
+    """
+    rule = "in the spawn area of its points of interest" if from_spawn_area else \
+        "in the largest free area (no spawn area in its points of interest)"
+    x, y = poses[:, 0], poses[:, 1]
+    return (f"{rule}, x {x.min():.2f}..{x.max():.2f} m, y {y.min():.2f}..{y.max():.2f} m, "
+            f"first at ({x[0]:.2f}, {y[0]:.2f})")

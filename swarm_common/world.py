@@ -11,15 +11,29 @@ semantics; SDF 1.6's ``frame`` attribute is read the same way; SDF 1.9's ``degre
 A world saved by Gazebo applies its ``<state>`` on load: a model pose there overrides the
 model's own ``<pose>``, here too.
 
-Skipped silently: ``<include>`` of ``ground_plane`` and ``sun``, ``<light>``, horizontal
-``<plane>`` collisions (a floor) and world settings (physics, scene, gui, plugins ...). An
-``<include>`` of any other model is loaded when its ``model://`` directory is found on the Gazebo
-model path (``GZ_SIM_RESOURCE_PATH``, ``IGN_GAZEBO_RESOURCE_PATH``, ``GAZEBO_MODEL_PATH``,
-``SDF_PATH``, the world's own directory and its ``models/``, ``~/.gazebo/models``). Everything
-else that cannot be represented (actors, unresolvable includes, heightmap/polyline/capsule/...
-geometry, meshes that are not STL/OBJ or cannot be found) is skipped and named once in
-:attr:`World.skipped`. Models that are not ``<static>`` are kept, at their initial pose: they are
-obstacles at the start.
+Skipped silently: ``<include>`` of ``ground_plane`` and ``sun``, ``<light>``, visuals and world
+settings (physics, scene, gui, plugins ...). An ``<include>`` of any other model is loaded when
+its ``model://`` directory is found on the Gazebo model path (``GZ_SIM_RESOURCE_PATH``,
+``IGN_GAZEBO_RESOURCE_PATH``, ``GAZEBO_MODEL_PATH``, ``SDF_PATH``, the world's own directory and
+its ``models/``, ``~/.gazebo/models``). Everything else that cannot be represented (actors,
+unresolvable includes, polyline/capsule/ellipsoid/... geometry, meshes that are not STL/OBJ or
+cannot be found) is skipped and named once in :attr:`World.skipped`. Models that are not
+``<static>`` are kept, at their initial pose: they are obstacles at the start.
+
+The floor. Robots drive on the ground, so nothing they drive on is an obstacle: horizontal
+``<plane>`` collisions and ``<heightmap>`` collisions are ground (named in :attr:`World.floor`,
+the heightmap's relief is not modelled), and a solid shape is floor when its top is at or below
+:data:`FLOOR_TOLERANCE` (a slab, platform or mat the size of the floor whose top is at z = 0 or a
+few centimetres above). Everything that reaches into the robots' height band, above
+``FLOOR_TOLERANCE`` and below :data:`BAND_TOP`, is an obstacle -- a 0.10 m pallet too. The rule
+lives in :func:`obstacle_shapes`; the map (:func:`world_polygons`, ``swarm-map``), the spawn
+check and the simulator's bodies all take their obstacles from it.
+
+An unloadable mesh collision (``model://`` not found, or a ``.dae`` PyBullet cannot load) is
+replaced when the file gives something in its place, in this order: the link's other collisions
+(nothing added: they already stand for it), the primitive shapes (box, cylinder, sphere) of the
+link's ``<visual>``s, or a loadable STL/OBJ visual mesh of the link. The skip report says which;
+the same mesh file missing from many includes is one report (``... and 19 more``).
 
 Sources: SDFormat specification (sdformat.org/spec, world/model/link/collision/geometry, and
 "Pose frame semantics" for SDF 1.7), Gazebo classic's model path conventions.
@@ -47,6 +61,11 @@ from swarm_common.geometry import (
 from swarm_common.paths import WORLDS_DIR
 
 WORLD_SUFFIXES = (".world", ".sdf")
+# The robots' height band (ROS REP 103: z up, z = 0 the ground the robots stand on). A shape is
+# an obstacle when it reaches above FLOOR_TOLERANCE and starts below BAND_TOP.
+FLOOR_TOLERANCE = 0.05  # [m] a shape whose top is at or below this is floor (about a robot's
+# step height: TurtleBot3's ground clearance is about 0.01 m, its wheels 0.066 m across)
+BAND_TOP = 2.0  # [m] top of the band: above every robot body and lidar we simulate
 POLYGON_SIDES = 32  # cylinders and spheres become circumscribed 32-gons in world_polygons
 MESH_SUFFIXES = (".stl", ".obj")
 
@@ -88,14 +107,18 @@ class World:
     Attributes:
         name: the file's stem (``"slim_blockage"`` for ``worlds/slim_blockage.world``).
         source: the file it was read from, resolved.
-        shapes: every supported collision shape, in document order.
-        skipped: one entry per unsupported element, e.g. ``"actor 'walker'"``, each named once.
+        shapes: every supported collision shape, in document order, floor slabs included
+            (:func:`obstacle_shapes` tells the obstacles from the floor).
+        skipped: one entry per unsupported element (or per missing mesh file), each named
+            once, e.g. ``"actor 'walker'"``; a replaced mesh says what stands for it.
+        floor: the ground planes and heightmaps taken as the floor, by collision name.
     """
 
     name: str
     source: Path
     shapes: tuple[CollisionShape, ...]
     skipped: tuple[str, ...] = field(default_factory=tuple)
+    floor: tuple[str, ...] = field(default_factory=tuple)
 
 
 # --------------------------------------------------------------------------------------- resolve
@@ -152,13 +175,28 @@ class _Loader:
     def __init__(self, source: Path):
         self.source = source
         self.shapes: list[CollisionShape] = []
-        self.skipped: list[str] = []
+        self.skipped: list[str | _MeshSkip] = []
+        self.floor: list[str] = []
+        self.mesh_skips: dict[tuple[str, str], _MeshSkip] = {}
 
     # -- helpers ------------------------------------------------------------------------------
 
     def skip(self, what: str) -> None:
         if what not in self.skipped:
             self.skipped.append(what)
+
+    def skip_mesh(self, where: str, uri: str, reason: str, stand_in: str) -> None:
+        """Report an unloadable mesh once per (file, stand-in), counting its other uses."""
+        key = (uri, reason + stand_in)
+        entry = self.mesh_skips.get(key)
+        if entry is None:
+            entry = self.mesh_skips[key] = _MeshSkip(where, reason, stand_in)
+            self.skipped.append(entry)
+        else:
+            entry.more += 1
+
+    def skip_report(self) -> tuple[str, ...]:
+        return tuple(str(s) for s in self.skipped)
 
     def fail(self, where: str, problem: str, source: Path | None = None) -> InputError:
         return InputError(f"{source or self.source}: {where}: {problem}")
@@ -273,12 +311,26 @@ class _Loader:
         for link in model.findall("link"):
             link_name = link.get("name", "link")
             world_T_link = world_T_model @ frames.element_pose(link)
+
+            def world_T(el: ET.Element, where: str, link_tf=world_T_link) -> np.ndarray:
+                pose_el = el.find("pose")
+                rel = self.relative_to(pose_el)
+                parent = link_tf if rel is None else world_T_model @ frames.pose_of(rel)
+                return parent @ self.pose(pose_el, where, src)
+
+            loaded, failed = 0, []
             for col in link.findall("collision"):
                 where = f"{scoped}::{link_name}::{col.get('name', 'collision')}"
-                pose_el = col.find("pose")
-                rel = self.relative_to(pose_el)
-                parent = world_T_link if rel is None else world_T_model @ frames.pose_of(rel)
-                self.collision(col, parent @ self.pose(pose_el, where, src), where, base, src)
+                outcome = self.collision(col, world_T(col, where), where, base, src)
+                if outcome is True:
+                    loaded += 1
+                elif outcome:
+                    failed.append((where, *outcome))
+            if failed:
+                stand_in = "the link's other collisions stand for it" if loaded else \
+                    self.visual_stand_in(link, f"{scoped}::{link_name}", world_T, base, src)
+                for where, uri, reason in failed:
+                    self.skip_mesh(where, uri, reason, stand_in)
         for nested in model.findall("model"):
             self.model(nested, world_T_model @ frames.element_pose(nested), f"{scoped}::",
                        base, src, depth)
@@ -286,11 +338,18 @@ class _Loader:
             self.include(inc, frames, f"{scoped}::", base, src, depth, world_T_model)
 
     def collision(self, col: ET.Element, world_T_col: np.ndarray, where: str, base: Path,
-                  src: Path) -> None:
+                  src: Path, mesh_report: bool = False) -> bool | tuple[str, str] | None:
+        """Add the shape of a ``<collision>`` (or of a stand-in ``<visual>``).
+
+        Returns:
+            True when a shape was added; ``(uri, reason)`` for a mesh that cannot be loaded
+            (the caller looks for a stand-in and reports it); None otherwise (floor, empty,
+            or skipped and reported here).
+        """
         geometry = col.find("geometry")
         shape = None if geometry is None else next(iter(geometry), None)
         if shape is None or shape.tag == "empty":
-            return
+            return None
         kind = shape.tag
         pose = matrix_to_pose(world_T_col)
         pose.setflags(write=False)
@@ -309,44 +368,75 @@ class _Loader:
                 normal_el, 3, where, src)
             world_normal = world_T_col[:3, :3] @ np.asarray(normal, dtype=float)
             if abs(world_normal[2]) >= (1.0 - 1e-6) * np.linalg.norm(world_normal):
-                return  # a floor: nothing a robot on it can hit
+                self.floor.append(where)  # the ground: nothing a robot on it can hit
+                return None
             self.skip(f"plane '{where}'")
-            return
+            return None
+        elif kind == "heightmap":
+            self.floor.append(where)  # terrain used as the ground, taken as flat at z = 0
+            return None
         elif kind == "mesh":
-            mesh_path = self.mesh_file(shape, where, base, src)
+            mesh_path, uri, reason = self.mesh_file(shape, where, base, src)
             if mesh_path is None:
-                return
+                if mesh_report:
+                    return None
+                return uri, reason
             scale_el = shape.find("scale")
             size = (1.0, 1.0, 1.0) if scale_el is None else tuple(
                 self.floats(scale_el, 3, where, src))
         else:
             self.skip(f"{kind} '{where}'")
-            return
+            return None
         degenerate = (0.0 in size) if kind == "mesh" else (min(size) <= 0.0)
         if degenerate:
             self.skip(f"{kind} '{where}' (size {' '.join(f'{s:g}' for s in size)})")
-            return
+            return None
         self.shapes.append(CollisionShape(where, kind, pose, tuple(float(s) for s in size),
                                           mesh_path))
+        return True
 
-    def mesh_file(self, mesh: ET.Element, where: str, base: Path, src: Path) -> Path | None:
+    def mesh_file(self, mesh: ET.Element, where: str, base: Path,
+                  src: Path) -> tuple[Path | None, str, str]:
+        """``(path, uri, "")`` of a loadable STL/OBJ mesh, else ``(None, uri, reason)``."""
         uri_el = mesh.find("uri")
         uri = (uri_el.text or "").strip() if uri_el is not None else ""
         if not uri:
             raise self.fail(where, "<mesh> without <uri>", src)
         path = _resolve_uri(uri, base)
         if path is None or not path.is_file():
-            self.skip(f"mesh '{where}' ({uri} not found)")
-            return None
+            return None, uri, f"{uri} not found"
         if path.suffix.lower() not in MESH_SUFFIXES:
-            self.skip(f"mesh '{where}' ({path.suffix or uri}: only STL and OBJ are loaded)")
-            return None
+            return None, uri, f"{path.suffix or uri}: only STL and OBJ are loaded"
         try:
             _mesh_vertices(path)
         except ValueError as exc:
-            self.skip(f"mesh '{where}' ({path.name}: {exc})")
-            return None
-        return path
+            return None, uri, f"{path.name}: {exc}"
+        return path, uri, ""
+
+    def visual_stand_in(self, link: ET.Element, scoped: str, world_T, base: Path,
+                        src: Path) -> str:
+        """Add the link's loadable visual geometry in place of its unloadable collision mesh.
+
+        Primitive visuals (box, cylinder, sphere) first; else STL/OBJ visual meshes.
+
+        Returns:
+            What now stands for the mesh, for the report ("" when nothing does).
+        """
+        visuals = [v for v in link.findall("visual") if v.find("geometry") is not None]
+        primitive = [v for v in visuals
+                     if next(iter(v.find("geometry")), ET.Element("x")).tag in _PRIMITIVES]
+        meshes = [v for v in visuals if v.find("geometry/mesh") is not None]
+        for group in (primitive, meshes):
+            added = []
+            for vis in group:
+                where = f"{scoped}::{vis.get('name', 'visual')}"
+                kind = next(iter(vis.find("geometry"))).tag
+                if self.collision(vis, world_T(vis, where), where, base, src,
+                                  mesh_report=True) is True:
+                    added.append(f"{kind} '{vis.get('name', 'visual')}'")
+            if added:
+                return f"replaced by the link's visual {', '.join(added)}"
+        return ""
 
     def include(self, inc: ET.Element, frames: _Frames, prefix: str, base: Path, src: Path,
                 depth: int, world_T_scope: np.ndarray | None = None,
@@ -380,6 +470,21 @@ class _Loader:
         if state and name in state:
             pose = state[name]
         self.model(model, pose, prefix, model_file.parent, model_file, depth + 1, name=name)
+
+
+_PRIMITIVES = ("box", "cylinder", "sphere")
+
+
+class _MeshSkip:
+    """One report of an unloadable mesh: where it was first met and how many more uses."""
+
+    def __init__(self, where: str, reason: str, stand_in: str):
+        self.where, self.reason, self.stand_in, self.more = where, reason, stand_in, 0
+
+    def __str__(self) -> str:
+        more = f" and {self.more} more" if self.more else ""
+        tail = f"; {self.stand_in}" if self.stand_in else ""
+        return f"mesh '{self.where}'{more} ({self.reason}{tail})"
 
 
 def _required(el: ET.Element, tag: str, loader: _Loader, where: str, src: Path) -> ET.Element:
@@ -545,7 +650,7 @@ def load_world(name_or_path: str | Path) -> World:
     loader = _Loader(source)
     loader.load()
     return World(name=source.stem, source=source, shapes=tuple(loader.shapes),
-                 skipped=tuple(loader.skipped))
+                 skipped=loader.skip_report(), floor=tuple(loader.floor))
 
 
 # ----------------------------------------------------------------------------------- outlines
@@ -577,13 +682,55 @@ def _shape_points(shape: CollisionShape) -> np.ndarray:
     return local @ tf[:3, :3].T + tf[:3, 3]
 
 
-def world_polygons(world: World, z_min: float = 0.0, z_max: float = 2.0) -> list[np.ndarray]:
-    """The 2D outlines of the shapes that reach into a height band.
+def shape_z_extent(shape: CollisionShape) -> tuple[float, float]:
+    """Lowest and highest z [m] in ``map`` of a shape (exact for boxes, cylinders, spheres)."""
+    if shape.kind in ("cylinder", "sphere"):
+        return _round_extent_z(shape)
+    pts = _shape_points(shape)
+    return float(pts[:, 2].min()), float(pts[:, 2].max())
+
+
+def obstacle_shapes(world: World, z_min: float = FLOOR_TOLERANCE,
+                    z_max: float = BAND_TOP) -> list[CollisionShape]:
+    """The shapes a robot can hit: those that reach into the height band ``(z_min, z_max)``.
+
+    The one place that tells obstacles from the floor (module docstring, "The floor"): with the
+    defaults, a slab or platform whose top is at or below :data:`FLOOR_TOLERANCE` (0.05 m) is
+    floor the robots drive on, a 0.10 m pallet is an obstacle, and a beam that starts at or
+    above :data:`BAND_TOP` (2.0 m) is over every robot's head.
 
     Args:
         world: the loaded world.
-        z_min: bottom of the band [m] (a shape must reach strictly above it: a floor slab whose
-            top is at ``z_min`` is not an obstacle).
+        z_min: bottom of the band [m]; a shape must reach strictly above it (1 nm tolerance).
+        z_max: top of the band [m]; a shape must start strictly below it.
+
+    Returns:
+        The shapes of ``world.shapes`` in the band, in their order.
+    """
+    kept = []
+    for shape in world.shapes:
+        lo, hi = shape_z_extent(shape)
+        if hi <= z_min + 1e-9 or lo >= z_max - 1e-9:
+            continue
+        kept.append(shape)
+    return kept
+
+
+def floor_shapes(world: World, z_min: float = FLOOR_TOLERANCE) -> list[CollisionShape]:
+    """The shapes taken as floor: their top is at or below ``z_min`` [m] (see
+    :func:`obstacle_shapes`)."""
+    return [s for s in world.shapes if shape_z_extent(s)[1] <= z_min + 1e-9]
+
+
+def world_polygons(world: World, z_min: float = FLOOR_TOLERANCE,
+                   z_max: float = BAND_TOP) -> list[np.ndarray]:
+    """The 2D outlines of the obstacles: the shapes that reach into a height band.
+
+    Args:
+        world: the loaded world.
+        z_min: bottom of the band [m] (a shape must reach strictly above it: with the default
+            :data:`FLOOR_TOLERANCE`, a floor slab whose top is at most 0.05 m high is not an
+            obstacle; see :func:`obstacle_shapes`).
         z_max: top of the band [m] (a shape must start strictly below it).
 
     Returns:
@@ -594,20 +741,14 @@ def world_polygons(world: World, z_min: float = 0.0, z_max: float = 2.0) -> list
         their projected vertices. Shapes with no area in plan view are left out.
     """
     polygons = []
-    for shape in world.shapes:
-        pts = _shape_points(shape)
-        lo, hi = float(pts[:, 2].min()), float(pts[:, 2].max())
-        if shape.kind in ("cylinder", "sphere"):
-            lo, hi = _round_extent_z(shape, lo, hi)
-        if hi <= z_min + 1e-9 or lo >= z_max - 1e-9:
-            continue
-        hull = convex_hull_2d(pts[:, :2])
+    for shape in obstacle_shapes(world, z_min, z_max):
+        hull = convex_hull_2d(_shape_points(shape)[:, :2])
         if hull is not None:
             polygons.append(hull)
     return polygons
 
 
-def _round_extent_z(shape: CollisionShape, lo: float, hi: float) -> tuple[float, float]:
+def _round_extent_z(shape: CollisionShape) -> tuple[float, float]:
     """Exact z-extent [m] of a cylinder or sphere (the polygon points overshoot slightly)."""
     z = float(shape.pose[2])
     if shape.kind == "sphere":

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from swarm_common.world import World, world_polygons
+from swarm_common.world import World, obstacle_shapes, world_polygons
 from swarm_sim import separation_kernels
 from swarm_sim.kinematics import DriveLimits, integrate_unicycle, limit_twist
 from swarm_sim.lidar import PlanarLidar, ScanPattern, counter_clockwise, polygons_to_segments
@@ -146,8 +146,11 @@ class SimEngine:
     # -- construction --------------------------------------------------------------------------
 
     def _build_world(self, world: World) -> None:
+        """One static body per obstacle of the world; floor slabs, ground planes and heightmaps
+        get none (:func:`swarm_common.world.obstacle_shapes`): a robot driving on them touches
+        nothing, so no robot-wall contact is counted."""
         p, cid = pybullet, self.client
-        for shape in world.shapes:
+        for shape in obstacle_shapes(world):
             kind, size = shape.kind, shape.size
             if kind == "box":
                 col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[s / 2 for s in size],

@@ -17,8 +17,10 @@ from pathlib import Path
 from swarm_common import cli
 from swarm_common.errors import InputError, run_cli
 from swarm_common.map_io import save_map
+from swarm_common.poi import poi_for_world
 from swarm_common.rasterize import rasterize_world
-from swarm_common.world import load_world
+from swarm_common.spawn import largest_free_region
+from swarm_common.world import BAND_TOP, FLOOR_TOLERANCE, floor_shapes, load_world
 
 PROG = "swarm-map"
 
@@ -42,10 +44,12 @@ def build_parser() -> argparse.ArgumentParser:
                              "current directory)")
     parser.add_argument("--padding", type=cli.non_negative_float, default=0.5, metavar="M",
                         help="free margin around the world's shapes [m] (default: 0.5)")
-    parser.add_argument("--z-min", type=cli.finite_float, default=0.0, metavar="M",
-                        help="bottom of the robots' height band [m] (default: 0.0)")
-    parser.add_argument("--z-max", type=cli.finite_float, default=2.0, metavar="M",
-                        help="top of the robots' height band [m] (default: 2.0)")
+    parser.add_argument("--z-min", type=cli.finite_float, default=FLOOR_TOLERANCE, metavar="M",
+                        help="bottom of the robots' height band [m]: a shape whose top is at or "
+                             "below it is floor, driven on (default: "
+                             f"{FLOOR_TOLERANCE:g})")
+    parser.add_argument("--z-max", type=cli.finite_float, default=BAND_TOP, metavar="M",
+                        help=f"top of the robots' height band [m] (default: {BAND_TOP:g})")
     return parser
 
 
@@ -71,7 +75,40 @@ def _run(argv: list[str] | None) -> int:
     print(f"wrote {yaml_path} and {image_path}: {occ.width} x {occ.height} cells at "
           f"{occ.resolution:g} m/cell, origin ({occ.origin[0]:g}, {occ.origin[1]:g}) m, "
           f"{occupied} occupied, from {len(world.shapes)} shapes of {world.source}")
+    floor = [*world.floor, *(s.name for s in floor_shapes(world, args.z_min))]
+    if floor:
+        print(f"floor (driven on, not obstacles: ground planes, heightmaps and shapes whose top "
+              f"is at or below {args.z_min:g} m): {_names(floor)}")
+    print(spawn_line(world.source, occ))
     return 0
+
+
+def _names(names: list[str], limit: int = 6) -> str:
+    shown = ", ".join(names[:limit])
+    return shown + (f" and {len(names) - limit} more" if len(names) > limit else "")
+
+
+def spawn_line(world_path: Path, occ) -> str:
+    """One line saying where ``swarm-up`` spawns robots in this world (SPEC §4).
+
+    Args:
+        world_path: the world file; its points of interest are the ``.yaml`` beside it.
+        occ: the map robots spawn on (used when the world has no spawn area).
+    """
+    poi = poi_for_world(world_path)
+    if poi is not None and poi.spawn is not None:
+        sp = poi.spawn
+        x0, y0, x1, y1 = sp.area
+        return (f"spawn: the spawn area of {world_path.with_suffix('.yaml').name}: a "
+                f"{sp.spacing:g} m grid from ({sp.origin[0]:g}, {sp.origin[1]:g}) within x "
+                f"{x0:g}..{x1:g}, y {y0:g}..{y1:g} m ({sp.grid_points().shape[0]} nodes before "
+                "the wall check)")
+    region = largest_free_region(occ)
+    why = "no points of interest" if poi is None else "no spawn area in its points of interest"
+    return (f"spawn: {why}: robots spawn on a 1 m grid (wider for robots over 0.9 m across) in "
+            f"the largest free region ({region.area:.0f} m^2), nearest first to its clearest "
+            f"point ({region.origin[0]:.2f}, {region.origin[1]:.2f}) m, {region.clearance:.2f} m "
+            "from the nearest obstacle")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -810,8 +810,15 @@ def main(args=None) -> int:
                                       settings.duration)
             except InputError as exc:
                 raise InputError(f"--faults: {exc}") from None
+        from swarm_common.poi import poi_for_world
+        from swarm_common.spawn import describe_spawn
+        from swarm_common.world import resolve_world
+
+        poi = poi_for_world(resolve_world(settings.world))
         print(f"spawned {len(namespaces)} robots in {settings.world} "
-              f"({namespaces[0]}..{namespaces[-1]})", flush=True)
+              f"({namespaces[0]}..{namespaces[-1]}) "
+              f"{describe_spawn(engine.poses, poi is not None and poi.spawn is not None)}",
+              flush=True)
         # Until the node runs, Ctrl-C and SIGTERM raise KeyboardInterrupt (not rclpy's handler,
         # which would invalidate the context mid-tick); then they only ask the loop to stop at the
         # next check (<= 0.1 s): an exception raised inside the executor's C++ dispatch of a

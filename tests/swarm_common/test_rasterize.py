@@ -179,7 +179,8 @@ def test_rasterising_the_factory_is_fast():
     assert occ.width == 628 and occ.height == 428
 
 
-@pytest.mark.parametrize("name", ["slim_blockage", "factory_floor", "empty"])
+@pytest.mark.parametrize("name", ["slim_blockage", "factory_floor", "empty", "warehouse_slab",
+                                  "narrow_aisles"])
 def test_bundled_maps_are_the_rasterised_worlds(name):
     """maps/<name>.yaml is what swarm-map writes today (regenerate with swarm-map if not)."""
     stored = load_map(MAPS_DIR / f"{name}.yaml")
@@ -191,7 +192,7 @@ def test_bundled_maps_are_the_rasterised_worlds(name):
 
 def test_nothing_in_the_band_is_an_input_error(tmp_path: Path):
     world = World("void", tmp_path / "void.world", ())
-    with pytest.raises(InputError, match="no collision geometry between z = 0 and 2 m"):
+    with pytest.raises(InputError, match="no collision geometry between z = 0.05 and 2 m"):
         rasterize_world(world)
 
 
@@ -204,3 +205,71 @@ def test_nothing_in_the_band_is_an_input_error(tmp_path: Path):
 def test_bad_parameters_are_input_errors(kwargs, problem):
     with pytest.raises(InputError, match=problem):
         rasterize_world(load_world("empty"), **kwargs)
+
+
+# ------------------------------------------------------------------ floor slabs and new worlds
+
+
+@pytest.fixture(scope="module")
+def warehouse_map():
+    return rasterize_world(load_world("warehouse_slab"), resolution=RES)
+
+
+def test_floor_slab_and_loading_plate_are_free_the_low_pallet_is_occupied(warehouse_map):
+    occ = warehouse_map
+    # the slab covers x [-10.2, 10.2], y [-7.2, 7.2], top at 0.02 m: the hall's inside is free
+    # except the shelves, columns and the pallet (area in cells, 0.05 m each)
+    inside = occ.data[occ.world_to_cell([-9.9, -6.9])[0]:occ.world_to_cell([9.9, 6.9])[0] + 1,
+                      occ.world_to_cell([-9.9, -6.9])[1]:occ.world_to_cell([9.9, 6.9])[1] + 1]
+    shelves = 4 * (3.0 * 0.8) / RES**2
+    columns = 2 * math.pi * 0.2**2 / RES**2
+    pallet = 1.2 * 0.8 / RES**2
+    assert (inside == OCCUPIED).sum() == pytest.approx(shelves + columns + pallet, rel=0.06)
+    assert _value(occ, 6.0, 3.0) == FREE     # loading plate, top at 0.04 m
+    assert _value(occ, 0.0, 0.0) == FREE     # the slab anywhere
+    assert _value(occ, -8.8, -6.2) == OCCUPIED  # the 0.10 m pallet on the slab
+    assert _value(occ, -6.1, 3.5) == OCCUPIED   # a shelf
+
+
+def test_the_slab_is_an_obstacle_only_if_the_band_starts_on_the_ground(tmp_path: Path):
+    # swarm-map --z-min 0 takes the floor's 0.02 m above z = 0 as an obstacle: all occupied
+    occ = rasterize_world(load_world("warehouse_slab"), resolution=0.1, z_min=0.0)
+    assert _value(occ, 0.0, 0.0) == OCCUPIED and _value(occ, 6.0, 3.0) == OCCUPIED
+
+
+def test_a_world_of_floor_alone_has_nothing_to_rasterise(tmp_path: Path):
+    path = tmp_path / "slab.world"
+    path.write_text('<sdf version="1.7"><world name="w"><model name="slab"><link name="l">'
+                    '<collision name="c"><geometry><box><size>10 10 0.1</size></box></geometry>'
+                    '</collision></link><pose>0 0 -0.05 0 0 0</pose></model></world></sdf>')
+    with pytest.raises(InputError, match="no collision geometry between z = 0.05 and 2 m"):
+        rasterize_world(load_world(path))
+
+
+@pytest.mark.parametrize("name", ["warehouse_slab", "narrow_aisles"])
+def test_new_worlds_docks_holding_spots_and_spawn_nodes_are_clear(name):
+    """Every dock, holding spot and spawn node is free with a robot's radius around it."""
+    occ = load_map(MAPS_DIR / f"{name}.yaml")
+    poi = poi_for_world(load_world(name).source)
+    assert len(poi.workstations) >= 6
+    points = [ws.pose[:2] for ws in poi.workstations]
+    points += [h for ws in poi.workstations for h in ws.holding]
+    assert all(len(ws.holding) == 1 for ws in poi.workstations)
+    points += list(poi.spawn.grid_points())
+    radius = 0.22 + 0.1  # [m] the Waffle's radius and a margin
+    offsets = [np.array([radius * math.cos(a), radius * math.sin(a)])
+               for a in np.linspace(0.0, 2.0 * math.pi, 16, endpoint=False)]
+    for p in points:
+        for d in [np.zeros(2), *offsets]:
+            assert _value(occ, *(p + d)) == FREE, (name, p, d)
+
+
+def test_narrow_aisles_are_free_across_their_width(tmp_path: Path):
+    occ = load_map(MAPS_DIR / "narrow_aisles.yaml")
+    for x0, x1 in [(-8.0, -5.6), (-4.6, -2.2), (-1.2, 1.2), (2.2, 4.6), (5.6, 8.0)]:
+        for y in (-2.5, 1.0, 4.5):
+            xs = np.arange(x0 + RES / 2, x1, RES)
+            values = [_value(occ, x, y) for x in xs]
+            assert values.count(FREE) == len(xs) == 48  # 2.4 m at 0.05 m/cell
+            assert _value(occ, x0 - RES / 2, y) == OCCUPIED
+            assert _value(occ, x1 + RES / 2, y) == OCCUPIED

@@ -10,10 +10,12 @@ import numpy as np
 import pytest
 
 from swarm_common.errors import InputError
+from swarm_common.map_io import load_map
 from swarm_common.occupancy import OccupancyMap
+from swarm_common.paths import MAPS_DIR
 from swarm_common.poi import SpawnArea, poi_for_world
 from swarm_common.robot_model import load_robot
-from swarm_common.spawn import spawn_poses, spawn_poses_free
+from swarm_common.spawn import largest_free_region, spawn_poses, spawn_poses_free
 from swarm_common.world import load_world, world_polygons
 
 # shared/reference/seed_facts.md, slim_blockage's wall table as boxes xmin, xmax, ymin, ymax [m]
@@ -133,3 +135,79 @@ def test_spawn_module_is_pure():
         elif isinstance(node, ast.ImportFrom) and node.module:
             imported.add(node.module)
     assert not {m for m in imported if m.startswith(("pybullet", "swarm_sim", "rclpy"))}
+
+
+# ----------------------------------------------------------------- the largest free region
+
+
+def test_largest_free_region_beats_a_clearer_but_smaller_room(waffle):
+    # Left: a 2.5 x 8 m corridor-like room (20 m^2); right: a 4 x 4 m room (16 m^2) whose
+    # centre is clearer (2 m vs 1.25 m). The larger region wins, at its own clearest cell.
+    data = np.full((100, 100), 100, dtype=np.int8)
+    data[10:90, 5:30] = 0     # 8 x 2.5 m
+    data[30:70, 50:90] = 0    # 4 x 4 m
+    occ = OccupancyMap(data=data, resolution=0.1, origin=np.array([0.0, 0.0, 0.0]))
+    region = largest_free_region(occ)
+    assert region.area == pytest.approx(20.0)
+    assert region.origin[0] == pytest.approx(1.75, abs=0.051)  # the corridor's middle x
+    assert region.clearance == pytest.approx(1.3, abs=0.051)
+    poses = spawn_poses_free(occ, 4, waffle.radius, [])
+    assert np.all(poses[:, 0] < 3.0)
+
+
+def test_open_map_spawns_in_the_middle_not_at_a_corner(waffle):
+    # No walls at all: the map's edge counts as outside, so the clearest cell is the centre.
+    data = np.zeros((81, 81), dtype=np.int8)
+    data[75, 75] = 100  # one post near a corner, at (3.55, 3.55)
+    occ = OccupancyMap(data=data, resolution=0.1, origin=np.array([-4.0, -4.0, 0.0]))
+    region = largest_free_region(occ)
+    assert region.origin == pytest.approx([0.05, 0.05], abs=1e-9)
+    assert region.clearance == pytest.approx(4.1, abs=1e-9)  # to the pad beyond the map edge
+    poses = spawn_poses_free(occ, 9, waffle.radius, [])
+    assert poses[0, :2] == pytest.approx(region.origin)
+    # the row through the centre first: x = 0.05 + (0, 1, 2, 3, -1, -2, -3); x = +-3.95 would
+    # put the robot (radius 0.22 m + 0.05 m) over the map's edge; then the next row up
+    np.testing.assert_allclose(poses[:7, 0], [0.05, 1.05, 2.05, 3.05, -0.95, -1.95, -2.95])
+    np.testing.assert_allclose(poses[7:, 1], 1.05)
+
+
+def test_a_map_without_free_cells_is_an_input_error():
+    occ = OccupancyMap(data=np.full((5, 5), 100, dtype=np.int8), resolution=0.1,
+                       origin=np.zeros(3))
+    with pytest.raises(InputError, match="no free cell"):
+        largest_free_region(occ)
+
+
+@pytest.mark.parametrize("name", ["warehouse_slab", "narrow_aisles", "slim_blockage"])
+def test_world_without_poi_spawns_20_in_its_largest_free_region(tmp_path, waffle, name):
+    """The world file alone (no .yaml beside it): 20 robots in the hall, clear of everything."""
+    world = load_world(name)
+    occ = load_map(MAPS_DIR / f"{name}.yaml")
+    polygons = world_polygons(world)
+    poses = spawn_poses_free(occ, 20, waffle.radius, polygons)
+    assert poses.shape == (20, 3)
+    region = largest_free_region(occ)
+    rc = occ.world_to_cell(poses[:, :2])
+    assert region.mask[rc[:, 0], rc[:, 1]].all()  # inside the hall, not the padding ring
+    gaps = np.linalg.norm(poses[:, None, :2] - poses[None, :, :2], axis=2)
+    assert gaps[np.triu_indices(20, 1)].min() >= 1.0 - 1e-9
+    assert np.linalg.norm(poses[:, :2] - region.origin, axis=1).min() == pytest.approx(0.0)
+
+
+# ------------------------------------------------------------------------- the new worlds
+
+
+@pytest.mark.parametrize(("name", "fit"), [("warehouse_slab", 36), ("narrow_aisles", 39)])
+def test_new_worlds_spawn_20_robots_on_their_grid(waffle, name, fit):
+    world = load_world(name)
+    spawn = poi_for_world(world.source).spawn
+    polygons = world_polygons(world)
+    poses = spawn_poses(spawn, 20, waffle.radius, polygons)
+    assert poses.shape == (20, 3)
+    assert poses[0, :2] == pytest.approx(spawn.origin)
+    assert np.all(poses[:, 2] == spawn.yaw)
+    gaps = np.linalg.norm(poses[:, None, :2] - poses[None, :, :2], axis=2)
+    assert gaps[np.triu_indices(20, 1)].min() == pytest.approx(1.0)
+    spawn_poses(spawn, fit, waffle.radius, polygons)  # every node fits ...
+    with pytest.raises(InputError, match=f"at most {fit} fit"):
+        spawn_poses(spawn, fit + 1, waffle.radius, polygons)  # ... and no more

@@ -11,7 +11,17 @@ from scipy.spatial.transform import Rotation
 
 from swarm_common.errors import InputError
 from swarm_common.geometry import pose_to_matrix
-from swarm_common.world import World, load_world, resolve_world, world_polygons
+from swarm_common.world import (
+    BAND_TOP,
+    FLOOR_TOLERANCE,
+    World,
+    floor_shapes,
+    load_world,
+    obstacle_shapes,
+    resolve_world,
+    shape_z_extent,
+    world_polygons,
+)
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 
@@ -151,7 +161,6 @@ def test_unsupported_elements_reported_once_each_by_name():
         "include 'model://turtlebot3_world'",  # included twice, reported once
         "actor 'walker'",
         "road 'lane'",
-        "heightmap 'terrain::link::collision'",
         "polyline 'fence::link::collision'",
         "polyline 'fence::link::collision_2'",
         "mesh 'statue::link::collision' (meshes/missing_statue.stl not found)",
@@ -159,6 +168,8 @@ def test_unsupported_elements_reported_once_each_by_name():
     # ground_plane, sun, light, scene, gui and the horizontal floor plane: silent
     assert not any("ground" in s or "sun" in s or "bulb" in s or "floor" in s
                    for s in world.skipped)
+    # the ground plane and the heightmap are the floor, named there and not as skipped
+    assert world.floor == ("floor::link::collision", "terrain::link::collision")
     # what is supported still loads
     assert [s.name for s in world.shapes] == ["wall::link::collision"]
     assert world.shapes[0].pose[:3] == pytest.approx([0.0, 3.0, 1.0])
@@ -341,3 +352,207 @@ def test_world_is_frozen(slim):
         slim.name = "other"
     with pytest.raises(ValueError):
         slim.shapes[0].pose[0] = 1.0
+
+
+# --------------------------------------------------------------------------- the floor rule
+
+
+def _box_model(name: str, size: str, pose: str) -> str:
+    return _collision_model(name, f"<box><size>{size}</size></box>", pose)
+
+
+@pytest.mark.parametrize(("label", "model", "obstacle"), [
+    # a slab the size of the floor, top at z = 0
+    ("slab_top_0", _box_model("s", "20 14 0.1", "0 0 -0.05 0 0 0"), False),
+    # the same slab, top 0.02 m above z = 0 (robots drive on it)
+    ("slab_top_2cm", _box_model("s", "20 14 0.1", "0 0 -0.03 0 0 0"), False),
+    # a platform whose top is exactly at the tolerance, 0.05 m
+    ("platform_top_5cm", _box_model("s", "4 4 0.05", "0 0 0.025 0 0 0"), False),
+    # a real but low obstacle: a 0.10 m pallet stays an obstacle
+    ("pallet_10cm", _box_model("s", "1.2 0.8 0.1", "0 0 0.05 0 0 0"), True),
+    # a kerb 6 cm high: just above the tolerance
+    ("kerb_6cm", _box_model("s", "3 0.2 0.06", "0 0 0.03 0 0 0"), True),
+    # a pallet standing on a 0.02 m slab (0.02 .. 0.12 m)
+    ("pallet_on_slab", _box_model("s", "1.2 0.8 0.1", "0 0 0.07 0 0 0"), True),
+    # a beam that starts at 2.0 m: above every robot
+    ("beam_at_2m", _box_model("s", "3 0.2 0.2", "0 0 2.1 0 0 0"), False),
+    # a lying cylinder (a pipe) of radius 0.04 m on the floor: top at 0.08 m
+    ("pipe_r4cm", _collision_model("s", "<cylinder><radius>0.04</radius><length>2</length>"
+                                   "</cylinder>", "0 0 0.04 1.5707963 0 0"), True),
+])
+def test_floor_rule_tells_slabs_from_low_obstacles(tmp_path, label, model, obstacle):
+    world = load_world(_write_world(tmp_path, model))
+    assert len(world.shapes) == 1
+    assert (len(obstacle_shapes(world)) == 1) is obstacle
+    assert (len(world_polygons(world)) == 1) is obstacle
+    # floor: what is not an obstacle, except what is over the robots' heads
+    assert (len(floor_shapes(world)) == 1) is (not obstacle and label != "beam_at_2m")
+
+
+def test_floor_rule_constants_and_defaults():
+    assert FLOOR_TOLERANCE == 0.05 and BAND_TOP == 2.0
+    import inspect
+
+    for fn in (obstacle_shapes, world_polygons):
+        params = inspect.signature(fn).parameters
+        assert params["z_min"].default == FLOOR_TOLERANCE
+        assert params["z_max"].default == BAND_TOP
+
+
+def test_ground_plane_and_heightmap_are_floor_and_named(tmp_path):
+    path = _write_world(tmp_path, "".join([
+        _collision_model("ground", "<plane><normal>0 0 1</normal><size>50 50</size></plane>"),
+        _collision_model("hills", "<heightmap><uri>file://terrain.png</uri><size>129 129 10"
+                                  "</size><pos>0 0 0</pos></heightmap>"),
+        _box_model("wall", "4 0.2 2", "0 3 1 0 0 0"),
+    ]))
+    world = load_world(path)
+    assert world.floor == ("ground::l::c", "hills::l::c")
+    assert world.skipped == ()
+    assert [s.name for s in obstacle_shapes(world)] == ["wall::l::c"]
+
+
+# --------------------------------------------------------------------------- mesh stand-ins
+
+
+def _link_model(name: str, link_body: str, pose: str = "0 0 0 0 0 0") -> str:
+    return (f'<model name="{name}"><static>true</static><pose>{pose}</pose>'
+            f'<link name="l">{link_body}</link></model>')
+
+
+def test_missing_mesh_with_a_sibling_box_collision_is_reported_once(tmp_path):
+    body = ('<collision name="mesh"><geometry><mesh><uri>model://crate/meshes/crate.dae</uri>'
+            '</mesh></geometry></collision>'
+            '<collision name="box"><pose>0 0 0.5 0 0 0</pose><geometry><box><size>1 1 1</size>'
+            '</box></geometry></collision>')
+    world = load_world(_write_world(tmp_path, _link_model("crate", body, "3 0 0 0 0 0")))
+    assert world.skipped == (
+        "mesh 'crate::l::mesh' (model://crate/meshes/crate.dae not found; the link's other "
+        "collisions stand for it)",)
+    assert [s.name for s in world.shapes] == ["crate::l::box"]
+
+
+def test_missing_collision_mesh_replaced_by_the_visual_box(tmp_path):
+    body = ('<collision name="c"><geometry><mesh><uri>model://bench/meshes/bench.dae</uri>'
+            '</mesh></geometry></collision>'
+            '<visual name="v"><pose>0 0.5 0.4 0 0 0</pose><geometry><box><size>2 0.6 0.8'
+            '</size></box></geometry></visual>')
+    world = load_world(_write_world(tmp_path, _link_model("bench", body, "1 2 0 0 0 1.5707963")))
+    assert world.skipped == (
+        "mesh 'bench::l::c' (model://bench/meshes/bench.dae not found; replaced by the link's "
+        "visual box 'v')",)
+    (shape,) = world.shapes
+    assert shape.name == "bench::l::v" and shape.kind == "box"
+    # model yaw 90 deg: the visual's (0, 0.5) offset goes to -x in the world
+    np.testing.assert_allclose(shape.pose[:3], [0.5, 2.0, 0.4], atol=1e-7)
+    (poly,) = world_polygons(world)
+    np.testing.assert_allclose(poly.min(axis=0), [0.2, 1.0], atol=1e-7)
+    np.testing.assert_allclose(poly.max(axis=0), [0.8, 3.0], atol=1e-7)
+
+
+def test_dae_collision_replaced_by_an_stl_visual_mesh(tmp_path):
+    import shutil
+
+    shutil.copy(DATA / "world_cube.stl", tmp_path / "cube.stl")
+    (tmp_path / "cube.dae").write_text("<COLLADA/>")
+    body = ('<collision name="c"><geometry><mesh><uri>cube.dae</uri></mesh></geometry>'
+            '</collision><visual name="v"><geometry><mesh><uri>cube.stl</uri></mesh></geometry>'
+            '</visual>')
+    world = load_world(_write_world(tmp_path, _link_model("cube", body)))
+    assert world.skipped == (
+        "mesh 'cube::l::c' (.dae: only STL and OBJ are loaded; replaced by the link's visual "
+        "mesh 'v')",)
+    (shape,) = world.shapes
+    assert shape.kind == "mesh" and shape.mesh_path == tmp_path / "cube.stl"
+
+
+def test_the_same_missing_mesh_in_many_includes_is_one_report(tmp_path, monkeypatch):
+    model_dir = tmp_path / "models" / "rack"
+    model_dir.mkdir(parents=True)
+    (model_dir / "model.sdf").write_text(
+        '<sdf version="1.7"><model name="rack"><static>true</static><link name="l">'
+        '<collision name="c"><geometry><mesh><uri>model://rack/meshes/rack.dae</uri></mesh>'
+        '</geometry></collision></link></model></sdf>')
+    monkeypatch.setenv("GAZEBO_MODEL_PATH", str(tmp_path / "models"))
+    includes = "".join(f"<include><uri>model://rack</uri><name>rack_{i}</name>"
+                       f"<pose>{i} 0 0 0 0 0</pose></include>" for i in range(5))
+    world = load_world(_write_world(tmp_path, includes))
+    assert world.skipped == (
+        "mesh 'rack_0::l::c' and 4 more (model://rack/meshes/rack.dae not found)",)
+    assert world.shapes == ()
+
+
+# --------------------------------------------------------------------------- bundled worlds
+
+
+@pytest.fixture(scope="module")
+def warehouse() -> World:
+    return load_world("warehouse_slab")
+
+
+@pytest.fixture(scope="module")
+def aisles() -> World:
+    return load_world("narrow_aisles")
+
+
+def _extent(world: World, prefix: str) -> tuple[np.ndarray, np.ndarray]:
+    """x, y [m] lower and upper corners of the obstacle outlines whose names start so."""
+    shapes = [s for s in obstacle_shapes(world) if s.name.startswith(prefix)]
+    assert shapes, prefix
+    pts = np.vstack(world_polygons(World("w", world.source, tuple(shapes))))
+    return pts.min(axis=0), pts.max(axis=0)
+
+
+def test_warehouse_slab_loads_without_skips_and_its_slab_is_floor(warehouse):
+    assert warehouse.skipped == () and warehouse.floor == ()
+    assert len(warehouse.shapes) == 34
+    assert [s.name for s in floor_shapes(warehouse)] == [
+        "floor_slab::slab::collision", "loading_plate::plate::collision"]
+    assert len(obstacle_shapes(warehouse)) == 32
+    slab = _shape(warehouse, "floor_slab::slab::collision")
+    assert shape_z_extent(slab) == pytest.approx((-0.08, 0.02))
+    pallet = _shape(warehouse, "pallet_low::pallet::collision")
+    assert shape_z_extent(pallet) == pytest.approx((0.02, 0.12))
+    assert pallet in obstacle_shapes(warehouse)
+
+
+@pytest.mark.parametrize(("prefix", "lo", "hi"), [
+    # included shelves posed relative_to the row's frame
+    ("rack_row_north::shelf_1::", (-7.6, 3.1), (-4.6, 3.9)),
+    ("rack_row_north::shelf_2::", (-4.4, 3.1), (-1.4, 3.9)),
+    # the south row is posed relative_to the north row (5 m south)
+    ("rack_row_south::shelf_1::", (-7.6, -1.9), (-4.6, -1.1)),
+    # the inline nested shelf, turned half a turn
+    ("rack_row_south::shelf_2::", (-4.4, -1.9), (-1.4, -1.1)),
+    ("hall::", (-10.2, -7.2), (10.2, 7.2)),
+    ("pallet_low::", (-9.4, -6.6), (-8.2, -5.8)),
+])
+def test_warehouse_slab_shelves_stand_where_the_world_says(warehouse, prefix, lo, hi):
+    got_lo, got_hi = _extent(warehouse, prefix)
+    np.testing.assert_allclose(got_lo, lo, atol=1e-6)
+    np.testing.assert_allclose(got_hi, hi, atol=1e-6)
+
+
+def test_warehouse_slab_shelves_have_several_links_each(warehouse):
+    names = [s.name for s in warehouse.shapes if s.name.startswith("rack_row_north::shelf_1::")]
+    assert {n.split("::")[2] for n in names} == {"bottom_bay", "uprights", "decks"}
+    assert len(names) == 7
+
+
+def test_narrow_aisles_loads_state_poses_and_ground_plane(aisles):
+    assert aisles.skipped == ()
+    assert aisles.floor == ("ground_plane::link::collision",)
+    # the beams at 2.6 m are above the band; everything else is an obstacle
+    assert len(aisles.shapes) == 36 and len(obstacle_shapes(aisles)) == 32
+    # rack_3 is declared at y = 0.5; the saved <state> puts it at y = 1.0
+    assert _shape(aisles, "rack_3::bottom_beam::collision").pose[1] == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize(("rack", "x"), [(1, -5.1), (2, -1.7), (3, 1.7), (4, 5.1)])
+def test_narrow_aisles_racks_leave_2_4_m_aisles(aisles, rack, x):
+    lo, hi = _extent(aisles, f"rack_{rack}::")
+    np.testing.assert_allclose(lo, [x - 0.5, -3.0], atol=1e-4)
+    np.testing.assert_allclose(hi, [x + 0.5, 5.0], atol=1e-4)
+    walls_lo, walls_hi = _extent(aisles, "store_walls::")
+    # interior x in [-8, 8]: the first and last aisle are 2.4 m wide as well
+    assert -5.6 - (-8.0) == pytest.approx(2.4) and walls_lo[0] == pytest.approx(-8.15)
