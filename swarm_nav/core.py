@@ -196,6 +196,7 @@ class NavigatorCore:
         self._stuck_since: float | None = None
         self._blocked_since: float | None = None
         self._crowded_since: float | None = None
+        self._occupied_since: float | None = None
         self._scan = np.zeros((0, 2))
         self._dyn = np.zeros((0, 2))
         self._robots: list[SeenRobot] = []
@@ -244,6 +245,7 @@ class NavigatorCore:
         self._stuck_since = None
         self._blocked_since = None
         self._crowded_since = None
+        self._occupied_since = None
         self._state = NavState.PLANNING
         if not np.all(np.isfinite(self._goal)):
             self._end(NavState.ABORTED, now, "goal is not finite")
@@ -366,6 +368,8 @@ class NavigatorCore:
             self._finish_recovery(pose, now)
 
         self._update_holding(pose, now)
+        if self._state in TERMINAL:  # given up: a robot died on the goal
+            return self._out(0.0, 0.0)
         if self._holding is not None and self._holding.phase == HoldingPhase.WAIT:
             self._progress.reset(pose, now)
             self._stuck_since = None
@@ -513,6 +517,11 @@ class NavigatorCore:
         if fresh and goal_visible(self.costmap, pose[:2], goal, self.cfg.holding):
             occupied = goal_occupied(self._robots, goal, self.cfg.holding)
             first = someone_came_first(self._robots, pose[:2], goal, self.cfg.holding)
+        if self._occupant_stays(occupied, goal, now):
+            timeout = self.cfg.holding.occupied_timeout
+            self._end(NavState.ABORTED, now, f"goal occupied by a robot that has not moved for "
+                      f"{timeout:g} s")
+            return
         hp.update(now, pose[:2], occupied, first)
         # never park on top of another robot: a taken loop point is skipped, a taken spot is
         # replaced by a staging point well away from the busy workstation
@@ -536,6 +545,30 @@ class NavigatorCore:
         if moved:
             self._replan(pose, overlay=False)
             self._progress.reset(pose, now)
+
+    def _occupant_stays(self, occupied: bool | None, goal: np.ndarray, now: float) -> bool:
+        """Whether the goal has been seen taken for ``occupied_timeout`` by a robot that does not
+        move: at every judgement in that time the goal was in sight and taken, and no robot was
+        seen moving (faster than ``moving_speed``) within 2 x ``goal_occupied_radius`` of it. A
+        queue at a workstation moves whenever a robot docks or leaves; a robot that died on it
+        never does. The goal is then unreachable, and given up (SPEC §5: aborted with the
+        reason) rather than held for ever.
+
+        Args:
+            occupied: this tick's judgement (None: not judged, out of sight or no fresh scan).
+            goal: (2,) x, y [m] in ``map``.
+            now: time [s].
+        """
+        hc = self.cfg.holding
+        seen = self._seen
+        moving = seen.known & (seen.speed > hc.moving_speed)
+        near = np.hypot(*(seen.centres - goal).T) <= 2.0 * hc.goal_occupied_radius
+        if not occupied or bool((moving & near).any()):
+            self._occupied_since = None
+            return False
+        if self._occupied_since is None:
+            self._occupied_since = now
+        return hc.occupied_timeout > 0 and now - self._occupied_since >= hc.occupied_timeout
 
     def _staging(self, pose: np.ndarray) -> np.ndarray:
         """A staging point away from the goal and the robots seen (or where the robot is)."""

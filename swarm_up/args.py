@@ -246,7 +246,7 @@ def _check_world_and_fit(world_path: Path, robot: str, n: int) -> None:
     poi = poi_for_world(world_path)
     if poi is not None and poi.spawn is not None:
         spawn_poses(poi.spawn, n, load_robot(robot).radius, world_io.world_polygons(world),
-                    where=f"spawn area of {world.name}")
+                    where=f"spawn area of {world.name} ({poi.source})")
 
 
 def _check_map(map_path: Path) -> Path:

@@ -176,6 +176,38 @@ def test_holds_while_the_workstation_is_taken_then_takes_it(occ):
     assert r.core.status.holding_time > 15.0
 
 
+@pytest.mark.parametrize("timeout", [20.0, 0.0])
+def test_gives_up_a_workstation_a_robot_stands_on_without_moving(occ, timeout):
+    # A robot that died on loader 1 never leaves: after occupied_timeout [s] in sight of it the
+    # goal is given up with the reason; occupied_timeout 0 holds for ever.
+    spot = np.array([-6.6, -2.6])
+    dead = SimRobot(None, LOADER1.copy())
+    base = NavigatorConfig()
+    cfg = dataclasses.replace(base, robot_index=1, holding=dataclasses.replace(
+        base.holding, occupied_timeout=timeout))
+    core = NavigatorCore(cfg, WAFFLE_FOOTPRINT, [(LOADER1, spot[None, :])])
+    core.set_map(occ)
+    r = SimRobot(core, np.array([-4.0, -3.9, math.pi]), log=[])
+    core.step(r.pose, 0.0, 0.0, 0.0)
+    core.set_goal(LOADER1, "g", 0.0)
+    res = simulate([r, dead], SLIM_BLOCKAGE_WALLS, 60.0, until_done=True)
+    states = [row[-1] for row in r.log]
+    first_hold = states.index("HOLDING") * 0.1  # [s] it held first
+    st = core.status
+    if timeout == 0.0:
+        assert st.state == NavState.HOLDING and st.holding_time > 40.0, st
+    else:
+        assert st.state == NavState.ABORTED, st
+        assert st.reason == "goal occupied by a robot that has not moved for 20 s"
+        # the timeout runs once the taken goal is in sight without a break: from the holding
+        # spot, reached a few seconds after the robot began to hold (24.1 s of holding here)
+        assert timeout <= st.holding_time <= timeout + 10.0, st
+        assert st.navigation_time == pytest.approx(first_hold + st.holding_time, abs=0.2)
+        assert r.v == pytest.approx(0.0, abs=0.05)  # stopped
+    assert np.hypot(*(r.pose[:2] - LOADER1[:2])) > 0.6
+    assert res["contact_ticks"] == 0
+
+
 def test_first_come_first_served_at_a_workstation(occ):
     spot = np.array([-6.6, -2.6])
     sites = [(LOADER1, spot[None, :])]
