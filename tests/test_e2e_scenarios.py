@@ -14,9 +14,10 @@ the spawn checks run ``swarm-up`` with a bad points-of-interest file.
    there hold, and once the robot on it has not moved for ``occupied_timeout`` (simulated s,
    the navigator's parameter) in their sight, they give the goal up with that reason and their
    commanders go on to the next workstation.
-3. (Not here yet: a corridor blocked while robots drive through it. The scenario,
-   ``tests/data/world_two_corridors.world`` with a robot parking in the south corridor, fails
-   today: see the issue's note.)
+3. (Not here yet: a corridor blocked while robots drive through it. Tried with two corridors,
+   a robot parking in the south one: in 1.2 m corridors the planner threads the gap beside the
+   parked robot and two drivers wedge there; in 0.9 m ones the second driver ends 0.2 m from the
+   wall and never arrives. It fails today, so it is not in the suite.)
 4. A goal inside a wall and one outside the map, sent to a robot on its way: refused at once with
    the reason; the other robots keep going and the same robot takes its next goal.
 5. Eight robots sent to one workstation at once: one docks, the others hold and dock in turn.
