@@ -187,7 +187,10 @@ class HoldingConfig:
                                   check=">=0")
     workstation_clearance: float = _p(1.0, "m", "... and this far from every workstation and "
                                       "holding point", check=">=0")
-    staging_search_radius: float = _p(6.0, "m", "... within this of where it is", check=">0")
+    staging_search_radius: float = _p(12.0, "m", "... within this of where it is", check=">0")
+    staging_wall_clearance: float = _p(1.6, "m", "... and, where there is such a place, this far "
+                                       "from every wall: in the open, not in a corridor that "
+                                       "others drive through", check=">=0")
     make_room_distance: float = _p(0.8, "m", "a waiting robot with another robot this close ...",
                                    check=">=0")
     make_room_time: float = _p(4.0, "s", "... for this long moves to a staging point to make "

@@ -288,7 +288,12 @@ def staging_point(costmap: Costmap, goal_xy, robot_xy, centres: np.ndarray,
     ``step`` lattice within ``staging_search_radius`` of the robot that is free of inflation cost
     (at least the inflation radius from walls), at least ``staging_distance`` from the goal,
     ``staging_clearance`` from every robot seen and ``workstation_clearance`` from every
-    workstation and holding point, and reachable; the one nearest the robot wins.
+    workstation and holding point, and reachable; the one nearest the robot wins.  Where some
+    such place is also ``staging_wall_clearance`` from every wall, only those count: a robot
+    waiting in a corridor narrows the lane the others drive through, and a few of them stop its
+    two-way traffic (20 robots on slim_blockage, whose six workstations share one 3 m corridor,
+    all stood in it after 400 s and finished 12 tasks in the run's last 10 minutes against 140
+    in its first).
 
     Args:
         costmap: the static costmap.
@@ -326,5 +331,6 @@ def staging_point(costmap: Costmap, goal_xy, robot_xy, centres: np.ndarray,
             ok &= same
     if not ok.any():
         return None
-    cand = cand[ok]
+    open_ = ok & (costmap.distance_at(cand) >= cfg.staging_wall_clearance)
+    cand = cand[open_ if open_.any() else ok]
     return cand[int(np.argmin(np.hypot(*(cand - robot_xy).T)))]

@@ -106,10 +106,9 @@ def _workstation_table(rows: list[dict]):
     from rich.table import Table
 
     table = Table(title="workstations")
-    for name, justify in (("workstation", "left"), ("goals", "right"), ("visits", "right"),
-                          ("aborted", "right"), ("mean time to goal", "right"),
-                          ("holding time", "right"), ("mean wait", "right")):
-        table.add_column(name, justify=justify)
+    table.add_column("workstation", no_wrap=True)
+    for name in ("goals", "visits", "aborted", "time to goal", "holding", "wait"):
+        table.add_column(name, justify="right")
     for row in rows:
         table.add_row(str(row.get("name")), _fmt(row.get("goals")), _fmt(row.get("visits")),
                       _fmt(row.get("aborted")), _fmt(row.get("mean_time_to_goal_s"), "s", 1),

@@ -1,5 +1,6 @@
 """Goal-occupied detection from the robots seen, first come first served, the holding pattern."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -190,6 +191,23 @@ def test_staging_point_keeps_away_from_the_goal_robots_and_workstations(costmap)
     assert np.hypot(*(xy - robot)) <= CFG.staging_search_radius
     # never inside the closed blockage, although it is near and free
     assert not (-5.112 < xy[0] < -3.912 and -2.866 < xy[1] < 7.334)
+
+
+def test_staging_point_is_in_the_open_not_in_the_corridor_of_the_workstations(costmap):
+    """slim_blockage: the six loaders share the 3 m corridor left of the blockage; a robot
+    waiting there narrows the lane, so it waits in the open hall right of the blockage."""
+    goal = np.array([-7.74575, 0.97297])
+    robot = np.array([-6.5, -0.5])  # in the corridor, below its goal
+    avoid = np.array([[-7.74575, y] for y in (-3.577660, -1.385260, 0.972970, 3.203130)])
+    xy = staging_point(costmap, goal, robot, np.zeros((0, 2)), avoid, CFG)
+    assert xy is not None and xy[0] > -4.0  # right of the blockage (x in -5.3 .. -4.3)
+    assert costmap.distance_at(xy) >= CFG.staging_wall_clearance
+    assert np.hypot(*(xy - robot)) <= CFG.staging_search_radius
+    # without an open place in reach, a corridor place as before
+    near = dataclasses.replace(CFG, staging_search_radius=2.0)
+    xy = staging_point(costmap, goal, robot, np.zeros((0, 2)), avoid, near)
+    assert xy is not None and -8.3 < xy[0] < -5.3
+    assert costmap.cost_at(xy) == 0 and costmap.distance_at(xy) < CFG.staging_wall_clearance
 
 
 def test_no_staging_point_in_a_tiny_room():
