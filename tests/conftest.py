@@ -58,6 +58,28 @@ def repo_root() -> Path:
     return Path(__file__).resolve().parents[1]
 
 
+@pytest.fixture
+def swarm(tmp_path):
+    """``swarm(n, world=..., poi=...)`` starts a swarm of ``n`` robots (the simulator, one
+    navigator group and a probe node: :class:`tests.swarm_nav.test_node_behaviour.Swarm`);
+    every swarm is stopped at the end."""
+    from tests.swarm_nav.test_node_behaviour import Swarm
+
+    made = []
+
+    def make(n: int, **kwargs):
+        sw = Swarm(tmp_path / f"run{len(made)}", n, **kwargs)
+        sw.dir.mkdir()
+        made.append(sw)
+        return sw.launch()
+
+    try:
+        yield make
+    finally:
+        for sw in made:
+            sw.close()
+
+
 def pytest_unconfigure(config):
     global _DOMAIN_LOCK
     shm.clean_stale(_SHM_BEFORE, min_age_s=0.0)

@@ -52,25 +52,6 @@ CORRIDOR = DATA / "world_corridor.world"
 DEAD_STATION = DATA / "world_dead_station.world"
 
 
-@pytest.fixture
-def swarm(tmp_path):
-    """``swarm(n, world=..., poi=...)`` starts a swarm; every swarm is stopped at the end."""
-    made: list[Swarm] = []
-
-    def make(n: int, world: Path | None = None) -> Swarm:
-        kwargs = {} if world is None else {"world": str(world), "poi": world.with_suffix(".yaml")}
-        sw = Swarm(tmp_path / f"run{len(made)}", n, **kwargs)
-        sw.dir.mkdir()
-        made.append(sw)
-        return sw.launch()
-
-    try:
-        yield make
-    finally:
-        for sw in made:
-            sw.close()
-
-
 def sim_seconds(sw: Swarm, results) -> float:
     """Simulated seconds from the first goal's start to the last result [s]."""
     return max(r.t for r in results.values()) - min(float(g) for g in results)
@@ -87,7 +68,7 @@ SWAP_GOALS = {"Srobot1": (3.0, -1.2, 0.0), "Srobot2": (-3.0, -1.2, math.pi),
 
 @pytest.mark.parametrize("n", [2, 4])
 def test_head_on_swap_through_a_one_lane_corridor(swarm, n):
-    sw = swarm(n, world=CORRIDOR)
+    sw = swarm(n, world=str(CORRIDOR), poi=CORRIDOR.with_suffix(".yaml"))
     goals = {ns: SWAP_GOALS[ns] for ns in sw.names}
     ids = sw.send_together(goals)
     results = {}

@@ -252,24 +252,6 @@ class Swarm:
                 if e.name == "collision"]
 
 
-@pytest.fixture
-def swarm(tmp_path):
-    """``swarm(n, world=..., poi=...)`` starts a swarm; every swarm is stopped at the end."""
-    made: list[Swarm] = []
-
-    def make(n: int, **kwargs) -> Swarm:
-        sw = Swarm(tmp_path / f"run{len(made)}", n, **kwargs)
-        sw.dir.mkdir()
-        made.append(sw)
-        return sw.launch()
-
-    try:
-        yield make
-    finally:
-        for sw in made:
-            sw.close()
-
-
 def assert_reached(sw: Swarm, ns: str, result: Status, goal: tuple[float, float, float]):
     """SUCCEEDED, and the true pose once the robot has stopped is within the tolerances."""
     assert result.state == "SUCCEEDED", (ns, goal, result)
