@@ -200,7 +200,7 @@ class HoldingConfig:
                                            check=">=0")
     workstation_keepout_cost: int = _p(180, "-", "costmap cost of those discs (< 253: passable "
                                        "if there is no other way)", check=">=0")
-    occupied_timeout: float = _p(120.0, "s", "a goal seen taken, in sight, by a robot that has "
+    occupied_timeout: float = _p(600.0, "s", "a goal seen taken, in sight, by a robot that has "
                                  "not moved for this long (none seen moving within "
                                  "2 x goal_occupied_radius of it) is given up: aborted with the "
                                  "reason (a robot that died there); 0 = never", check=">=0")

@@ -163,13 +163,17 @@ def test_eight_robots_sent_to_one_workstation_dock_in_turn(swarm):
 # whose holding spot is taken waits out of sight of west, and starts its timeout once in sight.
 DEAD_RUN = ["--world", str(DEAD_STATION), "--swarm-size", "3", "--commanders", "--rtf", "0",
             "--duration", "320", "--faults", "kill-robot:1@0.5", "--processes", "per-robot"]
-OCCUPIED_TIMEOUT_S = 120.0  # params/navigator.yaml occupied_timeout
+OCCUPIED_TIMEOUT_S = 120.0  # the run's occupied_timeout (params/navigator.yaml has 600 s)
 GAVE_UP = re.compile(r"task (\d+): failed to reach west after ([\d.]+) s \(sim\): goal occupied "
                      r"by a robot that has not moved for 120 s")
 
 
-def test_robots_give_up_a_workstation_a_dead_robot_stands_on_and_go_on(tmp_path):
-    _, m, diag = _run_to_end(DEAD_RUN, tmp_path, "dead", 320)
+def test_robots_give_up_a_workstation_a_dead_robot_stands_on_and_go_on(tmp_path, repo_root):
+    template = (repo_root / "params" / "navigator.yaml").read_text()
+    params = tmp_path / "navigator.yaml"
+    params.write_text(re.sub(r"occupied_timeout: [\d.]+", "occupied_timeout: 120.0", template))
+    assert "occupied_timeout: 120.0" in params.read_text()
+    _, m, diag = _run_to_end([*DEAD_RUN, "--nav-params", str(params)], tmp_path, "dead", 320)
     msg = f"metrics: {json.dumps(m, indent=1)}\n{diag}"
     assert m["collisions"] == {"robot_robot": 0, "robot_wall": 0}, msg
     assert m["fault_log"][0]["kind"] == "kill-robot", msg
