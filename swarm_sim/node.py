@@ -724,7 +724,8 @@ def prepare(settings: SimSettings):
     """Load everything and spawn, before ROS starts, so bad input fails fast and quietly.
 
     Returns:
-        ``(engine, occ, namespaces)``.
+        ``(engine, occ, namespaces, spawned)``: ``spawned`` says where the robots went
+        (:func:`swarm_common.spawn.describe_spawn`).
 
     Raises:
         InputError: an unknown or malformed world, robot, map or POI file, a bad name prefix, or
@@ -735,7 +736,7 @@ def prepare(settings: SimSettings):
     from swarm_common.poi import poi_for_world
     from swarm_common.rasterize import rasterize_world
     from swarm_common.robot_model import load_robot
-    from swarm_common.spawn import spawn_poses, spawn_poses_free
+    from swarm_common.spawn import describe_spawn, spawn_poses, spawn_poses_free
     from swarm_common.world import load_world, resolve_world, world_polygons
     from swarm_sim.engine import EngineConfig, SimEngine
 
@@ -754,7 +755,8 @@ def prepare(settings: SimSettings):
     else:
         occ = rasterize_world(world)
     polygons = world_polygons(world)
-    if poi is not None and poi.spawn is not None:
+    from_spawn_area = poi is not None and poi.spawn is not None
+    if from_spawn_area:
         poses = spawn_poses(poi.spawn, settings.swarm_size, robot.radius, polygons,
                             where=f"spawn area of {world.name}")
     else:
@@ -763,7 +765,7 @@ def prepare(settings: SimSettings):
     config = EngineConfig(control_period=1.0 / settings.control_rate)
     engine = SimEngine(world, robot, poses, seed=settings.seed, config=config, gui=settings.gui)
     namespaces = [f"{settings.name_prefix}{i + 1}" for i in range(settings.swarm_size)]
-    return engine, occ, namespaces
+    return engine, occ, namespaces, describe_spawn(engine.poses, from_spawn_area)
 
 
 @contextlib.contextmanager
@@ -801,7 +803,7 @@ def main(args=None) -> int:
     def body():
         settings = parse_settings(user_args)
         with held_warnings():  # bad input: only the one error line, not the loaders' warnings
-            holder["engine"], occ, namespaces = prepare(settings)
+            holder["engine"], occ, namespaces, spawned = prepare(settings)
         engine = holder["engine"]
         faults = ()
         if settings.faults is not None:
@@ -810,15 +812,8 @@ def main(args=None) -> int:
                                       settings.duration)
             except InputError as exc:
                 raise InputError(f"--faults: {exc}") from None
-        from swarm_common.poi import poi_for_world
-        from swarm_common.spawn import describe_spawn
-        from swarm_common.world import resolve_world
-
-        poi = poi_for_world(resolve_world(settings.world))
         print(f"spawned {len(namespaces)} robots in {settings.world} "
-              f"({namespaces[0]}..{namespaces[-1]}) "
-              f"{describe_spawn(engine.poses, poi is not None and poi.spawn is not None)}",
-              flush=True)
+              f"({namespaces[0]}..{namespaces[-1]}) {spawned}", flush=True)
         # Until the node runs, Ctrl-C and SIGTERM raise KeyboardInterrupt (not rclpy's handler,
         # which would invalidate the context mid-tick); then they only ask the loop to stop at the
         # next check (<= 0.1 s): an exception raised inside the executor's C++ dispatch of a

@@ -38,10 +38,11 @@ import pytest
 from swarm_common.stamps import NS_PER_S
 from tests.swarm_nav.test_node_behaviour import (
     LOADER3,
-    XY_TOL,
     Swarm,
     assert_no_collisions,
     assert_reached,
+    dock_in_turn,
+    docked_at_once,
 )
 from tests.test_e2e_swarm_up import SWARM_UP, _run_to_end
 
@@ -129,30 +130,13 @@ AWAY = [(-7.74575, 3.20313, math.pi), (-7.74575, 5.78442, math.pi),
 
 def test_eight_robots_sent_to_one_workstation_dock_in_turn(swarm):
     sw = swarm(8)
-    goal_ids = sw.send_together(dict.fromkeys(sw.names, LOADER3))
-    waiting = dict(goal_ids)
-    docked: list[str] = []
-    away_ids = {}
-    while waiting:
-        sw.spin_until(lambda: any((ns, g) in sw.results for ns, g in waiting.items()), 180,
-                      f"one of {sorted(waiting)} to dock at loader3")
-        ns = next(ns for ns, g in waiting.items() if (ns, g) in sw.results)
-        result = sw.results[(ns, waiting.pop(ns))]
-        assert_reached(sw, ns, result, LOADER3)
-        docked.append(ns)
-        if waiting:
-            away_ids[ns] = sw.send(ns, *AWAY[len(docked) - 1])
-    assert sorted(docked) == sw.names
-    for ns in docked[1:]:
-        assert "HOLDING" in sw.states(ns, goal_ids[ns]), (ns, sw.states(ns, goal_ids[ns]))
+    docked, result = dock_in_turn(sw, LOADER3, AWAY, 180)
     aborted = [(ns, g) for (ns, g), st in sw.results.items() if st.state == "ABORTED"]
     assert not aborted, aborted
     assert_no_collisions(sw)
     ticks = sorted(set.intersection(*(set(tr) for tr in sw.truth.values())))
     assert ticks[-1] >= round(result.t * NS_PER_S)
-    inside = [sum(math.hypot(sw.truth[ns][t][0] - LOADER3[0], sw.truth[ns][t][1] - LOADER3[1])
-                  <= XY_TOL for ns in sw.names) for t in ticks]
-    assert max(inside) == 1  # never two robots docked at once
+    assert max(docked_at_once(sw, LOADER3, ticks)) == 1  # never two robots docked at once
     print(f"8 robots docked in turn by {result.t:.1f} simulated s: {docked}")
 
 

@@ -328,33 +328,49 @@ def test_two_robots_swap_ends_of_the_passage_below_the_blockage(swarm):
 AWAY = [(-6.3, 5.0, math.pi / 2), (-6.3, 6.6, math.pi / 2), (-6.6, 8.6, 0.0)]
 
 
-def test_four_robots_dock_at_one_workstation_in_turn(swarm):
-    sw = swarm(4)
-    goal_ids = sw.send_together(dict.fromkeys(sw.names, LOADER3))
-    waiting = dict(goal_ids)  # robots whose loader3 goal runs
+def dock_in_turn(sw: Swarm, goal, away, timeout: float) -> tuple[list[str], Status]:
+    """Send every robot to ``goal`` at once; as each docks (checked with :func:`assert_reached`),
+    send it on to the next pose of ``away`` to free the workstation, as a commander would.
+    Checks that all docked and that every robot but the first saw the goal taken and held.
+
+    Returns:
+        The robots in the order they docked, and the last docking's result.
+    """
+    goal_ids = sw.send_together(dict.fromkeys(sw.names, goal))
+    waiting = dict(goal_ids)  # robots whose goal runs
     docked: list[str] = []
     while waiting:
-        sw.spin_until(lambda: any((ns, g) in sw.results for ns, g in waiting.items()), 120,
-                      f"one of {sorted(waiting)} to dock at loader3")
+        sw.spin_until(lambda: any((ns, g) in sw.results for ns, g in waiting.items()), timeout,
+                      f"one of {sorted(waiting)} to dock at {goal}")
         ns = next(ns for ns, g in waiting.items() if (ns, g) in sw.results)
         result = sw.results[(ns, waiting.pop(ns))]
-        assert_reached(sw, ns, result, LOADER3)
+        assert_reached(sw, ns, result, goal)
         docked.append(ns)
-        if waiting:  # free the workstation for the next one, as a commander would
-            sw.send(ns, *AWAY[len(docked) - 1])
+        if waiting:
+            sw.send(ns, *away[len(docked) - 1])
     assert sorted(docked) == sw.names
-    # Every robot but the first to dock saw its goal taken and held.
     for ns in docked[1:]:
         assert "HOLDING" in sw.states(ns, goal_ids[ns]), (ns, sw.states(ns, goal_ids[ns]))
+    return docked, result
+
+
+def docked_at_once(sw: Swarm, goal, ticks) -> list[int]:
+    """From ground truth: how many robot centres stand within ``XY_TOL`` of ``goal`` at each of
+    ``ticks`` [ns]."""
+    return [sum(math.hypot(sw.truth[ns][t][0] - goal[0], sw.truth[ns][t][1] - goal[1])
+                <= XY_TOL for ns in sw.names) for t in ticks]
+
+
+def test_four_robots_dock_at_one_workstation_in_turn(swarm):
+    sw = swarm(4)
+    _, result = dock_in_turn(sw, LOADER3, AWAY, 120)
     assert_no_collisions(sw)
     # From ground truth, every tick: never two robot centres in the goal disc at once.
     ticks = sorted(set.intersection(*(set(tr) for tr in sw.truth.values())))
     assert len(ticks) == (ticks[-1] - ticks[0]) // (NS_PER_S // 10) + 1  # no tick missed ...
     assert ticks[-1] >= round(result.t * NS_PER_S)  # ... up to the last docking
     assert all(math.dist(sw.truth[ns][ticks[0]][:2], LOADER3[:2]) > 5.0 for ns in sw.names)
-    inside = [sum(math.hypot(sw.truth[ns][t][0] - LOADER3[0], sw.truth[ns][t][1] - LOADER3[1])
-                  <= XY_TOL for ns in sw.names) for t in ticks]
-    assert max(inside) == 1  # someone docked, and never two at once
+    assert max(docked_at_once(sw, LOADER3, ticks)) == 1  # someone docked, never two at once
 
 
 # -- 4. unreachable goals are aborted at once, with the reason -------------------------------
