@@ -14,10 +14,10 @@ the spawn checks run ``swarm-up`` with a bad points-of-interest file.
    there hold, and once the robot on it has not moved for ``occupied_timeout`` (simulated s,
    the navigator's parameter) in their sight, they give the goal up with that reason and their
    commanders go on to the next workstation.
-3. (Not here yet: a corridor blocked while robots drive through it. Tried with two corridors,
-   a robot parking in the south one: in 1.2 m corridors the planner threads the gap beside the
-   parked robot and two drivers wedge there; in 0.9 m ones the second driver ends 0.2 m from the
-   wall and never arrives. It fails today, so it is not in the suite.)
+3. A corridor blocked while robots drive through it (``tests/data/world_two_corridors.world``:
+   two rooms joined by two corridors 1.0 m wide): one robot stops in the middle of the south
+   corridor, which its body then blocks; the two following it to the east room turn back (one
+   from inside the corridor, where it first saw the blocker) and arrive by the north corridor.
 4. A goal inside a wall and one outside the map, sent to a robot on its way: refused at once with
    the reason; the other robots keep going and the same robot takes its next goal.
 5. Eight robots sent to one workstation at once: one docks, the others hold and dock in turn.
@@ -51,6 +51,7 @@ pytestmark = pytest.mark.e2e
 DATA = Path(__file__).resolve().parent / "data"
 CORRIDOR = DATA / "world_corridor.world"
 DEAD_STATION = DATA / "world_dead_station.world"
+TWO_CORRIDORS = DATA / "world_two_corridors.world"
 
 
 def sim_seconds(sw: Swarm, results) -> float:
@@ -83,6 +84,42 @@ def test_head_on_swap_through_a_one_lane_corridor(swarm, n):
     summary = assert_no_collisions(sw)
     assert summary["min_separation_m"] > 0.0
     print(f"{n} robots swapped in {sim_seconds(sw, results):.1f} simulated s")
+
+
+# -- 3. a corridor blocked while robots drive through it -----------------------------------------
+
+# world_two_corridors: rooms west and east joined by a north and a south corridor, 1.0 m wide.
+# Srobot1 leads into the south corridor and stops in its middle (a robot broken down there: its
+# body blocks the corridor); Srobot2 and Srobot3 follow it on their way to the east room's south
+# half, for which the south corridor is the short way (5 m against 14 m round the north).
+BLOCKER = (0.0, -2.5, 0.0)
+VIA_SOUTH = {"Srobot2": (4.3, -2.5, 0.0), "Srobot3": (3.6, -1.2, 0.0)}
+
+
+def test_a_corridor_blocked_while_robots_drive_through_it_is_left_for_the_other(swarm):
+    sw = swarm(3, world=str(TWO_CORRIDORS), poi=TWO_CORRIDORS.with_suffix(".yaml"))
+    goals = {"Srobot1": BLOCKER, **VIA_SOUTH}
+    ids = sw.send_together(goals)
+    results = {ns: sw.wait_result(ns, ids[ns], 240) for ns in sw.names}
+    for ns in sw.names:
+        assert_reached(sw, ns, results[ns], goals[ns])
+    stopped = results["Srobot1"].t
+    for ns in VIA_SOUTH:
+        track = sorted(sw.truth[ns].items())
+        # It drove the north corridor (the only way left), never past the blocker in the south.
+        assert any(-2.0 < x < 2.0 and y > 2.0 for _, (x, y, _) in track), (ns, "not north")
+        assert not any(0.5 < x < 2.5 and y < -2.0 for _, (x, y, _) in track), (ns, "passed")
+    # At least one of them was in the south corridor while the blocker drove into it, and turned
+    # back from there: it replanned on the way, not before it set off.
+    entered = {ns: [t / NS_PER_S for t, (x, y, _) in sorted(sw.truth[ns].items())
+                    if -2.4 < x < 0.0 and y < -2.0] for ns in VIA_SOUTH}
+    assert any(entered.values()), ("no follower entered the south corridor", entered)
+    summary = assert_no_collisions(sw)
+    took = {ns: round(results[ns].t - min(float(g) for g in ids.values()), 1) for ns in VIA_SOUTH}
+    inside = {ns: (round(min(v), 1), round(max(v), 1)) for ns, v in entered.items() if v}
+    print(f"blocker stopped at {stopped:.1f} s; followers arrived after {took} simulated s, "
+          f"in the south corridor during {inside} s; "
+          f"min separation {summary['min_separation_m']:.3f} m")
 
 
 # -- 4. a goal inside a wall, and one outside the map ------------------------------------------
