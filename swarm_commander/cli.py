@@ -305,7 +305,8 @@ def _run(argv: list[str]) -> int:
     try:
         if opts.coordinated:
             _wait_for_coordinator(ns, executor, opts.wait_timeout)
-        node = BasicNavigator(node_name=NODE_NAME, namespace=ns)
+        # A coordinated commander connects to its navigator once it reaches the coordinator.
+        node = BasicNavigator(node_name=NODE_NAME, namespace=ns, connect=not opts.coordinated)
         _use_sim_time_by_default(node)
         node.get_logger().set_level(LoggingSeverity.WARN)  # the task lines say what happens
         if opts.coordinated:

@@ -162,6 +162,19 @@ class CoordinatedRunner:
         if self.finished.done():
             return
         now = time.monotonic()
+        if not self.nav.connected:
+            # Connect (the navigator's start gate opens) only once the coordinator hears our
+            # requests and we hear its answers: at the start it answers once every robot asked,
+            # and a request or answer sent before discovery matched it would be lost.
+            linked = self._epoch is not None and self._heard_by_coordinator() \
+                and self._subs[0].get_publisher_count() > 0
+            if linked or now >= self._deadline:
+                if not linked:
+                    self.emit(f"[{self.label}] not linked to the coordinator after "
+                              f"{self.cfg.wait_timeout:g} s; connecting to the navigator anyway")
+                self.nav.connect()
+                self._deadline = now + self.cfg.wait_timeout
+            return
         if not self._started:
             if self.nav.navigator_ready and self._epoch is not None \
                     and self._heard_by_coordinator():

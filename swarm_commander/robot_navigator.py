@@ -173,7 +173,14 @@ class BasicNavigator(Node):
     cancel_timeout = 5.0
     """[s] wall: how long ``cancelTask`` waits for the navigator's answer when it spins."""
 
-    def __init__(self, node_name="basic_navigator", namespace="", **kwargs):
+    def __init__(self, node_name="basic_navigator", namespace="", connect=True, **kwargs):
+        """Args:
+            node_name, namespace, kwargs: as ``rclpy.node.Node``.
+            connect: create the ``goal_pose`` publisher now (nav2's behaviour).  False defers it
+                to :meth:`connect`: a navigator started by swarm-up with ``wait_for_commander``
+                holds the simulation until a ``goal_pose`` publisher appears, so a commander
+                that must first reach someone else (the coordinator) connects only then.
+        """
         super().__init__(node_name=node_name, namespace=namespace, **kwargs)
         # state
         self.initial_pose = PoseStamped()
@@ -193,10 +200,22 @@ class BasicNavigator(Node):
         self._sent_ids: deque[str] = deque(maxlen=64)
         self._own_executor: SingleThreadedExecutor | None = None
         # publishers, subscribers, clients
-        self._goal_pub = self.create_publisher(PoseStamped, "goal_pose", 10)
+        self._goal_pub = None
+        if connect:
+            self.connect()
         self._status_sub = self.create_subscription(
             DiagnosticStatus, "nav_status", self._on_nav_status, NAV_STATUS_QOS)
         self._cancel_client = self.create_client(Trigger, "navigator/cancel")
+
+    def connect(self) -> None:
+        """Create the ``goal_pose`` publisher (idempotent): the navigator sees a commander."""
+        if self._goal_pub is None:
+            self._goal_pub = self.create_publisher(PoseStamped, "goal_pose", 10)
+
+    @property
+    def connected(self) -> bool:
+        """True once the ``goal_pose`` publisher exists (see ``connect``)."""
+        return self._goal_pub is not None
 
     # ------------------------------------------------------------------ nav2 verbs
 
@@ -365,7 +384,8 @@ class BasicNavigator(Node):
     @property
     def navigator_ready(self) -> bool:
         """True once a ``nav_status`` was received and a navigator subscribes ``goal_pose``."""
-        return self._nav_status_received and self._goal_pub.get_subscription_count() > 0
+        return (self._nav_status_received and self._goal_pub is not None
+                and self._goal_pub.get_subscription_count() > 0)
 
     @property
     def nav_status_received(self) -> bool:
@@ -416,7 +436,8 @@ class BasicNavigator(Node):
                 return False
         if not self._wait_for_navigator():
             self.get_logger().error(
-                f"{kind}: no navigator subscribes {self._goal_pub.topic_name}; rejected",
+                f"{kind}: no navigator subscribes {self.get_namespace().rstrip('/')}/goal_pose;"
+                " rejected",
                 throttle_duration_sec=5.0)
             return False
         with self._cond:
@@ -429,6 +450,8 @@ class BasicNavigator(Node):
     def _wait_for_navigator(self) -> bool:
         """Wait (spinning) for a ``goal_pose`` subscriber, as nav2 waits for its action server;
         without waiting when spun by an executor elsewhere."""
+        if self._goal_pub is None:
+            return False
         while True:
             # Ctrl-C may shut the context down while a callback runs this: then the publisher's
             # context is invalid and rclpy raises RCLError instead of counting.

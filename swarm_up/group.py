@@ -158,7 +158,7 @@ def _run(argv: list[str]) -> int:
     return 0
 
 
-def commander_node(ns: str):
+def commander_node(ns: str, connect: bool = True):
     """The commander node of robot ``ns`` in a group process: a ``BasicNavigator`` on simulated
     time, without the parameter services and the type description service every rclpy node
     offers by default (REP 2011).  A commander has no parameter but ``use_sim_time``, and those
@@ -171,7 +171,7 @@ def commander_node(ns: str):
 
     bool_ = rclpy.parameter.Parameter.Type.BOOL
     return BasicNavigator(
-        node_name="commander", namespace=ns, start_parameter_services=False,
+        node_name="commander", namespace=ns, connect=connect, start_parameter_services=False,
         parameter_overrides=[rclpy.parameter.Parameter("use_sim_time", bool_, True),
                              rclpy.parameter.Parameter("start_type_description_service", bool_,
                                                        False)])
@@ -198,7 +198,7 @@ def _add_coordinated_commanders(names, executor, nodes, runners, commanders: dic
         executor.remove_node(watch)
         watch.destroy_node()
     for ns in names:
-        nav = commander_node(ns)
+        nav = commander_node(ns, connect=False)  # connects once it reaches the coordinator
         nav.get_logger().set_level(LoggingSeverity.WARN)
         runners.append(CoordinatedRunner(nav, emit=lambda line: print(line, flush=True)))
         executor.add_node(nav)

@@ -361,7 +361,8 @@ def test_ctrl_c_leaves_nothing_behind(tmp_path):
         assert not left, (f"processes left after Ctrl-C: "
                           f"{[(p.pid, names.get(p.pid) or _cmd(p)) for p in left]}\n{diag}")
         stale = shm.stale_files(shm_before, min_age_s=0.0)
-        assert not stale, f"stale shared-memory files left: {[p.name for p in stale]}\n{diag}"
+        ages = {p.name: round(time.time() - p.lstat().st_ctime, 2) for p in stale if p.exists()}
+        assert not stale, f"stale shared-memory files left (age [s]): {ages}\n{diag}"
         assert "Traceback" not in run.stdout() + run.stderr(), diag
 
 
