@@ -11,7 +11,8 @@ with ``yourdfpy`` (no meshes loaded: visual meshes are not needed headless) and 
   (``yourdfpy`` ignores ``<gazebo>``; we read it with ``xml.etree``), or, when the URDF keeps the
   lidar's parameters elsewhere (as most published URDFs do), from the robot's params file or the
   documented LDS-01 defaults, with one warning;
-- the **velocity and acceleration limits** from ``params/robots/<name>.yaml`` (nav2 names).
+- the **velocity and acceleration limits** from ``params/robots/<name>.yaml`` (nav2 names), and
+  the radius a costmap inflates by (nav2's ``robot_radius``), from the same file when it has one.
 
 Frames: every pose is in ``base_footprint`` (x forward, y left, z up, origin on the floor below
 the drive axle centre, as REP 120 and nav2 define it).  A URDF without a ``base_footprint`` link
@@ -148,6 +149,10 @@ class RobotModel:
         wheel_radius: radius of the drive wheels [m].
         lidar: the lidar.
         limits: velocity and acceleration limits.
+        costmap_radius: the radius a costmap inflates obstacles by for this robot [m] (nav2's
+            ``robot_radius``): the limits file's ``robot_radius`` (the robot makers' nav2
+            value), else :attr:`radius`.  The navigator's ``robot_radius`` (``swarm-up`` writes
+            it per robot) comes from here.
     """
 
     name: str
@@ -159,6 +164,7 @@ class RobotModel:
     wheel_radius: float
     lidar: LidarSpec
     limits: RobotLimits
+    costmap_radius: float = math.nan  # [m]; _build always sets it
 
 
 # --------------------------------------------------------------------------------------------
@@ -262,7 +268,9 @@ def load_limits(path: str | Path) -> RobotLimits:
 
     Args:
         path: the YAML file: ``max_vel_x`` [m/s], ``min_vel_x`` [m/s], ``max_vel_theta`` [rad/s],
-            ``acc_lim_x`` [m/s^2], ``acc_lim_theta`` [rad/s^2], and an optional ``lidar:`` block.
+            ``acc_lim_x`` [m/s^2], ``acc_lim_theta`` [rad/s^2], an optional ``robot_radius``
+            [m] (nav2's costmap radius, :attr:`RobotModel.costmap_radius`) and an optional
+            ``lidar:`` block.
 
     Returns:
         The limits.
@@ -313,7 +321,7 @@ def _load_cached(
 
 
 #: Bump when what a cached model holds changes meaning (the key also has this file's bytes).
-_DISK_CACHE_VERSION = 1
+_DISK_CACHE_VERSION = 2  # 2: RobotModel.costmap_radius
 
 
 def _disk_cache_dir() -> Path | None:
@@ -418,8 +426,9 @@ def _build(source: Path, text: str, limits_path: Path | None
     wheels_y, wheel_radius, floor_z = _wheels(urdf, tree, disp)
     footprint, height = _base_outline(tree, floor_z, disp)
 
+    costmap_radius = None
     if limits_path is not None:
-        limits, lidar_params = _read_params(limits_path)
+        limits, lidar_params, costmap_radius = _read_params(limits_path)
     else:
         limits, lidar_params = DEFAULT_LIMITS, None
         _log.warning(
@@ -442,6 +451,7 @@ def _build(source: Path, text: str, limits_path: Path | None
         wheel_radius=wheel_radius,
         lidar=lidar,
         limits=limits,
+        costmap_radius=radius if costmap_radius is None else costmap_radius,
     )
     return model, meshes
 
@@ -903,8 +913,9 @@ def _limits_path(source: Path, by_name: bool) -> Path | None:
     return None
 
 
-def _read_params(path: Path) -> tuple[RobotLimits, dict | None]:
-    """(limits, the ``lidar:`` block as a dict or None) of a limits file."""
+def _read_params(path: Path) -> tuple[RobotLimits, dict | None, float | None]:
+    """(limits, the ``lidar:`` block as a dict or None, ``robot_radius`` [m] or None) of a
+    limits file."""
     disp = _display(path)
     try:
         data = yaml.safe_load(path.read_text(encoding="utf-8"))
@@ -920,7 +931,7 @@ def _read_params(path: Path) -> tuple[RobotLimits, dict | None]:
     if not isinstance(data, dict):
         raise InputError(f"{disp}: expected a mapping of limits ({', '.join(_LIMIT_KEYS)}), got "
                          f"{type(data).__name__}")
-    allowed = (*_LIMIT_KEYS, "lidar")
+    allowed = (*_LIMIT_KEYS, "robot_radius", "lidar")
     for key in data:
         if key not in allowed:
             raise InputError(f"{disp}: unknown key '{key}'{did_you_mean(str(key), allowed)}; "
@@ -935,6 +946,11 @@ def _read_params(path: Path) -> tuple[RobotLimits, dict | None]:
     if values["min_vel_x"] > values["max_vel_x"]:
         raise InputError(f"{disp}: min_vel_x ({values['min_vel_x']:g} m/s) must not exceed "
                          f"max_vel_x ({values['max_vel_x']:g} m/s)")
+    costmap_radius = None
+    if data.get("robot_radius") is not None:
+        costmap_radius = _number(data["robot_radius"], f"{disp}: robot_radius")
+        if costmap_radius <= 0.0:
+            raise InputError(f"{disp}: robot_radius must be > 0, got {costmap_radius:g}")
     lidar = None
     if data.get("lidar") is not None:
         block = data["lidar"]
@@ -950,7 +966,7 @@ def _read_params(path: Path) -> tuple[RobotLimits, dict | None]:
             raise InputError(f"{disp}: lidar.samples must be a whole number, got "
                              f"{lidar['samples']:g}")
         _check_lidar({**LDS01_DEFAULTS, **lidar}, disp, "lidar:")
-    return RobotLimits(**values), lidar
+    return RobotLimits(**values), lidar, costmap_radius
 
 
 def _number(value, where: str) -> float:
