@@ -441,6 +441,8 @@ def test_load_limits(repo_root):
     (LIMITS_OK.replace("max_vel_x: 0.3", "max_vel_x: -0.3"), ("max_vel_x must be > 0",)),
     (LIMITS_OK + "lidar:\n  range_min: 5.0\n", ("range_min < range_max",)),
     (LIMITS_OK + "lidar:\n  samples: 10.5\n", ("whole number",)),
+    (LIMITS_OK + "robot_radius: 0\n", ("robot_radius must be > 0",)),
+    (LIMITS_OK + "robot_raduis: 0.2\n", ("did you mean 'robot_radius'?",)),
 ])
 def test_bad_limits_files(tmp_path, text, words):
     path = _write(tmp_path, "limits.yaml", text)
@@ -450,6 +452,23 @@ def test_bad_limits_files(tmp_path, text, words):
     assert message.startswith(str(path)), message
     for word in words:
         assert word in message, message
+
+
+@pytest.mark.parametrize("name, radius", [("turtlebot3_waffle", 0.22),
+                                          ("turtlebot3_burger", 0.1),
+                                          ("linorobot2_2wd", 0.22)])
+def test_costmap_radius_is_the_makers_nav2_value(name, radius):
+    assert load_robot(name).costmap_radius == radius
+
+
+def test_costmap_radius_without_one_in_the_limits_file_is_the_circumscribed(tmp_path):
+    shutil.copy(DATA / "robot_no_sensor.urdf", tmp_path / "r.urdf")
+    _write(tmp_path, "r.yaml", LIMITS_OK)
+    robot = load_robot(tmp_path / "r.urdf")
+    assert robot.costmap_radius == robot.radius == pytest.approx(math.hypot(0.22, 0.15))
+    _write(tmp_path, "r.yaml", LIMITS_OK + "robot_radius: 0.3\n")
+    clear_robot_cache()  # the same modification time, to the file system's resolution
+    assert load_robot(tmp_path / "r.urdf").costmap_radius == 0.3
 
 
 def test_bad_limits_beside_a_robot_fail_its_load(tmp_path):
