@@ -9,6 +9,13 @@ penetration until the two are more than ``contact_release`` apart) is one collis
 
 Frames: everything here is in ``map`` (= the world frame); robot ``i``'s pose is ``poses[i]``,
 (3,) x [m], y [m], yaw [rad] of its ``base_footprint``.
+
+A mixed fleet (robot ``i`` of model ``models[i]``) gives each robot its own body, drive limits
+and lidar (beams, range, rate, mounting, scan height); every lidar sees every other robot by its
+own footprint.  Footprints with fewer vertices than the largest are padded by repeating their last
+vertex (a zero-length edge, which neither the lidar nor the separation kernel counts).  With one
+model the arrays and operations are those of a one-model engine, so its runs stay the same to the
+last bit.
 """
 
 from __future__ import annotations
@@ -96,25 +103,71 @@ def polygon_distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
                                              np.ascontiguousarray(b, dtype=float))
 
 
+def _same_model_kinds(models) -> tuple[list, np.ndarray]:
+    """The distinct models (by identity, in order of first robot) and each robot's index into
+    them, (N,) int."""
+    kinds: list = []
+    kind = np.empty(len(models), dtype=int)
+    for i, model in enumerate(models):
+        for k, known in enumerate(kinds):
+            if known is model:
+                kind[i] = k
+                break
+        else:
+            kind[i] = len(kinds)
+            kinds.append(model)
+    return kinds, kind
+
+
+def pad_polygons(polygons) -> np.ndarray:
+    """(P, K, 2) of polygons with up to K vertices, each padded to K by repeating its last vertex.
+
+    Args:
+        polygons: sequence of (K_p, 2) vertex arrays x, y [m].
+    """
+    k = max(len(p) for p in polygons)
+    return np.stack([np.vstack((p, np.repeat(p[-1:], k - len(p), axis=0))) for p in polygons])
+
+
 class SimEngine:
-    """A PyBullet world with ``n`` identical differential-drive robots.
+    """A PyBullet world with ``n`` differential-drive robots, of one model or a mix.
 
     Args:
         world: the static world.
-        robot: the robot model (:class:`swarm_common.robot_model.RobotModel`).
+        robot: the robot model (:class:`swarm_common.robot_model.RobotModel`) of every robot,
+            or a sequence of N models (robot ``i`` is ``robot[i]``; :mod:`swarm_common.fleet`).
         poses: (N, 3) spawn poses in ``map``.
         seed: seed of the generator of lidar noise.
         config: engine settings.
         gui: open PyBullet's window instead of running headless (``DIRECT``).
+
+    Raises:
+        ValueError: a sequence of models whose length is not N.
     """
 
     def __init__(self, world: World, robot, poses: np.ndarray, seed: int = 0,
                  config: EngineConfig | None = None, gui: bool = False):
         self.config = config or EngineConfig()
-        self.robot = robot
-        self.limits = DriveLimits.from_robot_limits(robot.limits)
         self.poses = np.array(poses, dtype=float).reshape(-1, 3)
         self.n = self.poses.shape[0]
+        models = tuple(robot) if isinstance(robot, list | tuple) else (robot,) * self.n
+        if len(models) != self.n:
+            raise ValueError(f"{len(models)} robot models for {self.n} robots")
+        self.models = models
+        """The model of every robot, (N,) tuple."""
+        kinds, self.kind = _same_model_kinds(models)
+        kinds = kinds or [robot]  # no robots
+        self.kinds = tuple(kinds)
+        """The distinct models, in order of first robot; ``kind[i]`` indexes robot i's."""
+        self.mixed = len(kinds) > 1
+        self.robot = kinds[0]
+        """The model (with a mix: the first robot's)."""
+        if self.mixed:
+            limits = [DriveLimits.from_robot_limits(m.limits) for m in models]
+            self.limits = DriveLimits(**{f: np.array([getattr(lim, f) for lim in limits])
+                                         for f in DriveLimits.__dataclass_fields__})
+        else:
+            self.limits = DriveLimits.from_robot_limits(self.robot.limits)
         self.v = np.zeros(self.n)
         self.w = np.zeros(self.n)
         self.t = 0.0  # [s]
@@ -124,16 +177,24 @@ class SimEngine:
         self.collision_counts = {"robot_robot": 0, "robot_wall": 0}
         self.min_separation = math.inf  # [m] least footprint-to-footprint gap seen
         self.rng = np.random.default_rng(seed)
-        self._footprint = counter_clockwise(robot.footprint)
+        self._footprint = counter_clockwise(self.robot.footprint)
+        # a mix: (N, K, 2) every robot's own footprint, padded to the most vertices
+        feet = pad_polygons([counter_clockwise(m.footprint) for m in kinds])
+        self._feet = np.ascontiguousarray(feet[self.kind]) if self.mixed else None
+        self._mounts = (np.array([m.lidar.pose for m in models], dtype=float) if self.mixed
+                        else None)
+        self._radius = max(float(m.radius) for m in kinds)  # [m] the largest robot's
         self._active_contacts: dict[tuple, bool] = {}
 
-        lidar = robot.lidar
-        self.lidar_period_ticks = max(
-            1, round(1.0 / (lidar.rate_hz * self.config.control_period)))
-        self.lidar = PlanarLidar(
-            polygons_to_segments(world_polygons(world, lidar.z - 1e-3, lidar.z + 1e-3)),
-            ScanPattern.from_spec(lidar),
-        )
+        self.kind_lidars = tuple(self._planar_lidar(world, m.lidar) for m in kinds)
+        """One :class:`PlanarLidar` per model (``kinds``)."""
+        self.kind_periods = np.array([self._period(m.lidar) for m in kinds], dtype=int)
+        self.lidar_periods = self.kind_periods[self.kind]
+        """(N,) control ticks between two scans of each robot's lidar."""
+        self.lidar = self.kind_lidars[0]
+        self.lidar_period_ticks = int(self.kind_periods[0])
+        """Control ticks between two scans (with a mix: the first robot's; see
+        ``lidar_periods``)."""
 
         self.client = pybullet.connect(pybullet.GUI if gui else pybullet.DIRECT)
         self._wall_names: dict[int, str] = {}
@@ -144,6 +205,18 @@ class SimEngine:
         self._update_min_separation()
 
     # -- construction --------------------------------------------------------------------------
+
+    def _period(self, lidar) -> int:
+        """Control ticks between two scans of ``lidar`` (a LidarSpec), at least 1."""
+        return max(1, round(1.0 / (lidar.rate_hz * self.config.control_period)))
+
+    @staticmethod
+    def _planar_lidar(world: World, lidar) -> PlanarLidar:
+        """The planar lidar of one model: the world's outlines at its scan height."""
+        return PlanarLidar(
+            polygons_to_segments(world_polygons(world, lidar.z - 1e-3, lidar.z + 1e-3)),
+            ScanPattern.from_spec(lidar),
+        )
 
     def _build_world(self, world: World) -> None:
         """One static body per obstacle of the world; floor slabs, ground planes and heightmaps
@@ -176,17 +249,23 @@ class SimEngine:
 
     def _build_robots(self) -> list[int]:
         p, cid = pybullet, self.client
-        lo, hi = self._footprint.min(axis=0), self._footprint.max(axis=0)
-        centre = (lo + hi) / 2.0
-        # Robots are seen by every lidar: their bodies reach at least the scan plane.
-        height = max(float(self.robot.height), float(self.robot.lidar.z) + 0.02)
-        col = p.createCollisionShape(
-            p.GEOM_BOX, halfExtents=[*((hi - lo) / 2.0), height / 2.0],
-            collisionFramePosition=[centre[0], centre[1], height / 2.0], physicsClientId=cid)
+        # Robots are seen by every lidar: their bodies reach at least the highest scan plane.
+        scan_top = max(float(m.lidar.z) for m in self.kinds) + 0.02
+        shapes = []
+        for model in self.kinds:
+            foot = counter_clockwise(model.footprint)
+            lo, hi = foot.min(axis=0), foot.max(axis=0)
+            centre = (lo + hi) / 2.0
+            height = max(float(model.height), scan_top)
+            shapes.append(p.createCollisionShape(
+                p.GEOM_BOX, halfExtents=[*((hi - lo) / 2.0), height / 2.0],
+                collisionFramePosition=[centre[0], centre[1], height / 2.0],
+                physicsClientId=cid))
         bodies = []
-        for pose in self.poses:
+        for pose, kind in zip(self.poses, self.kind, strict=True):
             bodies.append(p.createMultiBody(
-                baseMass=1.0, baseCollisionShapeIndex=col, basePosition=[pose[0], pose[1], 0.0],
+                baseMass=1.0, baseCollisionShapeIndex=shapes[kind],
+                basePosition=[pose[0], pose[1], 0.0],
                 baseOrientation=p.getQuaternionFromEuler([0.0, 0.0, pose[2]]),
                 physicsClientId=cid))
         p.setGravity(0, 0, 0, physicsClientId=cid)
@@ -195,20 +274,24 @@ class SimEngine:
     # -- queries -------------------------------------------------------------------------------
 
     def footprints(self, poses: np.ndarray | None = None) -> np.ndarray:
-        """(N, K, 2) footprint polygons of all robots in ``map`` [m]."""
+        """(N, K, 2) footprint polygons of all robots in ``map`` [m], counter-clockwise (a mix:
+        each robot's own, padded to K vertices by repeating the last)."""
         poses = self.poses if poses is None else poses
         # transform_points for every robot at once, the same operations in the same order (its
         # cos and sin are the C library's, as there; numpy's SIMD ones may round differently)
         yaw = poses[:, 2].tolist()
         c = np.array([math.cos(a) for a in yaw])[:, None]
         s = np.array([math.sin(a) for a in yaw])[:, None]
-        fx, fy = self._footprint[:, 0][None, :], self._footprint[:, 1][None, :]
+        if self._feet is None:
+            fx, fy = self._footprint[:, 0][None, :], self._footprint[:, 1][None, :]
+        else:
+            fx, fy = self._feet[:, :, 0], self._feet[:, :, 1]
         return np.stack((poses[:, 0:1] + c * fx - s * fy, poses[:, 1:2] + s * fx + c * fy),
                         axis=2)
 
     def lidar_poses(self) -> np.ndarray:
         """(N, 3) poses of every robot's lidar in ``map``."""
-        mount = self.robot.lidar.pose
+        mount = self.robot.lidar.pose if self._mounts is None else self._mounts.T
         c, s = np.cos(self.poses[:, 2]), np.sin(self.poses[:, 2])
         return np.column_stack((
             self.poses[:, 0] + c * mount[0] - s * mount[1],
@@ -217,12 +300,34 @@ class SimEngine:
         ))
 
     def lidar_due(self) -> bool:
-        """True when the current tick is a lidar tick (every ``1 / rate_hz`` simulated seconds)."""
-        return self.ticks % self.lidar_period_ticks == 0
+        """True when the current tick is a lidar tick of some robot (every ``1 / rate_hz``
+        simulated seconds of its lidar, from tick 0)."""
+        return bool(self.lidar_due_mask().any())
 
-    def scans(self) -> np.ndarray:
-        """(N, B) float32 ranges [m] of every robot's lidar at the current poses (REP 117)."""
-        return self.lidar.scan(self.lidar_poses(), self.footprints(), self.rng)
+    def lidar_due_mask(self) -> np.ndarray:
+        """(N,) bool: whose lidar scans at the current tick."""
+        return self.ticks % self.lidar_periods == 0
+
+    def scans(self) -> np.ndarray | list:
+        """Ranges [m] of the robots' lidars at the current poses (REP 117), float32.
+
+        Returns:
+            One model: (N, B) every robot's scan.  A mix: a list of N entries, robot i's (B_i,)
+            scan if its lidar is due at this tick (:meth:`lidar_due_mask`), else None; the
+            models cast in ``kinds`` order, each drawing its noise from the one generator.
+        """
+        if not self.mixed:
+            return self.lidar.scan(self.lidar_poses(), self.footprints(), self.rng)
+        due = self.lidar_due_mask()
+        poses, feet = self.lidar_poses(), self.footprints()
+        out: list = [None] * self.n
+        for k, lidar in enumerate(self.kind_lidars):
+            idx = np.flatnonzero((self.kind == k) & due)
+            if idx.size:
+                for i, ranges in zip(idx.tolist(), lidar.scan(poses[idx], feet, self.rng,
+                                                              own=idx), strict=True):
+                    out[i] = ranges
+        return out
 
     # -- stepping ------------------------------------------------------------------------------
 
@@ -332,7 +437,7 @@ class SimEngine:
     def _update_min_separation(self) -> None:
         if self.n < 2:
             return
-        reach = 2.0 * float(self.robot.radius) + 1.0
+        reach = 2.0 * self._radius + 1.0
         d = np.linalg.norm(self.poses[:, None, :2] - self.poses[None, :, :2], axis=2)
         ii, jj = np.nonzero(np.triu(d < reach, k=1))
         if ii.size == 0:

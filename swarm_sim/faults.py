@@ -138,12 +138,19 @@ class SimFaults:
         published to them, their commands are ignored, nobody waits for them."""
         return {int(i) for i in np.flatnonzero(self.dead)} | set(self._down)
 
-    def draw_drops(self, lidar_tick: bool) -> TickDrops:
+    def draw_drops(self, lidar_tick) -> TickDrops:
         """Decide which messages the active ``drop`` faults lose at this tick (call once per
-        tick, after :meth:`advance`)."""
+        tick, after :meth:`advance`).
+
+        Args:
+            lidar_tick: whether the robots' lidars scan at this tick: a bool for all, or (N,)
+                bool per robot (a mixed fleet's lidars differ in rate); a scan that is not due
+                cannot be lost.
+        """
         out = TickDrops()
         for f, rng in self._drops.values():
-            if f.topic == "scan" and not lidar_tick:
+            if f.topic == "scan" and not (lidar_tick if np.ndim(lidar_tick) == 0
+                                          else lidar_tick[self.robot(f)]):
                 continue
             if rng.random() < f.fraction:
                 getattr(out, f.topic).add(self.robot(f))

@@ -20,6 +20,9 @@ from swarm_common.geometry import wrap_angle
 class DriveLimits:
     """Velocity and acceleration limits of a differential drive.
 
+    Every field is a float, or an (N,) array of each robot's limit (a mixed fleet,
+    :class:`swarm_sim.engine.SimEngine`); :func:`limit_twist` broadcasts either.
+
     Attributes:
         max_vel_x: forward speed limit [m/s].
         min_vel_x: reverse speed limit [m/s] (negative or zero).
@@ -52,7 +55,7 @@ def limit_twist(v_cmd, w_cmd, v_now, w_now, limits: DriveLimits, dt: float):
     Args:
         v_cmd, w_cmd: (N,) commanded linear [m/s] and angular [rad/s] velocities.
         v_now, w_now: (N,) current velocities.
-        limits: the drive's limits.
+        limits: the drive's limits (floats, or (N,) arrays per robot).
         dt: time over which the change happens [s].
 
     Returns:

@@ -124,7 +124,8 @@ class PlanarLidar:
     Args:
         static_segments: (S, 4) outline segments of the static world at the lidar height [m],
             in ``map``.
-        pattern: the beams of the robots' lidar (all robots share one model).
+        pattern: the beams of the lidar (every lidar cast by this object shares it; a mixed
+            fleet has one object per model, :class:`swarm_sim.engine.SimEngine`).
     """
 
     def __init__(self, static_segments: np.ndarray, pattern: ScanPattern):
@@ -134,16 +135,20 @@ class PlanarLidar:
         self._sin = np.sin(pattern.angles)
         kernels.warm_up()
 
-    def true_ranges(self, lidar_poses: np.ndarray, bodies: np.ndarray) -> np.ndarray:
+    def true_ranges(self, lidar_poses: np.ndarray, bodies: np.ndarray,
+                    own: np.ndarray | None = None) -> np.ndarray:
         """Noise-free distances to the nearest hit for every robot's beams.
 
         Args:
-            lidar_poses: (N, 3) lidar poses x [m], y [m], yaw [rad] in ``map``.
+            lidar_poses: (M, 3) lidar poses x [m], y [m], yaw [rad] in ``map``.
             bodies: (N, K, 2) convex, counter-clockwise footprint polygon of every robot in
-                ``map`` [m]; robot ``i``'s lidar ignores body ``i`` (its own).
+                ``map`` [m] (fewer vertices padded by repeating one: zero-length edges are
+                never hit); lidar ``j`` ignores body ``own[j]`` (its own).
+            own: (M,) the body of each lidar's robot; None: lidar ``i`` is robot ``i``'s
+                (M = N).
 
         Returns:
-            (N, B) distances [m]; ``inf`` where nothing is hit (before ``range_max`` is applied).
+            (M, B) distances [m]; ``inf`` where nothing is hit (before ``range_max`` is applied).
         """
         lidar_poses = np.asarray(lidar_poses, dtype=float).reshape(-1, 3)
         n = lidar_poses.shape[0]
@@ -158,15 +163,19 @@ class PlanarLidar:
             pair_lidar.append(li)
             pair_segs.append(self.static_segments[si])
         # ... and the edges of every other robot whose body may be within range.
-        bodies = np.asarray(bodies, dtype=float).reshape(n, -1, 2)
-        if n > 1:
+        bodies = np.asarray(bodies, dtype=float)
+        bodies = bodies.reshape(n if own is None else bodies.shape[0], -1, 2)
+        if bodies.shape[0] > 1:
             k = bodies.shape[1]
             body_segs = np.concatenate((bodies, np.roll(bodies, -1, axis=1)), axis=2)
             centres = bodies.mean(axis=1)
             radius = np.linalg.norm(bodies - centres[:, None, :], axis=2).max(axis=1)
             dist = np.linalg.norm(origins[:, None, :] - centres[None, :, :], axis=2)
             near = dist <= reach + radius[None, :]
-            np.fill_diagonal(near, False)
+            if own is None:
+                np.fill_diagonal(near, False)
+            else:
+                near[np.arange(n), np.asarray(own, dtype=int)] = False
             li, bj = np.nonzero(near)
             pair_lidar.append(np.repeat(li, k))
             pair_segs.append(body_segs[bj].reshape(-1, 4))
@@ -202,19 +211,21 @@ class PlanarLidar:
         hi = lo + np.abs(sweep) + 2e-9
         return lo, hi
 
-    def scan(self, lidar_poses, bodies, rng: np.random.Generator) -> np.ndarray:
+    def scan(self, lidar_poses, bodies, rng: np.random.Generator,
+             own: np.ndarray | None = None) -> np.ndarray:
         """Simulated scans: true ranges plus seeded Gaussian noise, REP 117 for invalid beams.
 
         Args:
-            lidar_poses: (N, 3) lidar poses in ``map``.
+            lidar_poses: (M, 3) lidar poses in ``map``.
             bodies: (N, K, 2) robot footprints in ``map`` (see :meth:`true_ranges`).
             rng: the simulator's seeded generator (same seed, same noise).
+            own: (M,) each lidar's own body (see :meth:`true_ranges`); None: M = N.
 
         Returns:
-            (N, B) float32 ranges [m]: ``+inf`` no return within ``range_max``, ``-inf`` closer
+            (M, B) float32 ranges [m]: ``+inf`` no return within ``range_max``, ``-inf`` closer
             than ``range_min``.
         """
-        ranges = self.true_ranges(lidar_poses, bodies)
+        ranges = self.true_ranges(lidar_poses, bodies, own)
         if self.pattern.noise_stddev > 0.0:
             ranges = ranges + rng.normal(0.0, self.pattern.noise_stddev, size=ranges.shape)
         ranges = np.where(ranges > self.pattern.range_max, np.inf, ranges)

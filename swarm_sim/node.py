@@ -71,7 +71,8 @@ class SimSettings:
 
     Attributes:
         world: world name under ``worlds/`` or a path to a ``.world``/``.sdf``.
-        robot: robot name under ``robots/`` or a path to a ``.urdf``/``.xacro``.
+        robot: robot name under ``robots/`` or a path to a ``.urdf``/``.xacro``; or a mixed
+            fleet ``NAME:COUNT,...`` or fleet ``.yaml`` (:mod:`swarm_common.fleet`).
         swarm_size: number of robots N [-].
         name_prefix: namespace prefix; robot i (1..N) is ``/<prefix><i>``.
         seed: seed of the simulator's random generator (lidar noise).
@@ -233,15 +234,17 @@ class SimulatorNode(Node):
         self._odom_writers = [OdometryWriter(f"{ns}/odom", f"{ns}/base_footprint")
                               for ns in namespaces]
         self._truth_writers = [OdometryWriter("map", f"{ns}/base_footprint") for ns in namespaces]
-        self._scan_writers = [self._make_scan_writer(ns) for ns in namespaces]
+        self._scan_writers = [self._make_scan_writer(i, ns) for i, ns in enumerate(namespaces)]
         self._poses_writer = PoseArrayWriter("map")
         self.map_pub.publish(occupancy_grid_msg(occ, _time_msg(0)))
 
     # -- message templates ---------------------------------------------------------------------
 
-    def _make_scan_writer(self, ns: str) -> LaserScanWriter:
-        pattern = self.engine.lidar.pattern
-        lidar = self.engine.robot.lidar
+    def _make_scan_writer(self, i: int, ns: str) -> LaserScanWriter:
+        """Robot ``i``'s ``LaserScan`` writer: its own model's lidar (frame, beams, rate)."""
+        eng = self.engine
+        pattern = eng.kind_lidars[eng.kind[i]].pattern
+        lidar = eng.models[i].lidar
         return LaserScanWriter(f"{ns}/{lidar.frame}", float(pattern.angles[0]),
                                float(pattern.angles[-1]), float(pattern.angle_increment),
                                1.0 / float(lidar.rate_hz), float(pattern.range_min),
@@ -367,7 +370,7 @@ class SimulatorNode(Node):
             elif f.kind == KILL_COORDINATOR:
                 self._hold_for_ack(executor, f, phase)
         self._silenced = self.faults.silenced()
-        self._drops = self.faults.draw_drops(self.engine.lidar_due())
+        self._drops = self.faults.draw_drops(self.engine.lidar_due_mask())
 
     def _hold_for_ack(self, executor, fault, phase: str) -> None:
         """Hold simulated time until fault ``fault``'s ``phase`` is acknowledged on
@@ -410,7 +413,8 @@ class SimulatorNode(Node):
 
     def _republish(self, i: int) -> None:
         """Publish robot ``i``'s odometry (and scan, on a lidar tick) of this tick again."""
-        if self.engine.lidar_due() and self._scans is not None:
+        if (self.engine.lidar_due() and self._scans is not None
+                and self._scans[i] is not None):
             self.scan_pubs[i].publish(self._scan_writers[i].write(self.t_ns, self._scans[i]))
         self.odom_pubs[i].publish(self._odom_bytes(i, self._odom_writers[i]))
 
@@ -441,7 +445,7 @@ class SimulatorNode(Node):
         # so the first robots' navigators start while the last robots' messages are still being
         # written (all scans first held every navigator back by the 100 scans' writing time).
         for i in range(self.n):
-            if scans is not None and i not in mute_scan:
+            if scans is not None and i not in mute_scan and scans[i] is not None:
                 self.scan_pubs[i].publish(self._scan_writers[i].write(self.t_ns, scans[i]))
             if i not in mute:
                 self.odom_pubs[i].publish(self._odom_bytes(i, self._odom_writers[i]))
@@ -617,7 +621,11 @@ class SimulatorNode(Node):
         # wall_timeline_s[k]: wall seconds from the start gate to simulated second k + 1, for
         # comparing the speed of two runs of one seed second by second (their
         # simulated work is the same, so the ratio shows what else differed)
+        fleet: dict[str, int] = {}  # model name -> robots of it, in order of first robot
+        for model in eng.models:
+            fleet[model.name] = fleet.get(model.name, 0) + 1
         extras = {"wall_timeline_s": list(self.wall_timeline),
+                  "fleet": fleet,
                   "standstills": [{"robot": self.namespaces[e.robot], "start_s": e.start_s,
                                    "duration_s": e.duration_s, "x": e.x, "y": e.y,
                                    "open": e.open} for e in self.standstills.finish()]}
@@ -666,8 +674,11 @@ def build_parser() -> argparse.ArgumentParser:
         "1 runtime failure.")
     p.add_argument("--world", default="slim_blockage",
                    help="world name under worlds/ or path to a .world/.sdf [slim_blockage]")
-    p.add_argument("--robot", default="turtlebot3_waffle",
-                   help="robot name under robots/ or path to a .urdf/.xacro [turtlebot3_waffle]")
+    p.add_argument("--robot", default="turtlebot3_waffle", metavar="NAME|PATH|MIX",
+                   help="robot name under robots/ or path to a .urdf/.xacro; or a mixed fleet "
+                   "NAME:COUNT,NAME:COUNT,... whose counts add up to --swarm-size, or a fleet "
+                   ".yaml file; the models are interleaved over the robot numbers "
+                   "[turtlebot3_waffle]")
     p.add_argument("--swarm-size", type=cli.positive_int, default=5, metavar="N",
                    help="number of robots [5]")
     p.add_argument("--name-prefix", type=cli.ros_name, default="Srobot",
@@ -731,6 +742,7 @@ def prepare(settings: SimSettings):
         InputError: an unknown or malformed world, robot, map or POI file, a bad name prefix, or
             more robots than fit.
     """
+    from swarm_common.fleet import describe_fleet, fleet_models
     from swarm_common.map_io import load_map
     from swarm_common.paths import default_map_for
     from swarm_common.poi import poi_for_world
@@ -745,7 +757,13 @@ def prepare(settings: SimSettings):
                          f"{settings.name_prefix!r}")
     world_path = resolve_world(settings.world)
     world = load_world(world_path)
-    robot = load_robot(settings.robot)
+    try:
+        names = fleet_models(settings.robot, settings.swarm_size)
+    except InputError as exc:
+        raise InputError(f"--robot: {exc}") from None
+    robots = {name: load_robot(name) for name in dict.fromkeys(names)}
+    robot = robots[names[0]] if len(robots) == 1 else [robots[name] for name in names]
+    radius = max(model.radius for model in robots.values())  # [m] spaced for the largest
     poi = poi_for_world(world_path)
     default_map = default_map_for(world_path)
     if settings.map_path is not None:
@@ -757,15 +775,18 @@ def prepare(settings: SimSettings):
     polygons = world_polygons(world)
     from_spawn_area = poi is not None and poi.spawn is not None
     if from_spawn_area:
-        poses = spawn_poses(poi.spawn, settings.swarm_size, robot.radius, polygons,
+        poses = spawn_poses(poi.spawn, settings.swarm_size, radius, polygons,
                             where=f"spawn area of {world.name}")
     else:
-        poses = spawn_poses_free(occ, settings.swarm_size, robot.radius, polygons,
+        poses = spawn_poses_free(occ, settings.swarm_size, radius, polygons,
                                  where=f"largest free area of {world.name}")
     config = EngineConfig(control_period=1.0 / settings.control_rate)
     engine = SimEngine(world, robot, poses, seed=settings.seed, config=config, gui=settings.gui)
     namespaces = [f"{settings.name_prefix}{i + 1}" for i in range(settings.swarm_size)]
-    return engine, occ, namespaces, describe_spawn(engine.poses, from_spawn_area)
+    spawned = describe_spawn(engine.poses, from_spawn_area)
+    if len(robots) > 1:
+        spawned += f"; robots: {describe_fleet(names)}"
+    return engine, occ, namespaces, spawned
 
 
 @contextlib.contextmanager

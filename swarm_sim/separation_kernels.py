@@ -24,7 +24,9 @@ from numba import njit
 @njit(cache=True, nogil=True)
 def _vertex_edge(a, b):
     """Least distance [m] from a vertex of polygon ``a`` to an edge of polygon ``b``, and
-    whether a vertex of ``a`` lies strictly inside ``b`` (both (K, 2), convex, one winding)."""
+    whether a vertex of ``a`` lies strictly inside ``b`` (both (K, 2), convex, one winding; a
+    polygon padded by repeating a vertex, as a mixed fleet's are, has zero-length edges that the
+    inside test skips)."""
     best = math.inf
     inside = False
     kb = b.shape[0]
@@ -41,9 +43,10 @@ def _vertex_edge(a, b):
             dx = rx - u * ex
             dy = ry - u * ey
             best = min(best, math.sqrt(dx * dx + dy * dy))
-            cross = ex * ry - ey * rx
-            pos = pos and cross > 0.0
-            neg = neg and cross < 0.0
+            if ex != 0.0 or ey != 0.0:  # a padding vertex's zero-length edge says nothing
+                cross = ex * ry - ey * rx
+                pos = pos and cross > 0.0
+                neg = neg and cross < 0.0
         inside = inside or pos or neg
     return best, inside
 
@@ -53,7 +56,8 @@ def pair_distances(a, b):
     """Distances [m] between the convex polygons ``a[p]`` and ``b[p]`` of every pair ``p``.
 
     Args:
-        a: (P, K, 2) polygons x, y [m] (the robots' footprints in ``map``), one winding.
+        a: (P, K, 2) polygons x, y [m] (the robots' footprints in ``map``), one winding,
+            fewer vertices padded by repeating one.
         b: (P, K, 2) the other polygon of each pair.
 
     Returns:

@@ -47,3 +47,29 @@ def test_bad_prefix_exits_2_with_one_line_as_a_process():
     assert res.stderr.splitlines() == [
         "swarm-sim: error: --name-prefix: must be a ROS name (letters, digits and '_', starting "
         "with a letter, no '__'), got '_x'"]
+
+
+def test_a_mix_gives_the_engine_every_robots_model_as_swarm_up_interleaves_it():
+    from swarm_common.fleet import fleet_models
+    from swarm_sim.node import prepare
+
+    mix = "turtlebot3_waffle:3,turtlebot3_burger:2,linorobot2_2wd:1"
+    engine, _, namespaces, spawned = prepare(parse_settings(
+        ["--robot", mix, "--swarm-size", "6", "--world", "empty"]))
+    try:
+        assert [m.name for m in engine.models] == list(fleet_models(mix, 6))
+        assert namespaces == [f"Srobot{i}" for i in range(1, 7)]
+        assert spawned.endswith("; robots: 6 (3 turtlebot3_waffle, 2 turtlebot3_burger, "
+                                "1 linorobot2_2wd)")
+    finally:
+        engine.close()
+
+
+def test_a_mix_that_does_not_add_up_exits_2_with_one_line_as_a_process():
+    res = subprocess.run([sys.executable, "-m", "swarm_sim.node", "--swarm-size", "3", "--robot",
+                          "turtlebot3_waffle:1,turtlebot3_burger:1"],
+                         capture_output=True, text=True, timeout=60)
+    assert res.returncode == 2
+    assert res.stderr.splitlines() == [
+        "swarm-sim: error: --robot: the counts of 'turtlebot3_waffle:1,turtlebot3_burger:1' add "
+        "up to 2, not to --swarm-size 3"]
