@@ -251,8 +251,9 @@ def build_parser() -> cli.ArgumentParser:
                    "(default: %(default)s)")
     p.add_argument("--seed", type=cli.seed, default=0, metavar="S",
                    help="seed of the robots' routes, as the commanders' (default: %(default)s)")
-    p.add_argument("--robot", default="turtlebot3_waffle", metavar="NAME|PATH",
-                   help="robot model, for the parking spots' clearance (default: %(default)s)")
+    p.add_argument("--robot", default="turtlebot3_waffle", metavar="NAME|PATH|MIX",
+                   help="robot model, or a mix NAME:COUNT,... as swarm-up's, for the parking "
+                   "spots' clearance (the largest model's) (default: %(default)s)")
     p.add_argument("--control-period", type=cli.positive_float, default=0.1, metavar="SEC",
                    help="the simulator's control tick [s] (default: %(default)s)")
     p.add_argument("--batch-window", type=cli.non_negative_float, default=0.03, metavar="SEC",
@@ -275,6 +276,7 @@ def build_core(world: str, seed: int, robots: tuple[str, ...], robot_model: str,
         InputError: the world is unknown or has no workstations (names ``--world``).
     """
     from swarm_commander.route import build_route
+    from swarm_common.fleet import fleet_models
     from swarm_common.poi import poi_for_world
     from swarm_common.robot_model import load_robot
     from swarm_common.spawn import spawn_poses
@@ -287,7 +289,9 @@ def build_core(world: str, seed: int, robots: tuple[str, ...], robot_model: str,
     parking = None
     if poi.spawn is not None:
         try:
-            parking = spawn_poses(poi.spawn, len(robots), load_robot(robot_model).radius,
+            radius = max(load_robot(m).radius
+                         for m in set(fleet_models(robot_model, len(robots))))
+            parking = spawn_poses(poi.spawn, len(robots), radius,
                                   world_polygons(load_world(path)))
         except InputError:
             parking = None

@@ -215,6 +215,20 @@ class NavigatorNode(Node):
         robot = load_robot(self.get_parameter("robot").value)
         poi_file = self.get_parameter("poi_file").value
         sites = holding_sites_from_poi(load_poi(poi_file)) if poi_file else []
+        # The DWA checks the robot's own footprint (NavigatorCore); the costmap inflates by
+        # robot_radius and the DWA samples up to max_vel_*: say when a params file made for
+        # another robot does not fit this one (swarm-up writes fitted ones, rundir.robot_params).
+        cfg, lim = self.cfg, robot.limits
+        misfits = [f"robot_radius {cfg.costmap.robot_radius:g} m (the model's "
+                   f"{robot.costmap_radius:g} m)"] if not math.isclose(
+            cfg.costmap.robot_radius, robot.costmap_radius, abs_tol=1e-6) else []
+        misfits += [f"{name} {ours:g} (the model's limit {theirs:g})" for name, ours, theirs in (
+            ("max_vel_x", cfg.dwa.max_vel_x, lim.max_vel_x),
+            ("max_vel_theta", cfg.dwa.max_vel_theta, lim.max_vel_theta))
+            if ours > theirs + 1e-9]
+        if misfits:
+            self.get_logger().warning(f"parameters made for another robot than "
+                                      f"{robot.name}?: {'; '.join(misfits)}")
         return robot, sites
 
     # -- helpers -------------------------------------------------------------------------------

@@ -79,7 +79,7 @@ Definitions (``docs/ARCHITECTURE.md``, ``/<ns>/nav_status``):
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -633,6 +633,7 @@ def aggregate(
     map_deliveries: dict[str, int] | None = None,
     workstations: Mapping[str, tuple[float, float]] | None = None,
     holding: Mapping[str, list[tuple[float, float]]] | None = None,
+    models: Sequence[str] | None = None,
 ) -> dict:
     """The ``--metrics`` dict of a run (SPEC §6).
 
@@ -658,6 +659,9 @@ def aggregate(
             file order (None or empty: ``workstations`` lists only ``(other)``).
         holding: name -> the holding points x, y [m] in ``map`` of each workstation (to say
             which workstation a standstill was near).
+        models: the robot model of every robot (name or path), in the recorder's robot order:
+            ``fleet`` (model -> robots, :func:`swarm_common.fleet.fleet_counts`) and each
+            ``per_robot`` entry's ``robot``; None: neither.
 
     Returns:
         A JSON-serialisable dict with the keys of SPEC §6 (None where unknown).
@@ -710,8 +714,16 @@ def aggregate(
                                   else per_robot[ns]["goals_reached"])
         per_robot[ns]["comm_messages"] = entry["messages"]
         per_robot[ns]["comm_bytes"] = entry["bytes"]
+    fleet = None
+    if models is not None:
+        from swarm_common.fleet import fleet_counts, model_label
+
+        fleet = fleet_counts(models)
+        for ns, model in zip(robots, models, strict=True):
+            per_robot[ns]["robot"] = model_label(model)
     metrics = {
         "robots": n,
+        **({"fleet": fleet} if fleet is not None else {}),
         "world": world,
         "seed": seed,
         "coordination": coordination,

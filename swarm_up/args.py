@@ -39,6 +39,7 @@ PER_ROBOT_MAX = 8
 DEFAULT_READY_TIMEOUT_S = 120.0
 RECORD_IN_RUN_DIR = Path("recording.mcap")  # --record without a path: in the run directory
 DEFAULT_DASHBOARD_PORT = 8080
+DEFAULT_SWARM_SIZE = 5  # robots, without --swarm-size or a --robot mix
 
 
 # ---------------------------------------------------------------------------------------- parsing
@@ -72,16 +73,21 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="Exit codes: 0 success, 2 bad input, 1 runtime failure. "
         "Ctrl-C stops every process within 5 s.",
     )
-    p.add_argument("--swarm-size", type=cli.positive_int, default=5, metavar="N",
-                   help="number of robots (default: %(default)s)")
+    p.add_argument("--swarm-size", type=cli.positive_int, default=None, metavar="N",
+                   help=f"number of robots (default: {DEFAULT_SWARM_SIZE}, or the total of a "
+                   "--robot mix)")
     p.add_argument("--world", default="slim_blockage", metavar="NAME|PATH",
                    help="a world under worlds/ or a Gazebo .world/.sdf path "
                    "(default: %(default)s)")
     p.add_argument("--map", type=Path, default=None, metavar="PATH",
                    help="map_server map YAML (default: the world's map under maps/, "
                    "else rasterised from the world)")
-    p.add_argument("--robot", default="turtlebot3_waffle", metavar="NAME|PATH",
-                   help="a robot under robots/ or a .urdf/.xacro path (default: %(default)s)")
+    p.add_argument("--robot", default="turtlebot3_waffle", metavar="NAME|PATH|MIX",
+                   help="a robot under robots/ or a .urdf/.xacro path; or a mixed fleet "
+                   "NAME:COUNT,NAME:COUNT,... (e.g. turtlebot3_waffle:12,turtlebot3_burger:4,"
+                   "linorobot2_2wd:4; the counts add up to --swarm-size) or a fleet .yaml "
+                   "file (README, Robots); the models are interleaved over the robot numbers "
+                   "(default: %(default)s)")
     p.add_argument("--name-prefix", type=cli.ros_name, default="Srobot", metavar="PREFIX",
                    help="robot namespaces are /<PREFIX><i>, i = 1..N (default: %(default)s)")
     p.add_argument("--seed", type=cli.seed, default=0, metavar="S",
@@ -149,7 +155,9 @@ class RunConfig:
         name_prefix: their common prefix (``Srobot``).
         world_path: the world file.
         world_name: its stem, for reports.
-        robot: the robot's name, or an absolute path.
+        robot: ``--robot`` as the simulator gets it: the robot's name or absolute path, or a
+            mix ``NAME:COUNT,...`` in the order given (a fleet file's entries so; paths
+            absolute).
         map_path: map YAML (None: rasterise or let the simulator do it).
         poi_path: points-of-interest YAML beside the world (None: there is none).
         seed: seed.
@@ -169,6 +177,9 @@ class RunConfig:
         record_topics: ``--record-topics`` regular expression (None: every topic).
         dashboard_port: serve the dashboard on this port of 127.0.0.1 (None: no dashboard).
         markers: publish ``/swarm/markers`` (also on with the dashboard).
+        fleet: the model of every robot (name or absolute path), index-aligned with
+            ``robots`` (:func:`swarm_common.fleet.fleet_models`); empty: every robot is
+            ``robot``.
     """
 
     robots: tuple[str, ...]
@@ -194,6 +205,12 @@ class RunConfig:
     record_topics: str | None = None
     dashboard_port: int | None = None
     markers: bool = False
+    fleet: tuple[str, ...] = ()
+
+    @property
+    def models(self) -> tuple[str, ...]:
+        """The model (name or absolute path) of every robot, index-aligned with ``robots``."""
+        return self.fleet if self.fleet else (self.robot,) * len(self.robots)
 
 
 
@@ -215,7 +232,8 @@ def resolve_world(value: str) -> Path:
 
 
 def resolve_robot(value: str) -> str:
-    """Check ``--robot`` (a name under ``robots/`` or a ``.urdf``/``.xacro`` path) by loading it.
+    """Check one robot model (a name under ``robots/`` or a ``.urdf``/``.xacro`` path) by
+    loading it.
 
     Returns:
         The name as given, or the absolute path of a robot given by path.
@@ -232,8 +250,47 @@ def resolve_robot(value: str) -> str:
     return str(as_path.resolve()) if is_path else value
 
 
-def _check_world_and_fit(world_path: Path, robot: str, n: int) -> None:
-    """Load the world and, when it has a spawn area, check that ``n`` robots fit in it.
+def resolve_fleet(value: str, swarm_size: int | None) -> tuple[str, tuple[str, ...], int]:
+    """Check ``--robot`` (one model, a mix ``NAME:COUNT,...`` or a fleet file) and the swarm
+    size against it, loading every model (:mod:`swarm_common.fleet`).
+
+    Args:
+        value: ``--robot``'s value.
+        swarm_size: ``--swarm-size``, or None when not given (then the mix's total, or
+            :data:`DEFAULT_SWARM_SIZE` for one model).
+
+    Returns:
+        ``(robot, fleet, n)``: ``--robot`` as the simulator gets it (:attr:`RunConfig.robot`),
+        the model of every robot (empty for one model) and the number of robots.
+
+    Raises:
+        InputError: a malformed mix or fleet file, a count that is not a positive integer, an
+            unknown or unloadable model, or counts that do not add up to ``--swarm-size`` (names
+            ``--robot``).
+    """
+    from swarm_common import fleet as fleet_io
+
+    try:
+        entries = fleet_io.parse_fleet(value)
+    except InputError as exc:
+        raise _prefix("--robot", exc) from None
+    if entries[0][1] is None:
+        n = swarm_size if swarm_size is not None else DEFAULT_SWARM_SIZE
+        return resolve_robot(entries[0][0]), (), n
+    entries = tuple((resolve_robot(model), count) for model, count in entries)
+    robot = fleet_io.format_fleet(entries)
+    n = swarm_size if swarm_size is not None else sum(count for _, count in entries)
+    try:
+        models = fleet_io.fleet_models(robot, n)
+    except InputError as exc:
+        raise _prefix("--robot", exc) from None
+    return robot, models, n
+
+
+def _check_world_and_fit(world_path: Path, robot: str, n: int,
+                         models: tuple[str, ...] = ()) -> None:
+    """Load the world and, when it has a spawn area, check that ``n`` robots fit in it (spaced
+    for the largest of ``models``, else for ``robot``).
 
     Raises:
         InputError: a malformed world (names ``--world``), or too many robots (names
@@ -245,7 +302,8 @@ def _check_world_and_fit(world_path: Path, robot: str, n: int) -> None:
         raise _prefix("--world", exc) from None
     poi = poi_for_world(world_path)
     if poi is not None and poi.spawn is not None:
-        spawn_poses(poi.spawn, n, load_robot(robot).radius, world_io.world_polygons(world),
+        radius = max(load_robot(m).radius for m in (models or (robot,)))
+        spawn_poses(poi.spawn, n, radius, world_io.world_polygons(world),
                     where=f"spawn area of {world.name} ({poi.source})")
 
 
@@ -278,6 +336,26 @@ def _check_nav_template(path: Path) -> None:
         check_nav_template(path, load_nav_template(path))
     except InputError as exc:
         raise _prefix("--nav-params", exc) from None
+
+
+def _check_fitted_params(path: Path, models) -> None:
+    """Check the navigator parameters of every model as :func:`swarm_up.rundir.robot_params`
+    fits them to it (e.g. a template ``min_vel_x`` at or above a slow robot's top speed).
+
+    Raises:
+        InputError: names ``--robot``, the model and the parameter.
+    """
+    from swarm_nav.config import NavigatorConfig
+    from swarm_up.rundir import CONTEXT_KEYS, robot_params
+
+    template = load_nav_template(path)
+    for model in dict.fromkeys(models):
+        params = {**template, **robot_params(template, load_robot(model))}
+        try:
+            NavigatorConfig.from_flat({k: v for k, v in params.items() if k not in CONTEXT_KEYS})
+        except InputError as exc:
+            raise InputError(f"--robot: {model}: the navigator parameters fitted to it from "
+                             f"{path} are not valid: {exc}") from None
 
 
 def split_groups(robots: tuple[str, ...], k: int) -> tuple[tuple[str, ...], ...]:
@@ -333,10 +411,10 @@ def validate(args: argparse.Namespace) -> RunConfig:
     if map_path is None:
         map_path = paths.default_map_for(world_path)
     poi_path = _check_poi(world_path)
-    robot = resolve_robot(args.robot)
-
-    n = args.swarm_size
-    _check_world_and_fit(world_path, robot, n)
+    robot, fleet, n = resolve_fleet(args.robot, args.swarm_size)
+    if nav_template.is_file():
+        _check_fitted_params(nav_template, fleet or (robot,))
+    _check_world_and_fit(world_path, robot, n, fleet)
     robots = tuple(f"{args.name_prefix}{i}" for i in range(1, n + 1))
     processes = args.processes
     if processes is None:
@@ -371,6 +449,7 @@ def validate(args: argparse.Namespace) -> RunConfig:
         record_topics=args.record_topics,
         dashboard_port=args.dashboard,
         markers=args.markers or args.dashboard is not None,
+        fleet=fleet,
     )
 
 

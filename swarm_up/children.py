@@ -113,19 +113,25 @@ def recorder_spec(cfg: RunConfig, env: dict[str, str]):
     from swarm_up.recording import run_metadata
     from swarm_up.supervisor import ChildSpec
 
-    lidar = load_robot(cfg.robot).lidar
+    models = {name: load_robot(name) for name in dict.fromkeys(cfg.models)}
+    lidars = [models[name].lidar for name in cfg.models]
+    if len(models) == 1:  # one mounting for every robot
+        lidars = lidars[:1]
+    mounts = [",".join(repr(float(v)) for v in (li.pose[0], li.pose[1], li.z, li.pose[2]))
+              for li in lidars]
+    frames = [li.frame for li in lidars]
     stations = []
     if cfg.poi_path is not None:
         stations = [{"name": w.name, "x": float(w.pose[0]), "y": float(w.pose[1]),
                      "yaw": float(w.pose[2]), "holding": w.holding.tolist()}
                     for w in load_poi(cfg.poi_path).workstations]
     meta = run_metadata(world=cfg.world_path, robot=cfg.robot, seed=cfg.seed,
-                        robots=cfg.robots, workstations=stations, rtf=cfg.rtf)
+                        robots=cfg.robots, workstations=stations, rtf=cfg.rtf,
+                        models=cfg.models)
     argv = [sys.executable, "-m", "swarm_up.record", "--out", str(cfg.record_path),
             "--robots", ",".join(cfg.robots),
-            "--lidar=" + ",".join(
-                repr(float(v)) for v in (lidar.pose[0], lidar.pose[1], lidar.z, lidar.pose[2])),
-            "--lidar-frame", lidar.frame, "--meta", json.dumps(meta)]
+            "--lidar=" + ";".join(mounts), "--lidar-frame", ",".join(frames),
+            "--meta", json.dumps(meta)]
     if cfg.record_topics is not None:
         argv += ["--topics", cfg.record_topics]
     return ChildSpec("record", tuple(argv), cfg.run_dir / "logs" / "record.log", kind="record",

@@ -24,6 +24,7 @@ from pathlib import Path
 
 from swarm_common.errors import EXIT_BAD_INPUT, EXIT_OK, EXIT_RUNTIME
 from swarm_common.faults import KILL_NAV
+from swarm_common.fleet import describe_fleet
 from swarm_up import PROG
 from swarm_up.args import PER_ROBOT, RunConfig
 from swarm_up.children import child_specs
@@ -304,7 +305,7 @@ class Orchestrator:
                 resources=self.sampler.result(), restarts=self.sup.restarts,
                 fault_restarts=self.faults.fault_restarts if self.faults is not None else 0,
                 map_deliveries=self._map_deliveries(summary),
-                workstations=stations, holding=holding,
+                workstations=stations, holding=holding, models=cfg.models,
                 extra={"ended_by": outcome.ended_by, "run_dir": str(cfg.run_dir),
                        "processes": PER_ROBOT if cfg.groups is None else len(cfg.groups),
                        "commanders": cfg.commanders, "rtf_requested": cfg.rtf,
@@ -407,8 +408,9 @@ def run(cfg: RunConfig) -> int:
         say(f"faults: {', '.join(f.label() for f in cfg.faults)}")
     layout = (f"{PER_ROBOT} processes" if cfg.groups is None
               else f"{len(cfg.groups)} group processes")
-    say(f"{len(cfg.robots)} robots in {cfg.world_name}, seed {cfg.seed}, rtf {cfg.rtf:g}, "
-         f"{layout}; logs in {cfg.run_dir / 'logs'}")
+    mix = describe_fleet(cfg.models).partition(" ")[2]  # "(12 turtlebot3_waffle, ...)" or ""
+    say(f"{len(cfg.robots)} robots{' ' + mix if mix else ''} in {cfg.world_name}, seed "
+        f"{cfg.seed}, rtf {cfg.rtf:g}, {layout}; logs in {cfg.run_dir / 'logs'}")
 
     warm_up_kernels()
     shm_before = shm.snapshot()

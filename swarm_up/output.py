@@ -117,6 +117,15 @@ def _workstation_table(rows: list[dict]):
     return table
 
 
+def _robots(metrics: dict) -> str:
+    """``20``, or with a mixed fleet ``20 (12 turtlebot3_waffle, 4 turtlebot3_burger, ...)``."""
+    fleet = metrics.get("fleet") or {}
+    if len(fleet) <= 1:
+        return _fmt(metrics.get("robots"))
+    return (f"{_fmt(metrics.get('robots'))} ("
+            + ", ".join(f"{count} {model}" for model, count in fleet.items()) + ")")
+
+
 def print_summary(metrics: dict, metrics_files: list[Path]) -> None:
     """Print the run's figures as a table (rich; plain text when not a terminal)."""
     from rich.console import Console
@@ -124,7 +133,7 @@ def print_summary(metrics: dict, metrics_files: list[Path]) -> None:
 
     col = metrics.get("collisions") or {}
     rows = [
-        ("robots", _fmt(metrics.get("robots"))),
+        ("robots", _robots(metrics)),
         ("world / seed", f"{metrics.get('world')} / {metrics.get('seed')}"),
         ("coordination", _fmt(metrics.get("coordination"))),
         ("simulated time", _fmt(metrics.get("sim_time_s"), "s", 1)),

@@ -59,9 +59,11 @@ def build_parser():
     p.add_argument("--robots", required=True, help="namespaces, comma-separated")
     p.add_argument("--topics", default=None, metavar="REGEX",
                    help="record only topics whose name matches (re.search)")
-    p.add_argument("--lidar", default="0,0,0,0", metavar="X,Y,Z,YAW",
-                   help="lidar pose in base_footprint [m, rad]")
-    p.add_argument("--lidar-frame", default="base_scan", help="lidar link name")
+    p.add_argument("--lidar", default="0,0,0,0", metavar="X,Y,Z,YAW[;X,Y,Z,YAW...]",
+                   help="lidar pose in base_footprint [m, rad]; or one per robot, in --robots' "
+                   "order, separated by ';' (a mixed fleet)")
+    p.add_argument("--lidar-frame", default="base_scan",
+                   help="lidar link name; or one per robot, comma-separated")
     p.add_argument("--meta", default="{}", help="JSON object: the run's metadata record")
     p.add_argument("--chunk-size", type=cli.positive_int, default=rec.CHUNK_SIZE,
                    help="chunk size [bytes]")
@@ -181,8 +183,11 @@ def main(argv: list[str] | None = None) -> int:
         args = build_parser().parse_args(argv)
         robots = tuple(r for r in args.robots.split(",") if r)
         selected = rec.select_topics(rec.recorded_topics(robots), args.topics)
-        x, y, z, yaw = (float(v) for v in args.lidar.split(","))
-        tf = (rec.TfBuilder(robots, (x, y, z, yaw), args.lidar_frame)
+        poses = [tuple(float(v) for v in part.split(",")) for part in args.lidar.split(";")]
+        frames = args.lidar_frame.split(",")
+        tf = (rec.TfBuilder(robots, poses[0] if len(poses) == 1 else dict(
+                  zip(robots, poses, strict=True)),
+                  frames[0] if len(frames) == 1 else dict(zip(robots, frames, strict=True)))
               if any(t.name == rec.TF_TOPIC for t in selected) else None)
         return _record(args, robots, selected, tf)
 

@@ -27,6 +27,7 @@ import math
 import os
 import re
 import struct
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -164,21 +165,28 @@ def _duration(ns: int | None) -> tuple[int, int]:
 
 
 def run_metadata(*, world: str, robot: str, seed: int, robots, workstations,
-                 rtf: float) -> dict[str, str]:
+                 rtf: float, models=None) -> dict[str, str]:
     """The MCAP metadata record :data:`META_NAME` (all values strings, as MCAP requires).
 
     Args:
         world: the world file's path.
-        robot: the robot name or path.
+        robot: the robot name or path, or a mix ``NAME:COUNT,...`` (:mod:`swarm_common.fleet`).
         seed: the run's seed.
         robots: namespaces without ``/``.
         workstations: ``[{"name", "x", "y", "yaw", "holding": [[x, y], ...]}, ...]`` in ``map``
             [m, rad], so that ``swarm-plot`` needs no world file.
         rtf: the requested real-time factor.
+        models: the model of every robot (names or paths), index-aligned with ``robots``; None:
+            every robot is ``robot``.  Written as ``robot_models``, each model's short name
+            (:func:`swarm_common.fleet.model_label`), comma-separated in ``robots``' order.
     """
+    from swarm_common.fleet import model_label
+
+    models = (robot,) * len(robots) if models is None else models
     return {"world": str(world), "robot": str(robot), "seed": str(seed),
             "robots": ",".join(robots), "workstations": json.dumps(workstations),
-            "rtf": repr(float(rtf)), "log_time": "simulated"}
+            "rtf": repr(float(rtf)), "log_time": "simulated",
+            "robot_models": ",".join(model_label(str(m)) for m in models)}
 
 
 # --------------------------------------------------------------------------- message definitions
@@ -349,15 +357,20 @@ class TfBuilder:
 
     Args:
         robots: namespaces without ``/``.
-        lidar_pose: (x, y, z [m], yaw [rad]) of the lidar in ``base_footprint``.
-        lidar_frame: its link name (``base_scan``).
+        lidar_pose: (x, y, z [m], yaw [rad]) of the lidar in ``base_footprint``; or a mapping
+            namespace -> that (a mixed fleet).
+        lidar_frame: its link name (``base_scan``); or a mapping namespace -> that.
     """
 
     def __init__(self, robots, lidar_pose=(0.0, 0.0, 0.0, 0.0), lidar_frame="base_scan"):
-        x, y, z, yaw = lidar_pose
-        self._lidar = ((float(x), float(y), float(z)),
-                       (0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0)))
-        self._frame = lidar_frame
+        poses = lidar_pose if isinstance(lidar_pose, Mapping) else dict.fromkeys(
+            robots, lidar_pose)
+        frames = lidar_frame if isinstance(lidar_frame, Mapping) else dict.fromkeys(
+            robots, lidar_frame)
+        self._lidar = {ns: ((float(x), float(y), float(z)),
+                            (0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0)))
+                       for ns, (x, y, z, yaw) in poses.items()}
+        self._frame = dict(frames)
         self._pending: dict[str, dict[int, list]] = {ns: {} for ns in robots}
         self._done: dict[str, int] = {ns: -1 for ns in robots}
 
@@ -395,7 +408,8 @@ class TfBuilder:
                       (0.0, 0.0, math.sin(th / 2.0), math.cos(th / 2.0))),
             Transform(stamp, f"{ns}/odom", f"{ns}/base_footprint", tuple(odom[:3]),
                       tuple(odom[3:])),
-            Transform(stamp, f"{ns}/base_footprint", f"{ns}/{self._frame}", *self._lidar),
+            Transform(stamp, f"{ns}/base_footprint", f"{ns}/{self._frame[ns]}",
+                      *self._lidar[ns]),
         ]
 
 

@@ -80,7 +80,62 @@ def check_nav_template(path: Path, params: dict) -> None:
         raise InputError(f"{path}: {exc}") from None
 
 
-def navigator_params(template: dict, ns: str, index: int, cfg: RunConfig) -> dict:
+def robot_params(template: dict, model) -> dict:
+    """The navigator parameters that describe the robot, fitted to one robot model.
+
+    - ``robot_radius`` [m]: the model's :attr:`~swarm_common.robot_model.RobotModel.
+      costmap_radius` (nav2's ``robot_radius`` from ``params/robots/<model>.yaml``, else the
+      footprint's circumscribed radius);
+    - ``inflation_radius`` [m]: the template's, but at least ``robot_radius`` plus the
+      template's own margin (its ``inflation_radius - robot_radius``);
+    - ``max_vel_x``, ``min_vel_x``, ``max_vel_theta`` [m/s, rad/s], ``acc_lim_x``,
+      ``acc_lim_theta``, ``decel_lim_x``, ``decel_lim_theta`` [m/s^2, rad/s^2], the final
+      rotation's speeds and ``backup_speed``: the template's, but never beyond the model's
+      limits (``params/robots/<model>.yaml``; the simulator clamps every command to them).
+
+    A key missing from the template takes the navigator's default (:func:`swarm_nav.config.
+    flat_defaults`).  For the TurtleBot3 waffle and ``params/navigator.yaml`` every value is the
+    template's own (the template is written for it).
+
+    Args:
+        template: the template's ``ros__parameters``.
+        model: the robot's :class:`~swarm_common.robot_model.RobotModel`.
+
+    Returns:
+        ``{parameter: value}`` of the keys above.
+    """
+    from swarm_nav.config import flat_defaults
+
+    defaults = flat_defaults()
+
+    def get(key: str) -> float:
+        return float(template.get(key, defaults[key].default))
+
+    lim = model.limits
+    radius = float(model.costmap_radius)
+    margin = get("inflation_radius") - get("robot_radius")
+    out = {
+        "robot_radius": radius,
+        "inflation_radius": max(get("inflation_radius"), round(radius + margin, 6)),
+        "max_vel_x": min(get("max_vel_x"), lim.max_vel_x),
+        "min_vel_x": max(get("min_vel_x"), lim.min_vel_x),
+        "max_vel_theta": min(get("max_vel_theta"), lim.max_vel_theta),
+        "acc_lim_x": min(get("acc_lim_x"), lim.acc_lim_x),
+        "acc_lim_theta": min(get("acc_lim_theta"), lim.acc_lim_theta),
+        "decel_lim_x": max(get("decel_lim_x"), -lim.acc_lim_x),
+        "decel_lim_theta": max(get("decel_lim_theta"), -lim.acc_lim_theta),
+        "rotate_to_heading_angular_vel": min(get("rotate_to_heading_angular_vel"),
+                                             lim.max_vel_theta),
+        "min_rotate_to_heading_angular_vel": min(get("min_rotate_to_heading_angular_vel"),
+                                                 lim.max_vel_theta),
+    }
+    if lim.min_vel_x < 0.0:  # a base that cannot reverse is not asked to (the recovery clamps)
+        out["backup_speed"] = min(get("backup_speed"), -lim.min_vel_x)
+    return out
+
+
+def navigator_params(template: dict, ns: str, index: int, cfg: RunConfig,
+                     model=None) -> dict:
     """One robot's params file content, rooted at ``/<ns>/navigator``.
 
     Args:
@@ -88,12 +143,19 @@ def navigator_params(template: dict, ns: str, index: int, cfg: RunConfig) -> dic
         ns: namespace without ``/``.
         index: the robot's number i (1..N).
         cfg: the run.
+        model: the robot's :class:`~swarm_common.robot_model.RobotModel` (None: loaded from
+            ``cfg.models[index - 1]``).
 
     Returns:
         ``{"/<ns>/navigator": {"ros__parameters": {...template, use_sim_time, robot_name,
-        robot_index, poi_file, map_yaml_path (""), robot}}}`` (paths absolute, "" if none).
+        robot_index, poi_file, map_yaml_path (""), robot, and the robot's size and limits
+        (:func:`robot_params`)}}}`` (paths absolute, "" if none).
     """
+    from swarm_common.robot_model import load_robot
+
+    name = cfg.models[index - 1]
     params = dict(template)
+    params.update(robot_params(template, model if model is not None else load_robot(name)))
     params.update(
         use_sim_time=True,
         robot_name=ns,
@@ -102,7 +164,7 @@ def navigator_params(template: dict, ns: str, index: int, cfg: RunConfig) -> dic
         # The map is distributed centrally on /map, as in the thesis; a navigator that should
         # read a file of its own gets map_yaml_path set by hand.
         map_yaml_path="",
-        robot=cfg.robot,
+        robot=name,
         # With commanders, simulated time starts once each robot's commander is connected, and
         # each goal takes effect at a fixed tick: the same seed gives the same run.
         wait_for_commander=bool(cfg.commanders),

@@ -42,3 +42,15 @@ def test_summary_says_where_robots_stood_still(capsys, monkeypatch):
         {"robot": "Srobot2", "duration_s": 61.5, "near": None}]}, [])
     out = capsys.readouterr().out
     assert "3 times (2 robots), 436 s; near loader1 2, (elsewhere) 1" in out
+
+
+def test_summary_says_the_fleets_mix(capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "200")  # one table row on one line
+    print_summary({"robots": 20, "fleet": {"turtlebot3_waffle": 12, "turtlebot3_burger": 4,
+                                           "linorobot2_2wd": 4}}, [])
+    (row,) = [ln for ln in capsys.readouterr().out.splitlines() if "│ robots " in ln]
+    assert row.split("│")[2].strip() == ("20 (12 turtlebot3_waffle, 4 turtlebot3_burger, "
+                                         "4 linorobot2_2wd)")
+    print_summary({"robots": 5, "fleet": {"turtlebot3_waffle": 5}}, [])
+    (row,) = [ln for ln in capsys.readouterr().out.splitlines() if "│ robots " in ln]
+    assert row.split("│")[2].strip() == "5"  # one model: as before

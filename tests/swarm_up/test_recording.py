@@ -186,6 +186,34 @@ def test_tf_builder_pairs_a_tick_once_and_composes_map_to_odom():
     assert msg.transforms[2].transform.translation.z == pytest.approx(0.12)
 
 
+def test_tf_of_a_mixed_fleet_gives_every_robot_its_own_lidar_frame_and_mounting():
+    builder = rec.TfBuilder(("Srobot1", "Srobot2"),
+                            lidar_pose={"Srobot1": (-0.064, 0.0, 0.132, 0.0),
+                                        "Srobot2": (0.0, 0.0, 0.168, 0.0)},
+                            lidar_frame={"Srobot1": "base_scan", "Srobot2": "laser"})
+    got = {}
+    for ns in ("Srobot1", "Srobot2"):
+        builder.on_odom(ns, _odometry(100_000_000, f"{ns}/odom", f"{ns}/base_footprint",
+                                      (1.0, 0.0, 0.0)))
+        out = builder.on_ground_truth(ns, _odometry(100_000_000, "map", f"{ns}/base_footprint",
+                                                    (1.0, 0.0, 0.0)))
+        lidar = JAZZY.deserialize_cdr(out, "tf2_msgs/msg/TFMessage").transforms[2]
+        got[ns] = (lidar.child_frame_id, round(lidar.transform.translation.x, 3),
+                   round(lidar.transform.translation.z, 3))
+    assert got == {"Srobot1": ("Srobot1/base_scan", -0.064, 0.132),
+                   "Srobot2": ("Srobot2/laser", 0.0, 0.168)}
+
+
+def test_run_metadata_names_every_robots_model():
+    meta = rec.run_metadata(world="w.world", robot="turtlebot3_waffle:1,/r/bot.urdf:1", seed=0,
+                            robots=("Srobot1", "Srobot2"), workstations=[], rtf=0.0,
+                            models=("turtlebot3_waffle", "/r/bot.urdf"))
+    assert meta["robot_models"] == "turtlebot3_waffle,bot"
+    assert rec.run_metadata(world="w", robot="turtlebot3_burger", seed=0, robots=("a", "b"),
+                            workstations=[], rtf=1.0)["robot_models"] == ("turtlebot3_burger,"
+                                                                          "turtlebot3_burger")
+
+
 def _write(path, n, chunk_size):
     out = rec.McapRecording(path, chunk_size=chunk_size)
     out.add_metadata(rec.META_NAME, {"robots": "Srobot1"})
