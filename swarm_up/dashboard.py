@@ -130,7 +130,8 @@ class DashboardServer:
         on_watch: called with the set of robot indices whose scans someone watches.
         on_demand: called with the number of connected browsers when it changes, and with
             None when ``/api/state`` is read (:meth:`swarm_up.fleet_node.FleetNode.demand`).
-        lidar_pose: (3,) lidar mount in base_footprint [m, rad].
+        lidar_pose: (3,) lidar mount in base_footprint [m, rad]; or (N, 3), every robot's
+            (a mixed fleet).
         port: TCP port on :data:`HOST`.
         cfg: the view's settings.
     """
@@ -405,9 +406,13 @@ class LiveView:
         self.view = view = view or ViewConfig()
         self.fleet = FleetState(cfg.robots)
         self.lock = threading.Lock()
-        robot = load_robot(cfg.robot)
-        self.footprint = robot.footprint
-        self.lidar_pose = robot.lidar.pose
+        models = {name: load_robot(name) for name in dict.fromkeys(cfg.models)}
+        robots = [models[name] for name in cfg.models]
+        mixed = len(models) > 1
+        # a mixed fleet: every robot's own outline and lidar mounting
+        self.footprint = [r.footprint for r in robots] if mixed else robots[0].footprint
+        self.lidar_pose = (np.array([r.lidar.pose for r in robots]) if mixed
+                           else robots[0].lidar.pose)
         poi = load_poi(cfg.poi_path) if cfg.poi_path is not None else None
         self.workstations = poi.workstations if poi is not None else ()
         self.node = None
@@ -415,7 +420,9 @@ class LiveView:
         listener.attach(self._make_node, on_status=self._on_status)
         if cfg.dashboard_port is not None:
             png, info = map_png(load_map(cfg.map_path))
-            hello = {"world": cfg.world_name, "robots": cfg.robots, "footprint": self.footprint,
+            hello = {"world": cfg.world_name, "robots": cfg.robots,
+                     "footprint": robots[0].footprint,
+                     "footprints": self.footprint if mixed else None,
                      "map_info": info, "workstations": self.workstations,
                      "rate_hz": view.rate_hz}
             self.server = DashboardServer(

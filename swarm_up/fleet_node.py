@@ -69,7 +69,8 @@ class FleetNode(Node):
         fleet: the state to write.
         lock: taken around every write.
         workstations: :class:`swarm_common.poi.Workstation` records.
-        footprint: (K, 2) robot outline in base_footprint [m].
+        footprint: (K, 2) robot outline in base_footprint [m]; or a list of every robot's own
+            (a mixed fleet).
         markers: publish ``/swarm/markers``.
         cfg: the view's settings.
         context: the rclpy context.
@@ -85,8 +86,9 @@ class FleetNode(Node):
         self.cfg = cfg = cfg or ViewConfig()
         self.workstations = tuple(workstations)
         self._ws_xy = np.array([w.pose[:2] for w in self.workstations]).reshape(-1, 2)
-        self.footprint = (np.zeros((0, 2)) if footprint is None
-                          else np.asarray(footprint, dtype=float))
+        self.footprint = (np.zeros((0, 2)) if footprint is None else
+                          [np.asarray(f, dtype=float) for f in footprint]
+                          if isinstance(footprint, list) else np.asarray(footprint, dtype=float))
         self.malformed = 0
         self.markers_published = 0
         self._scan_subs: dict[int, object] = {}

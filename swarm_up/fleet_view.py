@@ -13,6 +13,7 @@ two, written once here:
 
     {"type": "hello", "world": str, "robots": [ns, ...],
      "footprint": [[x, y], ...] (base_footprint, m),
+     "footprints": [[[x, y], ...], ...] (a mixed fleet only: every robot's own),
      "map": {"url": "/map.png", "resolution": m/cell, "origin": [x, y] (m, lower-left corner),
              "width": cells, "height": cells},
      "workstations": [{"name", "x", "y", "yaw", "holding": [[x, y], ...]}, ...],
@@ -314,7 +315,8 @@ def _round_list(a: np.ndarray, decimals: int) -> list:
 
 
 def encode_hello(*, world: str, robots: tuple[str, ...], footprint: np.ndarray, map_info: dict,
-                 workstations, rate_hz: float, robot: str | None) -> dict:
+                 workstations, rate_hz: float, robot: str | None,
+                 footprints: list | None = None) -> dict:
     """The ``hello`` message (see the module docstring).
 
     Args:
@@ -325,7 +327,11 @@ def encode_hello(*, world: str, robots: tuple[str, ...], footprint: np.ndarray, 
         workstations: :class:`swarm_common.poi.Workstation` records.
         rate_hz: frames per wall second [Hz].
         robot: the robot of a per-robot page, or None.
+        footprints: a mixed fleet: every robot's own (K_i, 2) polygon, in ``robots``' order
+            (``footprints``, beside ``footprint``, the first robot's); None: one model.
     """
+    extra = ({} if footprints is None else
+             {"footprints": [_round_list(np.asarray(f, dtype=float), 3) for f in footprints]})
     return {
         "type": "hello",
         "world": world,
@@ -340,6 +346,7 @@ def encode_hello(*, world: str, robots: tuple[str, ...], footprint: np.ndarray, 
         ],
         "rate_hz": rate_hz,
         "robot": robot,
+        **extra,
     }
 
 
@@ -365,13 +372,19 @@ def encode_paths(fleet: FleetState, indices, decimals: int = 2) -> dict:
     return out
 
 
+def _row(a: np.ndarray, i: int) -> np.ndarray:
+    """``a`` itself if one row for all, else its row ``i``."""
+    return a[i] if a.ndim == 2 else a
+
+
 def encode_robot(fleet: FleetState, i: int, lidar_pose: np.ndarray, with_scan: bool) -> dict:
     """The ``robot`` message of robot ``i`` (see the module docstring).
 
     Args:
         fleet: the state.
         i: the robot's index.
-        lidar_pose: (3,) the lidar's x, y, yaw in base_footprint [m, rad].
+        lidar_pose: (3,) the lidar's x, y, yaw in base_footprint [m, rad]; or (N, 3), every
+            robot's (a mixed fleet).
         with_scan: include its latest scan (if any).
     """
     scan = fleet.scans.get(i) if with_scan else None
@@ -384,7 +397,7 @@ def encode_robot(fleet: FleetState, i: int, lidar_pose: np.ndarray, with_scan: b
         scan_msg = {"stamp": scan.stamp_ns / 1e9, "pose": _round_list(scan.pose, 4),
                     "angle_min": scan.angle_min, "angle_increment": scan.angle_increment,
                     "range_max": scan.range_max,
-                    "lidar": _round_list(np.asarray(lidar_pose, dtype=float), 4),
+                    "lidar": _round_list(_row(np.asarray(lidar_pose, dtype=float), i), 4),
                     "ranges": ranges}
     values = fleet.status_values[i]
     state = fleet.states[i]

@@ -69,7 +69,8 @@ def fleet_markers(fleet: FleetState, footprint: np.ndarray, workstations, ws_sta
 
     Args:
         fleet: the fleet's state (the caller holds its lock).
-        footprint: (K, 2) robot outline in base_footprint [m].
+        footprint: (K, 2) robot outline in base_footprint [m]; or a sequence of every robot's
+            own (a mixed fleet).
         workstations: :class:`swarm_common.poi.Workstation` records.
         ws_states: their states (:func:`swarm_up.fleet_view.workstation_states`).
         stamp: ``builtin_interfaces/Time`` of the markers.
@@ -83,11 +84,14 @@ def fleet_markers(fleet: FleetState, footprint: np.ndarray, workstations, ws_sta
     clear.header.frame_id = FRAME
     clear.action = Marker.DELETEALL
     out.markers.append(clear)
-    ring = np.vstack((footprint, footprint[:1]))
+    one = isinstance(footprint, np.ndarray) and footprint.ndim == 2
+    rings = ([np.vstack((footprint, footprint[:1]))] * len(fleet.robots) if one else
+             [np.vstack((np.asarray(f), np.asarray(f)[:1])) for f in footprint])
     for i, ns in enumerate(fleet.robots):
         pose = fleet.poses[i]
         if np.isnan(pose[0]):
             continue
+        ring = rings[i]
         rgb = STATE_RGB.get(fleet.states[i], STATE_RGB[None])
         m = _marker("footprint", i, Marker.LINE_STRIP, rgb, stamp)
         m.scale.x = 0.03

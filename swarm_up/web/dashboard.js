@@ -313,8 +313,10 @@
     ctx.globalAlpha = 1;
   }
 
-  function footprintPath(ctx, T, x, y, c, s) {
-    S.hello.footprint.forEach(([fx, fy], k) => {
+  // Robot i's outline (a mixed fleet's hello has every robot's own in `footprints`).
+  function footprintPath(ctx, T, x, y, c, s, i) {
+    const outline = (S.hello.footprints && S.hello.footprints[i]) || S.hello.footprint;
+    outline.forEach(([fx, fy], k) => {
       const u = T.px(x + c * fx - s * fy), v = T.py(y + s * fx + c * fy);
       if (k === 0) ctx.moveTo(u, v); else ctx.lineTo(u, v);
     });
@@ -345,8 +347,8 @@
       const c = Math.cos(yaw), s = Math.sin(yaw);
       const color = STATE_COLOR[state] || "#999";
       const fill = byColor[color] || (byColor[color] = new Path2D());
-      footprintPath(fill, T, x, y, c, s);
-      if (i !== sel) footprintPath(outline, T, x, y, c, s);
+      footprintPath(fill, T, x, y, c, s, i);
+      if (i !== sel) footprintPath(outline, T, x, y, c, s, i);
       heading.moveTo(u, v);
       heading.lineTo(T.px(x + 0.3 * c), T.py(y + 0.3 * s));
       if (holding.has(i)) {
@@ -364,7 +366,7 @@
     const r = sel >= 0 ? f.robots[sel] : null;
     if (r) {
       const selected = new Path2D();
-      footprintPath(selected, T, r[0], r[1], Math.cos(r[2]), Math.sin(r[2]));
+      footprintPath(selected, T, r[0], r[1], Math.cos(r[2]), Math.sin(r[2]), sel);
       ctx.strokeStyle = "#fff";
       ctx.lineWidth = 2;
       ctx.stroke(selected);

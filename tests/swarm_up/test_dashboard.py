@@ -17,6 +17,7 @@ import time
 import urllib.error
 import urllib.request
 
+import numpy as np
 import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -339,3 +340,20 @@ def test_poses_and_plans_are_read_only_while_someone_looks(tmp_path):
     finally:
         view.stop()
         listener.stop()
+
+
+def test_a_mixed_fleet_gets_every_robots_own_outline_and_lidar_mounting(tmp_path):
+    from swarm_common.robot_model import load_robot
+
+    args = build_parser().parse_args(["--robot", "turtlebot3_burger:2,linorobot2_2wd:1",
+                                      "--dashboard", str(_free_port()),
+                                      "--run-dir", str(tmp_path / "run")])
+    cfg = validate(args)
+    view = LiveView(cfg, MetricsListener(cfg.robots, time.monotonic()))
+    models = [load_robot(name) for name in cfg.models]
+    assert [m.name for m in models] == ["turtlebot3_burger", "linorobot2_2wd",
+                                        "turtlebot3_burger"]
+    hello = view.server.hello
+    for got, model in zip(hello["footprints"], models, strict=True):
+        np.testing.assert_array_equal(got, model.footprint)
+    np.testing.assert_array_equal(view.lidar_pose, [m.lidar.pose for m in models])

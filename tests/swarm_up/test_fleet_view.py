@@ -163,3 +163,37 @@ def test_fleet_state_keeps_the_simplified_plan():
     line = np.column_stack((np.linspace(0.0, 10.0, 201), np.full(201, 2.0)))
     fleet.set_path(0, line)
     np.testing.assert_array_equal(fleet.paths[0], [[0.0, 2.0], [10.0, 2.0]])
+
+
+def test_a_mixed_fleet_shows_every_robots_own_outline_and_lidar():
+    fleet = FleetState(("Srobot1", "Srobot2"))
+    for i in (0, 1):
+        fleet.set_scan(i, ScanSample(1_000_000_000, np.zeros(3), 0.0, 1.0, 0.1, 3.5,
+                                     np.ones(2, dtype=np.float32)))
+    mounts = np.array([[-0.064, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    assert [encode_robot(fleet, i, mounts, with_scan=True)["scan"]["lidar"]
+            for i in (0, 1)] == [[-0.064, 0.0, 0.0], [0.0, 0.0, 0.0]]
+    square, hexagon = np.array([[0, 0], [1, 0], [1, 1], [0, 1.0]]), np.ones((6, 2))
+    hello = encode_hello(world="w", robots=fleet.robots, footprint=square, map_info={},
+                         workstations=[], rate_hz=10.0, robot=None,
+                         footprints=[square, hexagon])
+    assert [len(f) for f in hello["footprints"]] == [4, 6]
+    assert "footprints" not in encode_hello(world="w", robots=fleet.robots, footprint=square,
+                                            map_info={}, workstations=[], rate_hz=10.0,
+                                            robot=None)
+
+
+def test_markers_draw_every_robots_own_outline():
+    from builtin_interfaces.msg import Time
+
+    from swarm_up.markers import fleet_markers
+
+    fleet = FleetState(("Srobot1", "Srobot2"))
+    fleet.set_pose(0, 1, 0.0, 0.0, 0.0)
+    fleet.set_pose(1, 1, 5.0, 0.0, 0.0)
+    small = np.array([[-0.1, -0.07], [0.04, -0.07], [0.04, 0.07], [-0.1, 0.07]])
+    big = np.array([[-0.2, -0.13], [0.07, -0.13], [0.07, 0.13], [-0.2, 0.13]])
+    out = fleet_markers(fleet, [small, big], (), [], Time())
+    outlines = [m for m in out.markers if m.ns == "footprint"]
+    xs = [sorted({round(p.x, 3) for p in m.points}) for m in outlines]
+    assert xs == [[-0.1, 0.04], [4.8, 5.07]]
