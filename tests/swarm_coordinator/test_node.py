@@ -88,3 +88,17 @@ def test_without_a_reader_of_the_events_the_sync_deadline_still_answers():
         for node in (coordinator, robot):
             executor.remove_node(node)
             node.destroy_node()
+
+
+def test_a_mixed_fleet_gets_its_parking_spots():
+    """``--robot`` as swarm-up passes a mix: the parking spots on the spawn grid (checked for the
+    largest model) are there, as for a fleet of that model alone (an unreadable --robot would
+    leave none)."""
+    from swarm_coordinator.node import build_core
+
+    robots = tuple(f"Srobot{i}" for i in range(1, 5))
+    mixed = build_core("slim_blockage", 0, robots, "turtlebot3_burger:3,turtlebot3_waffle:1",
+                       0.1, "e")
+    waffles = build_core("slim_blockage", 0, robots, "turtlebot3_waffle", 0.1, "e")
+    park = [s.xy for s in mixed.spots.values() if not s.near]
+    assert park and park == [s.xy for s in waffles.spots.values() if not s.near]
