@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 from swarm_common.poi import poi_for_world
-from swarm_common.robot_model import load_robot
 from swarm_common.spawn import spawn_poses
 from swarm_common.world import load_world, world_polygons
 from swarm_sim.engine import EngineConfig, SimEngine, polygon_distances
@@ -24,34 +23,8 @@ def slim():
 
 
 @pytest.fixture(scope="module")
-def empty():
-    return load_world("empty")  # a 20 x 20 m room: walls 10 m away from the origin
-
-
-@pytest.fixture(scope="module")
-def robots():
-    return {name: load_robot(name)
-            for name in ("turtlebot3_waffle", "turtlebot3_burger", "linorobot2_2wd")}
-
-
-@pytest.fixture(scope="module")
 def waffle(robots):
     return robots["turtlebot3_waffle"]
-
-
-@pytest.fixture
-def make_engine():
-    """Build engines; every one is closed when the test ends."""
-    engines: list[SimEngine] = []
-
-    def make(world, robot, poses, **kwargs) -> SimEngine:
-        engine = SimEngine(world, robot, np.asarray(poses, dtype=float), **kwargs)
-        engines.append(engine)
-        return engine
-
-    yield make
-    for engine in engines:
-        engine.close()
 
 
 def drive(engine: SimEngine, v, w, ticks: int) -> list:

@@ -9,39 +9,13 @@ import numpy as np
 import pytest
 
 from swarm_common.robot_model import load_robot
-from swarm_common.world import load_world
-from swarm_sim.engine import SimEngine, pad_polygons, polygon_distances
+from swarm_sim.engine import pad_polygons, polygon_distances
 from swarm_sim.lidar import cast_rays, counter_clockwise, polygons_to_segments
 
 # Footprints about base_footprint (robots/*.urdf.xacro): x from -rear to front, y +- half width.
 BURGER_FRONT, BURGER_HALF = 0.038, 0.07
 LINO_REAR, LINO_HALF = 0.12, 0.1375
 WAFFLE_FRONT = 0.069
-
-
-@pytest.fixture(scope="module")
-def empty():
-    return load_world("empty")  # a 20 x 20 m room: walls 10 m away from the origin
-
-
-@pytest.fixture(scope="module")
-def models():
-    return {name: load_robot(name)
-            for name in ("turtlebot3_waffle", "turtlebot3_burger", "linorobot2_2wd")}
-
-
-@pytest.fixture
-def make_engine():
-    engines: list[SimEngine] = []
-
-    def make(world, robots, poses, **kwargs) -> SimEngine:
-        engine = SimEngine(world, robots, np.asarray(poses, dtype=float), **kwargs)
-        engines.append(engine)
-        return engine
-
-    yield make
-    for engine in engines:
-        engine.close()
 
 
 def _outline(model, pose) -> np.ndarray:
@@ -52,8 +26,8 @@ def _outline(model, pose) -> np.ndarray:
                             pose[1] + s * f[:, 0] + c * f[:, 1]))
 
 
-def test_a_waffles_lidar_sees_a_burger_by_its_own_outline(empty, models, make_engine):
-    waffle, burger = models["turtlebot3_waffle"], models["turtlebot3_burger"]
+def test_a_waffles_lidar_sees_a_burger_by_its_own_outline(empty, robots, make_engine):
+    waffle, burger = robots["turtlebot3_waffle"], robots["turtlebot3_burger"]
     burger_pose = (1.5, 0.1, 0.4)
     engine = make_engine(empty, [waffle, burger], [(0.0, 0.0, 0.0), burger_pose], seed=2)
     assert engine.mixed and engine.kind.tolist() == [0, 1]
@@ -79,8 +53,8 @@ def test_a_waffles_lidar_sees_a_burger_by_its_own_outline(empty, models, make_en
     assert np.all(np.abs(scans[0][hit] - true[hit]) < 5 * waffle.lidar.noise_stddev)
 
 
-def test_every_lidar_has_its_own_rate_range_and_beams(empty, models, make_engine):
-    waffle, lino = models["turtlebot3_waffle"], models["linorobot2_2wd"]
+def test_every_lidar_has_its_own_rate_range_and_beams(empty, robots, make_engine):
+    waffle, lino = robots["turtlebot3_waffle"], robots["linorobot2_2wd"]
     # 5 m apart: beyond the LDS-01's 3.5 m, within the linorobot2 laser's 12 m
     engine = make_engine(empty, [waffle, lino], [(0.0, 0.0, 0.0), (5.0, 0.0, math.pi)])
     assert engine.lidar_periods.tolist() == [2, 1]  # 5 Hz and 10 Hz at a 10 Hz control tick
@@ -99,27 +73,27 @@ def test_every_lidar_has_its_own_rate_range_and_beams(empty, models, make_engine
     assert scans[1][ahead] == pytest.approx(5.0 - WAFFLE_FRONT, abs=0.05)
 
 
-def test_drive_limits_clamp_every_robot_to_its_own(empty, models, make_engine):
+def test_drive_limits_clamp_every_robot_to_its_own(empty, robots, make_engine):
     names = ("turtlebot3_waffle", "turtlebot3_burger", "linorobot2_2wd")
-    engine = make_engine(empty, [models[n] for n in names],
+    engine = make_engine(empty, [robots[n] for n in names],
                          [(0.0, 0.0, 0.0), (0.0, 2.0, 0.0), (0.0, 4.0, 0.0)])
     for _ in range(30):
         engine.step(np.full(3, 1.0), np.full(3, 5.0))
-    np.testing.assert_array_equal(engine.v, [models[n].limits.max_vel_x for n in names])
-    np.testing.assert_array_equal(engine.w, [models[n].limits.max_vel_theta for n in names])
+    np.testing.assert_array_equal(engine.v, [robots[n].limits.max_vel_x for n in names])
+    np.testing.assert_array_equal(engine.w, [robots[n].limits.max_vel_theta for n in names])
     for _ in range(30):
         engine.step(np.full(3, -1.0), np.full(3, -5.0))
-    np.testing.assert_array_equal(engine.v, [models[n].limits.min_vel_x for n in names])
+    np.testing.assert_array_equal(engine.v, [robots[n].limits.min_vel_x for n in names])
     # one tick from rest: every drive's acceleration limit
-    engine = make_engine(empty, [models[n] for n in names],
+    engine = make_engine(empty, [robots[n] for n in names],
                          [(0.0, 0.0, 0.0), (0.0, 2.0, 0.0), (0.0, 4.0, 0.0)])
     engine.step(np.full(3, 1.0), np.zeros(3))
-    np.testing.assert_allclose(engine.v, [min(models[n].limits.max_vel_x,
-                                              models[n].limits.acc_lim_x * 0.1) for n in names])
+    np.testing.assert_allclose(engine.v, [min(robots[n].limits.max_vel_x,
+                                              robots[n].limits.acc_lim_x * 0.1) for n in names])
 
 
-def test_contacts_and_separation_use_the_real_bodies(empty, models, make_engine):
-    burger, lino = models["turtlebot3_burger"], models["linorobot2_2wd"]
+def test_contacts_and_separation_use_the_real_bodies(empty, robots, make_engine):
+    burger, lino = robots["turtlebot3_burger"], robots["linorobot2_2wd"]
     # side by side, 0.3 m apart: a burger and a linorobot2 leave 0.3 - 0.07 - 0.1375 m between
     # them (two waffles there would overlap)
     engine = make_engine(empty, [burger, lino], [(0.0, 0.0, 0.0), (0.0, 0.3, 0.0)])
@@ -136,10 +110,10 @@ def test_contacts_and_separation_use_the_real_bodies(empty, models, make_engine)
     assert engine.poses[1, 0] == 1.0  # the one standing is not pushed
 
 
-def test_a_lidar_cast_for_a_subset_equals_the_whole_fleets(empty, models, make_engine):
+def test_a_lidar_cast_for_a_subset_equals_the_whole_fleets(empty, robots, make_engine):
     """``own`` names each lidar's body: casting robots 1 and 3 alone gives their rows of the
     cast for all, to the last bit."""
-    waffle = models["turtlebot3_waffle"]
+    waffle = robots["turtlebot3_waffle"]
     poses = [(0.0, 0.0, 0.3), (1.0, 0.2, 2.0), (0.4, 1.1, -1.0), (-0.8, 0.5, 3.0)]
     engine = make_engine(empty, waffle, poses)
     lidar, at, feet = engine.lidar, engine.lidar_poses(), engine.footprints()
@@ -148,8 +122,8 @@ def test_a_lidar_cast_for_a_subset_equals_the_whole_fleets(empty, models, make_e
     np.testing.assert_array_equal(part, whole[[1, 3]])
 
 
-def test_one_model_given_as_a_list_is_the_one_model_engine(empty, models, make_engine):
-    waffle = models["turtlebot3_waffle"]
+def test_one_model_given_as_a_list_is_the_one_model_engine(empty, robots, make_engine):
+    waffle = robots["turtlebot3_waffle"]
     poses = [(0.0, 0.0, 0.0), (0.9, 0.1, 2.0), (0.3, 0.8, -1.0)]
     a = make_engine(empty, waffle, poses, seed=5)
     b = make_engine(empty, [waffle] * 3, poses, seed=5)
@@ -162,12 +136,12 @@ def test_one_model_given_as_a_list_is_the_one_model_engine(empty, models, make_e
     np.testing.assert_array_equal(a.poses, b.poses)
 
 
-def test_footprints_of_different_vertex_counts(empty, models, make_engine, repo_root):
+def test_footprints_of_different_vertex_counts(empty, robots, make_engine, repo_root):
     """A 16-gon base (a cylinder) beside 4-gons: padded by a repeated vertex, seen and measured
     as itself."""
     round_bot = load_robot(repo_root / "tests/data/robot_args.urdf.xacro")
     assert len(round_bot.footprint) == 16
-    burger = models["turtlebot3_burger"]
+    burger = robots["turtlebot3_burger"]
     engine = make_engine(empty, [burger, round_bot], [(0.0, 0.0, 0.0), (1.0, 0.0, 0.0)])
     feet = engine.footprints()
     assert feet.shape == (2, 16, 2)
