@@ -5,7 +5,9 @@ BasicNavigator` like :class:`swarm_commander.cli.CommanderRunner`, but it does n
 its robot is ready, and whenever a workstation goal ends, it sends a request on
 ``/swarm/coordinator/request`` and drives to what the coordinator answers on
 ``/<ns>/coordinator/assignment`` (:mod:`swarm_common.coordination`): a workstation (``go``) or a
-waiting spot (``wait``). At a waiting spot it tells its navigator that no next goal is coming
+waiting spot (``wait``). It connects to its navigator (creates ``goal_pose``, which opens the
+navigator's start gate under swarm-up) only once it and the coordinator hear each other, since
+the coordinator answers the first requests once every robot has asked. At a waiting spot it tells its navigator that no next goal is coming
 (a cancel with no goal running, so the navigator's next tick does not wait) and waits for the
 coordinator to hand it the workstation.
 
@@ -123,11 +125,10 @@ class CoordinatedRunner:
         self._first_start_ns: int | None = None
         navigator.on_task_complete = self._on_task_complete
         self._req_pub = navigator.create_publisher(String, REQUEST_TOPIC, REQUEST_QOS)
-        self._subs = [
-            navigator.create_subscription(String, ASSIGNMENT_TOPIC, self._on_assignment,
-                                          ASSIGNMENT_QOS),
-            navigator.create_subscription(String, STATE_TOPIC, self._on_state, STATE_QOS),
-        ]
+        self._assignment_sub = navigator.create_subscription(
+            String, ASSIGNMENT_TOPIC, self._on_assignment, ASSIGNMENT_QOS)
+        self._state_sub = navigator.create_subscription(String, STATE_TOPIC, self._on_state,
+                                                        STATE_QOS)
         self._decline = navigator.create_client(Trigger, "navigator/cancel")
         self._timer = navigator.create_timer(
             cfg.poll_period, self._on_timer, clock=Clock(clock_type=ClockType.STEADY_TIME))
@@ -167,7 +168,7 @@ class CoordinatedRunner:
             # requests and we hear its answers: at the start it answers once every robot asked,
             # and a request or answer sent before discovery matched it would be lost.
             linked = self._epoch is not None and self._heard_by_coordinator() \
-                and self._subs[0].get_publisher_count() > 0
+                and self._assignment_sub.get_publisher_count() > 0
             if linked or now >= self._deadline:
                 if not linked:
                     self.emit(f"[{self.label}] not linked to the coordinator after "
