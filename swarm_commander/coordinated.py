@@ -7,9 +7,9 @@ its robot is ready, and whenever a workstation goal ends, it sends a request on
 ``/<ns>/coordinator/assignment`` (:mod:`swarm_common.coordination`): a workstation (``go``) or a
 waiting spot (``wait``). It connects to its navigator (creates ``goal_pose``, which opens the
 navigator's start gate under swarm-up) only once it and the coordinator hear each other, since
-the coordinator answers the first requests once every robot has asked. At a waiting spot it tells its navigator that no next goal is coming
-(a cancel with no goal running, so the navigator's next tick does not wait) and waits for the
-coordinator to hand it the workstation.
+the coordinator answers the first requests once every robot has asked. At a waiting spot it
+tells its navigator that no next goal is coming (a cancel with no goal running, so the
+navigator's next tick does not wait) and waits for the coordinator to hand it the workstation.
 
 **When the coordinator is silent** (the documented rule, tested in
 ``tests/test_e2e_coordination.py``):
