@@ -332,7 +332,7 @@ def run_floor(cfg: FloorConfig, processes: str | int, run_dir: Path, *,
                 sim.send_signal(signal.SIGINT)
     finally:
         codes = _stop(procs, list(procs))
-        shm.clean_stale(shm_before)
+        shm.clean_after_run(shm_before)
     try:
         summary = json.loads(Path(cfg.summary_path).read_text())
     except (OSError, ValueError):

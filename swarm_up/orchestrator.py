@@ -33,7 +33,6 @@ from swarm_up.rundir import RunError, load_nav_template, prepare_map, write_para
 from swarm_up.supervisor import LogTail, ResourceSampler, StopFlag, Supervisor
 
 POLL_PERIOD_S = 0.1  # supervision poll [s] (10 Hz; restarts within 2 s need >= 5 Hz)
-SHM_MIN_AGE_S = 1.0  # [s] a new /dev/shm file younger than this may be being created: spared
 SPAWNED_RE = re.compile(r"spawned\s+(\d+)\s+robots?", re.IGNORECASE)
 
 
@@ -359,29 +358,6 @@ def warm_up_kernels() -> None:
         say(f"compiled the navigator's kernels in {time.monotonic() - t0:.0f} s")
 
 
-def _clean_shm(before: frozenset[str]) -> list[Path]:
-    """Remove the Fast DDS files in ``/dev/shm`` that this run left (:mod:`swarm_up.shm`), once
-    every child has stopped and our own context is shut down.
-
-    A file younger than the cleaner's minimum age is spared at first (someone may be creating
-    it right now); a participant that was still exiting can have created or re-created a port
-    file within that second (a Ctrl-C run left ``fastrtps_port7007`` so in CI).  Such young
-    files are looked at once more when they are old enough, and removed if still unused.
-
-    Returns:
-        The paths removed.
-    """
-    from swarm_up import shm
-
-    # Our metrics node still maps the segments of peers that died; that use does not count.
-    me = frozenset({os.getpid()})
-    removed = shm.clean_stale(before, min_age_s=SHM_MIN_AGE_S, ignore_pids=me)
-    if shm.stale_files(before, min_age_s=0.0, ignore_pids=me):
-        time.sleep(SHM_MIN_AGE_S)
-        removed += shm.clean_stale(before, min_age_s=SHM_MIN_AGE_S, ignore_pids=me)
-    return removed
-
-
 def run(cfg: RunConfig) -> int:
     """Run the swarm described by ``cfg`` until it ends.
 
@@ -432,7 +408,8 @@ def run(cfg: RunConfig) -> int:
         outcome = Outcome(EXIT_RUNTIME, str(exc), "failed to start")
     finally:
         wall_s = orch.shutdown(outcome.ended_by if outcome else "error")
-        removed = _clean_shm(shm_before)
+        # Our metrics node still maps the segments of peers that died; that use does not count.
+        removed = shm.clean_after_run(shm_before, ignore_pids=frozenset({os.getpid()}))
         for sig, handler in old_handlers.items():
             signal.signal(sig, handler)
     if removed:

@@ -245,6 +245,23 @@ def test_flock_is_seen_in_proc_locks(tmp_path):
     assert len(shm.clean_stale(frozenset(), d, min_age_s=0.0)) == 2
 
 
+def test_clean_after_run_comes_back_for_files_too_young_at_first(tmp_path):
+    """A port file a participant re-created in its last moment is spared by the first pass (it
+    may be being created by someone) and removed by the second, once old enough; one that is
+    still in use stays."""
+    d = tmp_path / "shm"
+    d.mkdir()
+    _touch(d / "fastrtps_port7007", 4096)
+    _touch(d / "fastrtps_cccccccccccccccc", 4096)
+    _touch(d / "fastrtps_cccccccccccccccc_el")
+    assert shm.clean_stale(frozenset(), d, min_age_s=0.3) == []  # both too young
+    with open(d / "fastrtps_cccccccccccccccc_el", "rb") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        removed = shm.clean_after_run(frozenset(), d, min_age_s=0.3)
+    assert [p.name for p in removed] == ["fastrtps_port7007"]
+    assert sorted(os.listdir(d)) == ["fastrtps_cccccccccccccccc", "fastrtps_cccccccccccccccc_el"]
+
+
 def test_cleaner_on_missing_dir(tmp_path):
     assert shm.snapshot(tmp_path / "nope") == frozenset()
     assert shm.clean_stale(frozenset(), tmp_path / "nope") == []
