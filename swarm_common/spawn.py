@@ -185,20 +185,27 @@ def _edges(polygons) -> np.ndarray:
     return np.vstack(segs) if segs else np.zeros((0, 4))
 
 
-def describe_spawn(poses: np.ndarray, from_spawn_area: bool) -> str:
-    """Where the robots went, for a log line: the rule used and the block they stand in.
+def describe_spawn(poses: np.ndarray, from_spawn_area: bool, poi_file: str | None = None) -> str:
+    """Where the robots went, for a log line and the run's summary: the rule used and the block
+    they stand in.
 
     Args:
         poses: (N, 3) spawn poses x, y [m], yaw [rad] in ``map``.
         from_spawn_area: True when they came from the world's spawn area (its ``.yaml``),
             False when from :func:`spawn_poses_free`.
+        poi_file: the name of the world's points-of-interest file (``"slim_blockage.yaml"``),
+            None when the world has none.
 
     Returns:
-        e.g. ``"in the largest free area, x 3.05..6.05 m, y -2.95..-0.95 m, first at (3.05,
-        -2.95)"``.
+        e.g. ``"in the largest free area (no points-of-interest file), x 3.05..6.05 m, y
+        -2.95..-0.95 m, first at (3.05, -2.95)"``.
     """
-    rule = "in the spawn area of its points of interest" if from_spawn_area else \
-        "in the largest free area (no spawn area in its points of interest)"
+    if from_spawn_area:
+        rule = f"in the spawn area of {poi_file or 'its points of interest'}"
+    elif poi_file is None:
+        rule = "in the largest free area (no points-of-interest file)"
+    else:
+        rule = f"in the largest free area ({poi_file} has no spawn area)"
     x, y = poses[:, 0], poses[:, 1]
     return (f"{rule}, x {x.min():.2f}..{x.max():.2f} m, y {y.min():.2f}..{y.max():.2f} m, "
             f"first at ({x[0]:.2f}, {y[0]:.2f})")

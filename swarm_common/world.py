@@ -656,6 +656,18 @@ def load_world(name_or_path: str | Path) -> World:
 # ----------------------------------------------------------------------------------- outlines
 
 
+def describe_skipped(world: World) -> str | None:
+    """The world's skip report as one warning line, as ``swarm-map`` and ``swarm-sim`` print it.
+
+    Returns:
+        e.g. ``"a.world: skipped unsupported elements: actor 'walker', road 'lane'"``; None
+        when nothing was skipped.
+    """
+    if not world.skipped:
+        return None
+    return f"{world.source.name}: skipped unsupported elements: {', '.join(world.skipped)}"
+
+
 def _shape_points(shape: CollisionShape) -> np.ndarray:
     """(P, 3) points in the world frame whose convex hull bounds the shape (conservatively)."""
     tf = pose_to_matrix(shape.pose)

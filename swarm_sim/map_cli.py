@@ -20,7 +20,13 @@ from swarm_common.map_io import save_map
 from swarm_common.poi import poi_for_world
 from swarm_common.rasterize import rasterize_world
 from swarm_common.spawn import largest_free_region
-from swarm_common.world import BAND_TOP, FLOOR_TOLERANCE, floor_shapes, load_world
+from swarm_common.world import (
+    BAND_TOP,
+    FLOOR_TOLERANCE,
+    describe_skipped,
+    floor_shapes,
+    load_world,
+)
 
 PROG = "swarm-map"
 
@@ -64,9 +70,9 @@ def _run(argv: list[str] | None) -> int:
     if prefix is not None and not prefix.parent.is_dir():
         raise InputError(f"--output: directory '{prefix.parent}' does not exist")
     world = load_world(args.world)
-    if world.skipped:
-        print(f"{PROG}: warning: {world.source.name}: skipped unsupported elements: "
-              f"{', '.join(world.skipped)}", file=sys.stderr)
+    skipped = describe_skipped(world)
+    if skipped is not None:
+        print(f"{PROG}: warning: {skipped}", file=sys.stderr)
     occ = rasterize_world(world, resolution=args.resolution, padding=args.padding,
                           z_min=args.z_min, z_max=args.z_max)
     prefix = prefix or Path(world.name)

@@ -56,6 +56,7 @@ from swarm_common.faults import (
 from swarm_common.fleet_poses import POSES_DEPTH, POSES_TOPIC
 from swarm_common.sim_summary import CollisionCounts, RobotSummary, SimSummary
 from swarm_common.stamps import NS_PER_S
+from swarm_common.world import describe_skipped
 from swarm_sim.standstill import StandstillTracker
 
 # A manual (zero-stamp) command outranks the navigator's answers for this long after it arrived,
@@ -610,11 +611,15 @@ class SimulatorNode(Node):
                 executor.spin_once(timeout_sec=0.0)
         self.wall_s = time.monotonic() - wall0
 
-    def summary_record(self, wall_s: float) -> SimSummary:
+    def summary_record(self, wall_s: float, spawn: str | None = None,
+                       world_skipped: tuple[str, ...] = ()) -> SimSummary:
         """The run's figures for ``--summary`` (:mod:`swarm_common.sim_summary`).
 
         Args:
             wall_s: [s] wall time of the simulation loop.
+            spawn: where the robots went (:func:`prepare`'s ``spawned``), the extra ``spawn``.
+            world_skipped: the world's skip report (``World.skipped``), the extra
+                ``world_skipped``.
         """
         eng = self.engine
         sim_s = self.t_ns / NS_PER_S
@@ -626,6 +631,8 @@ class SimulatorNode(Node):
             fleet[model.name] = fleet.get(model.name, 0) + 1
         extras = {"wall_timeline_s": list(self.wall_timeline),
                   "fleet": fleet,
+                  "spawn": spawn,
+                  "world_skipped": list(world_skipped),
                   "standstills": [{"robot": self.namespaces[e.robot], "start_s": e.start_s,
                                    "duration_s": e.duration_s, "x": e.x, "y": e.y,
                                    "open": e.open} for e in self.standstills.finish()]}
@@ -735,8 +742,9 @@ def prepare(settings: SimSettings):
     """Load everything and spawn, before ROS starts, so bad input fails fast and quietly.
 
     Returns:
-        ``(engine, occ, namespaces, spawned)``: ``spawned`` says where the robots went
-        (:func:`swarm_common.spawn.describe_spawn`).
+        ``(engine, occ, namespaces, spawned, world)``: ``spawned`` says where the robots went
+        (:func:`swarm_common.spawn.describe_spawn`); ``world`` is the loaded world, whose
+        ``skipped`` names what of it is not simulated.
 
     Raises:
         InputError: an unknown or malformed world, robot, map or POI file, a bad name prefix, or
@@ -783,10 +791,11 @@ def prepare(settings: SimSettings):
     config = EngineConfig(control_period=1.0 / settings.control_rate)
     engine = SimEngine(world, robot, poses, seed=settings.seed, config=config, gui=settings.gui)
     namespaces = [f"{settings.name_prefix}{i + 1}" for i in range(settings.swarm_size)]
-    spawned = describe_spawn(engine.poses, from_spawn_area)
+    spawned = describe_spawn(engine.poses, from_spawn_area,
+                             None if poi is None else world_path.with_suffix(".yaml").name)
     if len(robots) > 1:
         spawned += f"; robots: {describe_fleet(names)}"
-    return engine, occ, namespaces, spawned
+    return engine, occ, namespaces, spawned, world
 
 
 @contextlib.contextmanager
@@ -824,7 +833,7 @@ def main(args=None) -> int:
     def body():
         settings = parse_settings(user_args)
         with held_warnings():  # bad input: only the one error line, not the loaders' warnings
-            holder["engine"], occ, namespaces, spawned = prepare(settings)
+            holder["engine"], occ, namespaces, spawned, world = prepare(settings)
         engine = holder["engine"]
         faults = ()
         if settings.faults is not None:
@@ -833,6 +842,9 @@ def main(args=None) -> int:
                                       settings.duration)
             except InputError as exc:
                 raise InputError(f"--faults: {exc}") from None
+        skipped = describe_skipped(world)
+        if skipped is not None:  # once, as swarm-map warns: what of the world is not simulated
+            print(f"swarm-sim: warning: {skipped}", file=sys.stderr, flush=True)
         print(f"spawned {len(namespaces)} robots in {settings.world} "
               f"({namespaces[0]}..{namespaces[-1]}) {spawned}", flush=True)
         # Until the node runs, Ctrl-C and SIGTERM raise KeyboardInterrupt (not rclpy's handler,
@@ -856,7 +868,7 @@ def main(args=None) -> int:
             pass
         finally:
             wall_s = time.monotonic() - wall0
-            summary = node.summary_record(wall_s)
+            summary = node.summary_record(wall_s, spawned, world.skipped)
             if settings.summary:
                 summary.write(settings.summary)
             c = summary.collisions

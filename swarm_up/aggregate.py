@@ -54,6 +54,14 @@ Definitions (``docs/ARCHITECTURE.md``, ``/<ns>/nav_status``):
   ``mean_wait_s`` (holding time per goal: how long a robot sent there waited in its holding
   pattern). Goals near no workstation (a centralized run's waiting spots) are the row
   ``(other)``, listed only when there are any.
+- *spawn* (``spawn``): where the simulator put the robots, its ``spawned N robots in ...`` line's
+  text (:func:`swarm_common.spawn.describe_spawn`): the rule (the spawn area of the world's points
+  of interest, else the largest free area, and why), the block x, y [m] in ``map`` they stand in
+  and the first robot's place; None without the simulator's summary.
+- *world elements skipped* (``world_skipped``): the world's skip report
+  (:attr:`swarm_common.world.World.skipped`, one text per element the simulator leaves out, e.g.
+  ``"actor 'walker'"``), from the simulator's summary; ``[]`` when the world loads whole, None
+  without the summary.
 - *standstills* (``standstills``): the simulator's episodes of a robot standing within 0.1 m
   for 60 simulated s or more (:mod:`swarm_sim.standstill`), each with ``near``: the workstation
   whose docking pose or holding points are nearest (within ``STANDSTILL_NEAR_M``, 3 m), else
@@ -708,6 +716,8 @@ def aggregate(
               for name, xy in (workstations or {}).items()}
     standstills = label_standstills(
         sim.extras.get("standstills") if isinstance(sim.extras, Mapping) else None, places)
+    spawn = sim.extras.get("spawn") if isinstance(sim.extras, Mapping) else None
+    world_skipped = sim.extras.get("world_skipped") if isinstance(sim.extras, Mapping) else None
     for ns in robots:
         entry = comm["per_robot"][ns]
         per_robot[ns]["tasks"] = (len(recorder.per_robot[ns].tasks) if centralized
@@ -727,6 +737,9 @@ def aggregate(
         "world": world,
         "seed": seed,
         "coordination": coordination,
+        "spawn": spawn if isinstance(spawn, str) else None,
+        "world_skipped": ([str(e) for e in world_skipped] if isinstance(world_skipped, list)
+                          else None),
         "sim_time_s": sim_time,
         "wall_time_s": wall,
         "orchestrator_wall_time_s": wall_time_s,

@@ -117,6 +117,14 @@ def _workstation_table(rows: list[dict]):
     return table
 
 
+def _skipped(entries: list[str], shown: int = 3) -> str:
+    """``2: actor 'walker', road 'lane'``: how many world elements the simulator left out, and
+    the first ``shown`` of them (every one is in the simulator's log)."""
+    more = len(entries) - shown
+    return (f"{len(entries)}: " + ", ".join(entries[:shown])
+            + (f" and {more} more (see logs/sim.log)" if more > 0 else ""))
+
+
 def _robots(metrics: dict) -> str:
     """``20``, or with a mixed fleet ``20 (12 turtlebot3_waffle, 4 turtlebot3_burger, ...)``."""
     fleet = metrics.get("fleet") or {}
@@ -135,6 +143,9 @@ def print_summary(metrics: dict, metrics_files: list[Path]) -> None:
     rows = [
         ("robots", _robots(metrics)),
         ("world / seed", f"{metrics.get('world')} / {metrics.get('seed')}"),
+        ("spawned", _fmt(metrics.get("spawn"))),
+        *([("world elements skipped", _skipped(metrics["world_skipped"]))]
+          if metrics.get("world_skipped") else []),
         ("coordination", _fmt(metrics.get("coordination"))),
         ("simulated time", _fmt(metrics.get("sim_time_s"), "s", 1)),
         ("wall time", _fmt(metrics.get("wall_time_s"), "s", 1)),

@@ -8,7 +8,8 @@ interest:
    narrow_aisles (a Gazebo-saved world, 2.4 m aisles): 10 robots with commanders, 90 simulated
    s at ``--rtf 0``: no collision (the slab is floor, not a wall), no aborted goal, goals reached.
 2. warehouse_slab copied without its ``.yaml``: the robots spawn in the largest free region and
-   the run ends cleanly with no collision.
+   the run ends cleanly with no collision; the simulator's log, the metrics (``spawn``) and the
+   summary say where they went.
 """
 
 from __future__ import annotations
@@ -65,3 +66,9 @@ def test_world_without_points_of_interest_spawns_in_the_largest_free_region(tmp_
     assert "in the largest free area" in line, msg
     x_lo = float(line.split(", x ")[1].split("..")[0])
     assert x_lo > -1.4, msg
+    # ... and so do the metrics and the summary (the world loads whole: no skip row)
+    assert metrics["spawn"].startswith(
+        "in the largest free area (no points-of-interest file), x "), msg
+    assert line.endswith(") " + metrics["spawn"]), msg
+    assert metrics["world_skipped"] == [], msg
+    assert "│ spawned " in diag and "world elements skipped" not in diag, msg

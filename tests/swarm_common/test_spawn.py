@@ -15,7 +15,12 @@ from swarm_common.occupancy import OccupancyMap
 from swarm_common.paths import MAPS_DIR
 from swarm_common.poi import SpawnArea, poi_for_world
 from swarm_common.robot_model import load_robot
-from swarm_common.spawn import largest_free_region, spawn_poses, spawn_poses_free
+from swarm_common.spawn import (
+    describe_spawn,
+    largest_free_region,
+    spawn_poses,
+    spawn_poses_free,
+)
 from swarm_common.world import load_world, world_polygons
 
 # shared/reference/seed_facts.md, slim_blockage's wall table as boxes xmin, xmax, ymin, ymax [m]
@@ -211,3 +216,14 @@ def test_new_worlds_spawn_20_robots_on_their_grid(waffle, name, fit):
     spawn_poses(spawn, fit, waffle.radius, polygons)  # every node fits ...
     with pytest.raises(InputError, match=f"at most {fit} fit"):
         spawn_poses(spawn, fit + 1, waffle.radius, polygons)  # ... and no more
+
+
+@pytest.mark.parametrize(("from_spawn_area", "poi_file", "rule"), [
+    (True, "slim_blockage.yaml", "in the spawn area of slim_blockage.yaml"),
+    (False, "hall.yaml", "in the largest free area (hall.yaml has no spawn area)"),
+    (False, None, "in the largest free area (no points-of-interest file)"),
+])
+def test_describe_spawn_names_the_rule_and_the_block(from_spawn_area, poi_file, rule):
+    poses = np.array([[3.05, -2.95, 0.0], [4.05, -2.95, 0.0], [6.05, -0.95, 0.0]])
+    assert describe_spawn(poses, from_spawn_area, poi_file) == (
+        f"{rule}, x 3.05..6.05 m, y -2.95..-0.95 m, first at (3.05, -2.95)")

@@ -15,6 +15,7 @@ from swarm_common.world import (
     BAND_TOP,
     FLOOR_TOLERANCE,
     World,
+    describe_skipped,
     floor_shapes,
     load_world,
     obstacle_shapes,
@@ -173,6 +174,16 @@ def test_unsupported_elements_reported_once_each_by_name():
     # what is supported still loads
     assert [s.name for s in world.shapes] == ["wall::link::collision"]
     assert world.shapes[0].pose[:3] == pytest.approx([0.0, 3.0, 1.0])
+    # the one warning line swarm-map and swarm-sim print
+    assert describe_skipped(world) == (
+        "world_unsupported.world: skipped unsupported elements: "
+        "include 'model://turtlebot3_world', actor 'walker', road 'lane', "
+        "polyline 'fence::link::collision', polyline 'fence::link::collision_2', "
+        "mesh 'statue::link::collision' (meshes/missing_statue.stl not found)")
+
+
+def test_a_world_that_loads_whole_has_no_skip_line(composition):
+    assert describe_skipped(composition) is None
 
 
 def _write_world(tmp_path: Path, body: str, name: str = "w.world") -> Path:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import math
 import time
+from pathlib import Path
 
 import pytest
 import rclpy
@@ -19,6 +20,8 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profi
 from sensor_msgs.msg import LaserScan
 
 from tests.support.ros import ros_context, spin_until, start, stop
+
+DATA = Path(__file__).resolve().parents[1] / "data"
 
 pytestmark = pytest.mark.node
 
@@ -279,3 +282,30 @@ def test_manual_commands_outrank_an_idle_navigator_while_they_keep_coming(tmp_pa
         assert x2 == pytest.approx(x1, abs=1e-9)  # stopped: the navigator has the robot again
     finally:
         stop(proc)
+
+
+def test_a_world_with_skipped_elements_says_so_once_at_start(tmp_path):
+    """A world given by path, with no points of interest beside it and an actor and a road the
+    simulator leaves out: its log names them once (as swarm-map does) and says where the robots
+    went; its summary carries both for swarm-up."""
+    world = tmp_path / "boxed_walker.world"
+    world.write_text((DATA / "world_boxed.world").read_text().replace(
+        "</world>", '<actor name="walker"><skin><filename>walk.dae</filename></skin></actor>'
+        '<road name="lane"><width>3</width><point>0 0 0</point><point>5 0 0</point></road>'
+        "</world>"))
+    proc, summary = _sim(tmp_path, 2, "--world", str(world), "--duration", "1")
+    try:
+        assert proc.wait(60) == 0
+    finally:
+        stop(proc)
+    lines = (tmp_path / "sim.log").read_text().splitlines()
+    skip = [i for i, ln in enumerate(lines) if "skipped unsupported" in ln]
+    (spawned,) = [i for i, ln in enumerate(lines) if ln.startswith("spawned 2 robots")]
+    assert [lines[i] for i in skip] == [
+        "swarm-sim: warning: boxed_walker.world: skipped unsupported elements: actor 'walker', "
+        "road 'lane'"]
+    assert skip[0] < spawned  # at start
+    assert "in the largest free area (no points-of-interest file), x " in lines[spawned]
+    data = json.loads(summary.read_text())
+    assert data["world_skipped"] == ["actor 'walker'", "road 'lane'"]
+    assert lines[spawned].endswith(f") {data['spawn']}")  # the line's text, after the names

@@ -54,7 +54,7 @@ def test_a_mix_gives_the_engine_every_robots_model_as_swarm_up_interleaves_it():
     from swarm_sim.node import prepare
 
     mix = "turtlebot3_waffle:3,turtlebot3_burger:2,linorobot2_2wd:1"
-    engine, _, namespaces, spawned = prepare(parse_settings(
+    engine, _, namespaces, spawned, _ = prepare(parse_settings(
         ["--robot", mix, "--swarm-size", "6", "--world", "empty"]))
     try:
         assert [m.name for m in engine.models] == list(fleet_models(mix, 6))

@@ -411,3 +411,22 @@ def test_standstills_are_labelled_with_the_nearest_workstation_within_3_m():
     assert m["standstill_s"] == pytest.approx(136.5)
     _, m0 = _metrics()  # a summary without standstills
     assert m0["standstills"] == [] and m0["standstill_s"] == 0.0
+
+
+def test_metrics_say_where_the_robots_spawned_and_what_of_the_world_was_skipped():
+    spawn = ("in the largest free area (no points-of-interest file), x 3.05..5.05 m, "
+             "y -2.95..-2.95 m, first at (3.05, -2.95)")
+    summary = SimSummary.from_dict({**SUMMARY, "spawn": spawn,
+                                    "world_skipped": ["actor 'walker'", "road 'lane'"]})
+    _, m = _metrics(summary=summary)
+    assert m["spawn"] == spawn
+    assert m["world_skipped"] == ["actor 'walker'", "road 'lane'"]
+    json.dumps(m)
+    _, whole = _metrics(summary=SimSummary.from_dict({**SUMMARY, "spawn": spawn,
+                                                      "world_skipped": []}))
+    assert whole["world_skipped"] == []  # the world loaded whole
+    _, m0 = _metrics()  # a summary without them (or none at all): unknown
+    assert m0["spawn"] is None and m0["world_skipped"] is None
+    _, bad = _metrics(summary=SimSummary.from_dict({**SUMMARY, "spawn": 3,
+                                                    "world_skipped": "actor"}))
+    assert bad["spawn"] is None and bad["world_skipped"] is None

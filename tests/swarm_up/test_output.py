@@ -54,3 +54,30 @@ def test_summary_says_the_fleets_mix(capsys, monkeypatch):
     print_summary({"robots": 5, "fleet": {"turtlebot3_waffle": 5}}, [])
     (row,) = [ln for ln in capsys.readouterr().out.splitlines() if "│ robots " in ln]
     assert row.split("│")[2].strip() == "5"  # one model: as before
+
+
+def _row(out: str, name: str) -> str | None:
+    rows = [ln for ln in out.splitlines() if ln.startswith(f"│ {name} ")]
+    return rows[0].split("│")[2].strip() if rows else None
+
+
+def test_summary_says_where_the_robots_spawned(capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "200")  # one table row on one line
+    spawn = ("in the spawn area of slim_blockage.yaml, x -2.00..0.00 m, y -1.00..-1.00 m, "
+             "first at (-2.00, -1.00)")
+    print_summary({"robots": 3, "spawn": spawn, "world_skipped": []}, [])
+    out = capsys.readouterr().out
+    assert _row(out, "spawned") == spawn
+    assert "skipped" not in out  # a world that loads whole: no row
+    print_summary({"robots": 3}, [])  # no simulator summary
+    assert _row(capsys.readouterr().out, "spawned") == "-"
+
+
+def test_summary_counts_the_world_elements_skipped(capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "200")
+    print_summary({"robots": 1, "world_skipped": ["actor 'walker'", "road 'lane'"]}, [])
+    assert (_row(capsys.readouterr().out, "world elements skipped")
+            == "2: actor 'walker', road 'lane'")
+    print_summary({"robots": 1, "world_skipped": [f"actor 'a{i}'" for i in range(5)]}, [])
+    assert (_row(capsys.readouterr().out, "world elements skipped")
+            == "5: actor 'a0', actor 'a1', actor 'a2' and 2 more (see logs/sim.log)")
