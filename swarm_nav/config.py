@@ -107,6 +107,10 @@ class DwaConfig:
     footprint_padding: float = _p(0.05, "m", "safety margin around the footprint box that no "
                                   "obstacle point may enter (includes 2 sigma of the lidar's "
                                   "1 cm noise)", check=">=0")
+    wall_escape_padding: float = _p(0.02, "m", "when no motion keeps footprint_padding because a "
+                                    "wall is that near, motions may come this near to the walls "
+                                    "(the static map and the scan points on it; never to anything "
+                                    "else)", check=">=0")
     lookahead_dist: float = _p(0.8, "m", "distance along the path of the point the robot steers "
                                "to", check=">0")
     path_dist_scale: float = _p(2.0, "1/m", "weight of the rollout end's distance to the path",

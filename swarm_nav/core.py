@@ -28,6 +28,7 @@ goal or holding target, a blocked path, a path left behind, or a recovery.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import math
 from collections import OrderedDict
@@ -42,7 +43,15 @@ from swarm_common.occupancy import OccupancyMap
 from swarm_nav import core_kernels, perception_kernels
 from swarm_nav.config import CostmapConfig, NavigatorConfig
 from swarm_nav.costmap import INSCRIBED, Costmap, add_keepout, build_costmap, overlay_obstacles
-from swarm_nav.dwa import Footprint, RobotState, dwa_command, point_gaps, rotation_is_safe
+from swarm_nav.dwa import (
+    Command,
+    Footprint,
+    RobotState,
+    dwa_command,
+    footprint_gaps,
+    point_gaps,
+    rotation_is_safe,
+)
 from swarm_nav.holding import (
     HoldingPattern,
     HoldingPhase,
@@ -74,6 +83,11 @@ _NEAR_PATH_SLACK = 0.5  # [m] robots centred farther than the checked distance p
 #                         not looked at for the path ahead (a cheap pre-filter)
 _EPS = 1e-6  # [m] a goal shift below this is no shift
 _STATIC_MARGIN = 0.5  # [m] the robot moves this far before its static obstacle window is renewed
+_WALL_NEAR = 0.03  # [m] a wall holds a robot the DWA finds no motion for if it is nearer than
+#                   footprint_padding plus this (motions may dip that much between checks)
+_WALL_MATCH = 0.05  # [m] a scan point this near a static map obstacle point is the wall, seen
+#                    (a cell's centre to its edge is 0.025 m at 0.05 m/cell, plus 2 sigma of
+#                    the lidar's 1 cm noise)
 
 
 
@@ -190,6 +204,7 @@ class NavigatorCore:
         self._rotating = False
         self._holding: HoldingPattern | None = None
         self._recovery: Recovery | None = None
+        self._escape_cfg = None  # the DWA settings of _wall_escape
         self._yield: Yield | None = None
         self._recovery_next = 0
         self._progress = ProgressChecker(cfg.recovery)
@@ -399,6 +414,8 @@ class NavigatorCore:
         obstacles = self._obstacles(pose)
         cmd = dwa_command(state, local, obstacles, self.cfg.dwa, footprint=self.footprint,
                           dt=self.cfg.control_period)
+        if not cmd.ok and cmd.w == 0.0:
+            cmd = self._wall_escape(state, local) or cmd
         if self._needs_recovery(pose, cmd.ok, cmd.v, cmd.w, now):
             self._start_recovery(pose, now)
             if self._recovery is None:  # yielding instead
@@ -655,8 +672,15 @@ class NavigatorCore:
         return bool(len(self._robots_on_path(distance, radius, now)))
 
     def _obstacles(self, pose: np.ndarray) -> np.ndarray:
-        """Scan points plus the static map's obstacle boundary near the robot."""
-        parts = [self._scan, self._static_near(pose)]
+        """Scan points plus the static map's obstacle boundary near the robot, plus where the
+        robots seen moving will be shortly."""
+        parts = [self._scan, self._static_near(pose), self._predicted(pose)]
+        parts = [p for p in parts if len(p)]
+        return np.vstack(parts) if parts else np.zeros((0, 2))
+
+    def _predicted(self, pose: np.ndarray) -> np.ndarray:
+        """(P, 2) where the points of the robots seen moving will be shortly, x, y [m] in
+        ``map``."""
         # Robots seen moving: also where they will be shortly (the scan is up to a period old).
         # A predicted point already within the padding of where we stand is left out: DWA relaxes
         # its padding to the current gap when the robot already is that near (so that it can
@@ -667,12 +691,58 @@ class NavigatorCore:
         step = self.cfg.prediction_step
         taus = [min(tau, self.cfg.prediction_max) for tau in (lag + step, lag + 2.0 * step)]
         points, velocity, later = self._movers
-        if len(points):
-            ahead = points + velocity * np.where(later, taus[1], taus[0])[:, None]
-            parts.append(ahead[point_gaps(pose, ahead, self.footprint)
-                               >= self.cfg.dwa.footprint_padding])
-        parts = [p for p in parts if len(p)]
-        return np.vstack(parts) if parts else np.zeros((0, 2))
+        if not len(points):
+            return np.zeros((0, 2))
+        ahead = points + velocity * np.where(later, taus[1], taus[0])[:, None]
+        return ahead[point_gaps(pose, ahead, self.footprint) >= self.cfg.dwa.footprint_padding]
+
+    def _wall_escape(self, state: RobotState, local: np.ndarray) -> Command | None:
+        """A motion out of a wall's padding when the DWA found none; ``None`` if there is none
+        or it is not a wall that holds the robot.
+
+        A robot stopped parallel to a wall at the edge of ``footprint_padding`` can neither
+        turn (a corner swings nearer the wall) nor drive (its heading is a degree toward it), so
+        the DWA refuses every motion: one stood 742 s so in a 20-robot shift, and a jam of 11
+        robots grew around it. Here the DWA runs again against the walls alone -- the static
+        map's obstacle points near the robot and the scan points within ``_WALL_MATCH`` of them
+        -- with ``wall_escape_padding``; its motion is taken only if it keeps the usual rule
+        against every other point, seen or predicted: no nearer than ``min(footprint_padding,
+        its gap now)`` along the whole rollout.
+        """
+        pose = state.pose
+        pad = self.cfg.dwa.footprint_padding
+        reach = self.footprint.radius + pad + self.cfg.dwa.max_vel_x * self.cfg.dwa.sim_time
+        static = self._static_near(pose)
+        static = static[np.hypot(static[:, 0] - pose[0], static[:, 1] - pose[1]) < reach]
+        if not len(static) or point_gaps(pose, static, self.footprint).min() >= pad + _WALL_NEAR:
+            return None
+        scan = self._scan
+        scan = scan[np.hypot(scan[:, 0] - pose[0], scan[:, 1] - pose[1]) < reach]
+        d = np.hypot(scan[:, None, 0] - static[None, :, 0], scan[:, None, 1] - static[None, :, 1])
+        on_wall = d.min(axis=1) < _WALL_MATCH if len(scan) else np.zeros(0, dtype=bool)
+        others = np.vstack((scan[~on_wall], self._predicted(pose)))
+        cfg = self._escape_cfg
+        if cfg is None or cfg.footprint_padding != self.cfg.dwa.wall_escape_padding:
+            cfg = self._escape_cfg = dataclasses.replace(
+                self.cfg.dwa, footprint_padding=self.cfg.dwa.wall_escape_padding)
+        cmd = dwa_command(state, local, np.vstack((static, scan[on_wall])), cfg,
+                          footprint=self.footprint, dt=self.cfg.control_period)
+        if cmd.v == 0.0 and cmd.w == 0.0:
+            return None
+        if not len(others):
+            return Command(cmd.v, cmd.w, True, cmd.cost, cmd.min_gap, cmd.trajectory)
+        need = min(pad, float(point_gaps(pose, others, self.footprint).min()))
+        if cmd.trajectory is None:  # the fallback: a rotation in place
+            if not rotation_is_safe(pose, math.copysign(0.5, cmd.w), others, self.footprint, pad):
+                return None
+        else:
+            traj = np.vstack((pose, cmd.trajectory))
+            steps = (np.hypot(*np.diff(traj[:, :2], axis=0).T)
+                     + np.abs(np.diff(np.unwrap(traj[:, 2]))) * self.footprint.radius)
+            gaps = footprint_gaps(traj[1:, 0], traj[1:, 1], traj[1:, 2], others, self.footprint)
+            if (gaps - steps / 2.0).min() < need:
+                return None
+        return Command(cmd.v, cmd.w, True, cmd.cost, cmd.min_gap, cmd.trajectory)
 
     def _moving_points(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The points of the robots seen moving faster than ``moving_speed``, each robot's twice

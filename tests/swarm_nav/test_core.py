@@ -298,6 +298,33 @@ def test_a_robot_predicted_into_our_footprint_does_not_unlock_driving_into_anoth
     assert gaps.min() >= NavigatorConfig().dwa.footprint_padding - 1e-6, (v, w, gaps.min())
 
 
+@pytest.mark.parametrize("escape", [0.02, 0.05])
+def test_a_robot_pinned_parallel_to_a_wall_escapes_it(occ, escape):
+    """Found in a 20-robot shift (Srobot2 stood 742 s, and a jam of 11 robots grew around it):
+    a robot stopped parallel to the blockage's wall, a degree toward it, at the edge of
+    ``footprint_padding`` (the lidar's noise brings some wall points inside it). Every turn swings
+    a corner nearer the wall and driving closes in on it, so the DWA refused every motion for
+    ever. Its wall escape may come to ``wall_escape_padding`` of the walls: with the default
+    0.02 m it leaves and arrives; with the escape no looser than the padding it stays pinned."""
+    cfg = NavigatorConfig()
+    cfg = dataclasses.replace(cfg, dwa=dataclasses.replace(cfg.dwa, wall_escape_padding=escape))
+    core = NavigatorCore(cfg, WAFFLE_FOOTPRINT)
+    core.set_map(occ)
+    pose = np.array([-5.4623, 0.7392, math.radians(88.38)])  # the recorded pose
+    core.step(pose, 0.0, 0.0, 0.0)
+    r = SimRobot(core, pose, log=[])
+    goal = np.array([-7.74575, 3.20313, math.pi])  # loader3, behind the robot to the west
+    core.set_goal(goal, "g", 0.0)
+    res = simulate([r], SLIM_BLOCKAGE_WALLS, 120.0)
+    assert res["contact_ticks"] == 0 and res["min_wall_gap"] > 0.03
+    if escape < cfg.dwa.footprint_padding:
+        assert_arrived(r, goal)
+        assert res["time"] < 60.0
+    else:
+        assert core.status.state != NavState.SUCCEEDED
+        assert np.hypot(*(r.pose[:2] - [-5.4623, 0.7392])) < 0.1
+
+
 # ------------------------------------------------------------------ obstacles (exact shortcuts)
 def test_static_obstacle_window_from_its_cache_equals_filtering_the_whole_boundary(occ):
     r = make_robot(occ, [0.0, 0.0, math.pi], log=False)
