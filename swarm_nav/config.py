@@ -170,6 +170,10 @@ class HoldingConfig:
     yield_radius: float = _p(1.0, "m", "another robot within this of our goal, nearer to it and "
                              "driving toward it came first: we yield", check=">=0")
     yield_margin: float = _p(0.3, "m", "... nearer by at least this", check=">=0")
+    crowd_radius: float = _p(1.2, "m", "robots standing within this of our goal ...",
+                             check=">=0")
+    crowd_limit: int = _p(2, "-", "... this many, all nearer to it than we are, make a queue: we "
+                          "hold as if the goal were taken (0 = never)", check=">=0")
     moving_speed: float = _p(0.08, "m/s", "a robot seen moving faster than this toward the goal "
                              "is approaching it, away from it is leaving it", check=">=0")
     workstation_match_radius: float = _p(0.3, "m", "a goal this close to a workstation uses its "

@@ -56,6 +56,7 @@ from swarm_nav.holding import (
     HoldingPattern,
     HoldingPhase,
     HoldingSite,
+    goal_crowded,
     goal_occupied,
     goal_visible,
     holding_points_for,
@@ -533,7 +534,8 @@ class NavigatorCore:
         fresh = now - self._scan_time <= self.cfg.scan_max_age
         if fresh and goal_visible(self.costmap, pose[:2], goal, self.cfg.holding):
             occupied = goal_occupied(self._robots, goal, self.cfg.holding)
-            first = someone_came_first(self._robots, pose[:2], goal, self.cfg.holding)
+            first = (someone_came_first(self._robots, pose[:2], goal, self.cfg.holding)
+                     or goal_crowded(self._robots, pose[:2], goal, self.cfg.holding))
         if self._occupant_stays(occupied, goal, now):
             timeout = self.cfg.holding.occupied_timeout
             self._end(NavState.ABORTED, now, f"goal occupied by a robot that has not moved for "

@@ -115,6 +115,40 @@ def someone_came_first(robots: Sequence[SeenRobot], robot_xy, goal_xy,
     return False
 
 
+def goal_crowded(robots: Sequence[SeenRobot], robot_xy, goal_xy, cfg: HoldingConfig) -> bool:
+    """A queue at the goal already: ``crowd_limit`` robots stand near it, all nearer than we are.
+
+    A free workstation that robots stand around is no free way in: they wait for it, or are
+    stuck there, and the robot that must leave it needs room. Robots that join such a crowd
+    lock it up (20 robots on slim_blockage: 11 stood about loader5 for the last 400 s of a
+    30-minute shift, one of them boxed in on its way out). A robot that sees the crowd holds
+    instead, as when the goal is taken; the nearest ``crowd_limit`` robots keep trying, so a
+    free goal is always tried by someone.
+
+    Args:
+        robots: the robots seen (:func:`~swarm_nav.perception.perceive_robots`).
+        robot_xy: (2,) our position x, y [m].
+        goal_xy: (2,) the goal x, y [m].
+        cfg: ``crowd_radius`` [m], ``crowd_limit`` and ``moving_speed`` [m/s].
+
+    Returns:
+        True if at least ``crowd_limit`` robots, each centred within ``crowd_radius`` of the goal
+        and nearer to it than we are, are seen standing (slower than ``moving_speed``; unknown
+        speed counts as standing). Never with ``crowd_limit`` 0.
+    """
+    if cfg.crowd_limit <= 0:
+        return False
+    g = np.asarray(goal_xy, dtype=float)[:2]
+    mine = float(np.hypot(*(np.asarray(robot_xy, dtype=float)[:2] - g)))
+    n = 0
+    for r in robots:
+        theirs = float(np.hypot(*(r.centre - g)))
+        if theirs <= cfg.crowd_radius and theirs < mine:
+            speed = float(np.hypot(*r.velocity))
+            n += not (speed > cfg.moving_speed)  # NaN (unknown) counts as standing
+    return n >= cfg.crowd_limit
+
+
 def goal_visible(costmap: Costmap, robot_xy, goal_xy, cfg: HoldingConfig) -> bool:
     """Whether the robot can judge its goal: within ``goal_detection_range``, no wall between."""
     robot_xy = np.asarray(robot_xy, dtype=float)[:2]

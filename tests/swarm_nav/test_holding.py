@@ -11,6 +11,7 @@ from swarm_nav.costmap import build_costmap
 from swarm_nav.holding import (
     HoldingPattern,
     HoldingPhase,
+    goal_crowded,
     goal_occupied,
     goal_visible,
     holding_points_for,
@@ -59,6 +60,21 @@ def test_goal_occupied_needs_enough_points():
 ])
 def test_first_come_first_served(robot, mine, first):
     assert someone_came_first([robot], mine, [0.0, 0.0], CFG) is first
+
+
+@pytest.mark.parametrize("robots, mine, crowded", [
+    ([robot_at(0.6, 0.3), robot_at(0.5, -0.6)], [2.0, 0.0], True),   # two stand about it
+    ([robot_at(0.6, 0.3)], [2.0, 0.0], False),                        # one is no queue
+    ([robot_at(0.6, 0.3), robot_at(0.5, -0.6, vx=0.2)], [2.0, 0.0], False),  # one drives off
+    ([robot_at(0.6, 0.3), robot_at(0.5, -0.6, vx=np.nan, vy=np.nan)], [2.0, 0.0], True),
+    ([robot_at(0.6, 0.3), robot_at(1.5, 0.0)], [2.0, 0.0], False),    # one too far from it
+    ([robot_at(0.6, 0.3), robot_at(0.5, -0.6)], [0.4, 0.0], False),   # we are the nearest
+    ([robot_at(0.6, 0.3), robot_at(0.5, -0.6)], [0.7, 0.0], False),   # we are second nearest
+])
+def test_a_goal_that_robots_stand_about_is_a_queue_to_hold_back_from(robots, mine, crowded):
+    assert goal_crowded(robots, mine, [0.0, 0.0], CFG) is crowded
+    off = dataclasses.replace(CFG, crowd_limit=0)
+    assert goal_crowded(robots, mine, [0.0, 0.0], off) is False
 
 
 def test_goal_visibility(costmap):
