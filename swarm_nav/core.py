@@ -14,9 +14,11 @@ rotation to the goal yaw) -> holding pattern update (:mod:`swarm_nav.holding`) -
 robot left its path by more than ``max_path_deviation``, or something blocks the path ahead (a
 robot standing on it for ``stationary_replan_time``, anything else for ``blocked_replan_time``;
 the replan then plans around the robots seen) -> DWA on the local stretch of the path, shifted to
-the right while a robot comes toward us on it (:func:`~swarm_nav.traffic.keep_right`) ->
-recovery when the DWA finds no motion for ``stuck_time`` or the progress checker fails: the
-face-to-face rule (:func:`~swarm_nav.traffic.must_yield`) makes one of two robots retreat off the
+the right while a robot comes toward us on it (:func:`~swarm_nav.traffic.keep_right`); when it
+finds no motion because a wall is at the edge of the padding, the wall escape may come to
+``wall_escape_padding`` of the walls alone (:meth:`NavigatorCore._wall_escape`) -> recovery
+when the DWA finds no motion for ``stuck_time`` or the progress checker fails: the face-to-face
+rule (:func:`~swarm_nav.traffic.must_yield`) makes one of two robots retreat off the
 other's way and wait until its path is clear (:class:`~swarm_nav.traffic.Yield`); otherwise
 nav2's set (replan around the robots seen, back up, wait, spin), cycled, never giving up on a
 reachable goal. The other robots are known only from the scan (:mod:`swarm_nav.perception`).

@@ -7,7 +7,8 @@ of ``goal_occupied_radius`` about it and is not seen leaving. First come, first 
 that see each other: a robot yields when it sees another robot within ``yield_radius`` of its goal,
 nearer to it by ``yield_margin`` and driving toward it (that one came first). A robot that merely
 stands or passes near the goal is no reason to yield, so two robots that swap places do not wait
-for each other.
+for each other. A queue is a reason: ``crowd_limit`` robots standing near the goal, all nearer
+to it than we are (:func:`goal_crowded`), and we hold as if it were taken.
 
 The holding pattern (:class:`HoldingPattern`) is a small state machine::
 
