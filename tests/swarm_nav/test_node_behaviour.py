@@ -328,10 +328,13 @@ def test_two_robots_swap_ends_of_the_passage_below_the_blockage(swarm):
 AWAY = [(-6.3, 5.0, math.pi / 2), (-6.3, 6.6, math.pi / 2), (-6.6, 8.6, 0.0)]
 
 
-def dock_in_turn(sw: Swarm, goal, away, timeout: float) -> tuple[list[str], Status]:
+def dock_in_turn(sw: Swarm, goal, away, timeout: float, may_skip_holding: int = 0
+                 ) -> tuple[list[str], Status]:
     """Send every robot to ``goal`` at once; as each docks (checked with :func:`assert_reached`),
     send it on to the next pose of ``away`` to free the workstation, as a commander would.
-    Checks that all docked and that every robot but the first saw the goal taken and held.
+    Checks that all docked and that every robot but the first saw the goal taken (or a queue at
+    it) and held, but for at most ``may_skip_holding`` of them: a robot that waits out of sight
+    of the goal, or comes back from there, may find it free and dock without holding.
 
     Returns:
         The robots in the order they docked, and the last docking's result.
@@ -349,8 +352,9 @@ def dock_in_turn(sw: Swarm, goal, away, timeout: float) -> tuple[list[str], Stat
         if waiting:
             sw.send(ns, *away[len(docked) - 1])
     assert sorted(docked) == sw.names
-    for ns in docked[1:]:
-        assert "HOLDING" in sw.states(ns, goal_ids[ns]), (ns, sw.states(ns, goal_ids[ns]))
+    skipped = [ns for ns in docked[1:] if "HOLDING" not in sw.states(ns, goal_ids[ns])]
+    print(f"docked without holding: {skipped}")
+    assert len(skipped) <= may_skip_holding, [(ns, sw.states(ns, goal_ids[ns])) for ns in skipped]
     return docked, result
 
 
