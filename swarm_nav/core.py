@@ -207,7 +207,9 @@ class NavigatorCore:
         self._rotating = False
         self._holding: HoldingPattern | None = None
         self._recovery: Recovery | None = None
-        self._escape_cfg = None  # the DWA settings of _wall_escape
+        # the DWA settings of _wall_escape: the walls alone, with wall_escape_padding
+        self._escape_cfg = dataclasses.replace(cfg.dwa,
+                                               footprint_padding=cfg.dwa.wall_escape_padding)
         self._yield: Yield | None = None
         self._recovery_next = 0
         self._progress = ProgressChecker(cfg.recovery)
@@ -725,16 +727,12 @@ class NavigatorCore:
         d = np.hypot(scan[:, None, 0] - static[None, :, 0], scan[:, None, 1] - static[None, :, 1])
         on_wall = d.min(axis=1) < _WALL_MATCH if len(scan) else np.zeros(0, dtype=bool)
         others = np.vstack((scan[~on_wall], self._predicted(pose)))
-        cfg = self._escape_cfg
-        if cfg is None or cfg.footprint_padding != self.cfg.dwa.wall_escape_padding:
-            cfg = self._escape_cfg = dataclasses.replace(
-                self.cfg.dwa, footprint_padding=self.cfg.dwa.wall_escape_padding)
-        cmd = dwa_command(state, local, np.vstack((static, scan[on_wall])), cfg,
+        cmd = dwa_command(state, local, np.vstack((static, scan[on_wall])), self._escape_cfg,
                           footprint=self.footprint, dt=self.cfg.control_period)
         if cmd.v == 0.0 and cmd.w == 0.0:
             return None
         if not len(others):
-            return Command(cmd.v, cmd.w, True, cmd.cost, cmd.min_gap, cmd.trajectory)
+            return dataclasses.replace(cmd, ok=True)
         need = min(pad, float(point_gaps(pose, others, self.footprint).min()))
         if cmd.trajectory is None:  # the fallback: a rotation in place
             if not rotation_is_safe(pose, math.copysign(0.5, cmd.w), others, self.footprint, pad):
@@ -746,7 +744,7 @@ class NavigatorCore:
             gaps = footprint_gaps(traj[1:, 0], traj[1:, 1], traj[1:, 2], others, self.footprint)
             if (gaps - steps / 2.0).min() < need:
                 return None
-        return Command(cmd.v, cmd.w, True, cmd.cost, cmd.min_gap, cmd.trajectory)
+        return dataclasses.replace(cmd, ok=True)
 
     def _moving_points(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The points of the robots seen moving faster than ``moving_speed``, each robot's twice

@@ -792,7 +792,7 @@ def prepare(settings: SimSettings):
     engine = SimEngine(world, robot, poses, seed=settings.seed, config=config, gui=settings.gui)
     namespaces = [f"{settings.name_prefix}{i + 1}" for i in range(settings.swarm_size)]
     spawned = describe_spawn(engine.poses, from_spawn_area,
-                             None if poi is None else world_path.with_suffix(".yaml").name)
+                             None if poi is None or poi.source is None else poi.source.name)
     if len(robots) > 1:
         spawned += f"; robots: {describe_fleet(names)}"
     return engine, occ, namespaces, spawned, world
