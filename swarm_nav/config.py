@@ -174,6 +174,15 @@ class HoldingConfig:
                              check=">=0")
     crowd_limit: int = _p(2, "-", "... this many, all nearer to it than we are, make a queue: we "
                           "hold as if the goal were taken (0 = never)", check=">=0")
+    congestion_distance: float = _p(3.0, "m", "robots standing on this much of the path ahead ...",
+                                    check=">=0")
+    congestion_radius: float = _p(0.7, "m", "... centred within this of it, in a narrow place "
+                                  "(nearer a wall than staging_wall_clearance), off workstations "
+                                  "and holding spots ...", check=">=0")
+    congestion_limit: int = _p(3, "-", "... this many, make the way congested: we hold back at a "
+                               "staging point (0 = never)", check=">=0")
+    congestion_wait: float = _p(15.0, "s", "... for at least this long, stretched by "
+                                "robot_index % 5 quarters, then try again", check=">=0")
     moving_speed: float = _p(0.08, "m/s", "a robot seen moving faster than this toward the goal "
                              "is approaching it, away from it is leaving it", check=">=0")
     workstation_match_radius: float = _p(0.3, "m", "a goal this close to a workstation uses its "

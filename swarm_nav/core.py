@@ -62,6 +62,7 @@ from swarm_nav.holding import (
     goal_occupied,
     goal_visible,
     holding_points_for,
+    path_congested,
     someone_came_first,
     staging_point,
 )
@@ -217,6 +218,7 @@ class NavigatorCore:
         self._blocked_since: float | None = None
         self._crowded_since: float | None = None
         self._occupied_since: float | None = None
+        self._congestion_judged = -math.inf  # the scan time of the last congestion judgement
         self._scan = np.zeros((0, 2))
         self._dyn = np.zeros((0, 2))
         self._robots: list[SeenRobot] = []
@@ -546,6 +548,10 @@ class NavigatorCore:
                       f"{timeout:g} s")
             return
         hp.update(now, pose[:2], occupied, first)
+        if self._way_congested(hp, now):
+            hc = self.cfg.holding
+            wait = hc.congestion_wait * (1.0 + 0.25 * (self.cfg.robot_index % 5))
+            hp.hold_back(self._staging(pose), now, wait)
         # never park on top of another robot: a taken loop point is skipped, a taken spot is
         # replaced by a staging point well away from the busy workstation
         tgt = hp.target
@@ -592,6 +598,25 @@ class NavigatorCore:
         if self._occupied_since is None:
             self._occupied_since = now
         return hc.occupied_timeout > 0 and now - self._occupied_since >= hc.occupied_timeout
+
+    def _way_congested(self, hp: HoldingPattern, now: float) -> bool:
+        """Whether the way to the goal (or to its holding spot) is congested
+        (:func:`~swarm_nav.holding.path_congested`), judged once per scan while driving there."""
+        hc = self.cfg.holding
+        if (hc.congestion_limit <= 0 or self._path is None or hp.rerouted
+                or hp.phase == HoldingPhase.WAIT or self._scan_time <= self._congestion_judged
+                or now - self._scan_time > self.cfg.scan_max_age):
+            return False
+        self._congestion_judged = self._scan_time
+        seen = self._seen
+        if len(seen.centres) < hc.congestion_limit:
+            return False
+        s0 = self._path_s[self._idx]
+        hi = int(np.searchsorted(self._path_s, s0 + hc.congestion_distance))
+        ahead = self._path[self._idx:max(hi, self._idx + 1)]
+        standing = ~(seen.known & (seen.speed > hc.moving_speed))
+        return path_congested(seen.centres, standing, ahead, self._path[-1], self._avoid,
+                              self.costmap.distance_at(seen.centres), hc)
 
     def _staging(self, pose: np.ndarray) -> np.ndarray:
         """A staging point away from the goal and the robots seen (or where the robot is)."""

@@ -16,6 +16,7 @@ from swarm_nav.holding import (
     goal_visible,
     holding_points_for,
     holding_sites_from_poi,
+    path_congested,
     someone_came_first,
     staging_point,
 )
@@ -75,6 +76,53 @@ def test_a_goal_that_robots_stand_about_is_a_queue_to_hold_back_from(robots, min
     assert goal_crowded(robots, mine, [0.0, 0.0], CFG) is crowded
     off = dataclasses.replace(CFG, crowd_limit=0)
     assert goal_crowded(robots, mine, [0.0, 0.0], off) is False
+
+
+# a corridor along y at x = 0, the goal at (0, 6): the path ahead runs from (0, 0) to (0, 3)
+_AHEAD = np.column_stack((np.zeros(61), np.linspace(0.0, 3.0, 61)))
+_GOAL = [0.0, 6.0]
+_NARROW = 1.0  # [m] wall distance of a centre in the corridor
+
+
+def congested(centres, standing=None, wall=None, avoid=np.zeros((0, 2)), ahead=_AHEAD,
+              cfg=CFG):
+    centres = np.asarray(centres, dtype=float).reshape(-1, 2)
+    standing = np.ones(len(centres), bool) if standing is None else np.asarray(standing)
+    wall = np.full(len(centres), _NARROW) if wall is None else np.asarray(wall, dtype=float)
+    return path_congested(centres, standing, ahead, _GOAL, avoid, wall, cfg)
+
+
+@pytest.mark.parametrize("centres, standing, wall, avoid, is_congested", [
+    # three stand in the corridor on the way: a queue to keep out of
+    ([[0.3, 1.0], [-0.4, 1.8], [0.0, 2.6]], None, None, [], True),
+    # two are no queue
+    ([[0.3, 1.0], [-0.4, 1.8]], None, None, [], False),
+    # one of the three drives: it is traffic, not a queue
+    ([[0.3, 1.0], [-0.4, 1.8], [0.0, 2.6]], [True, False, True], None, [], False),
+    # one stands beside the way, 1 m off it
+    ([[0.3, 1.0], [-0.4, 1.8], [1.0, 2.6]], None, None, [], False),
+    # one stands beyond the next 3 m of path
+    ([[0.3, 1.0], [-0.4, 1.8], [0.0, 3.8]], None, None, [], False),
+    # one stands in the open (1.6 m or more from every wall): the planner passes it
+    ([[0.3, 1.0], [-0.4, 1.8], [0.0, 2.6]], None, [1.0, 1.0, 2.0], [], False),
+    # one stands on a workstation or holding spot: where it should be
+    ([[0.3, 1.0], [-0.4, 1.8], [0.0, 2.6]], None, None, [[0.05, 2.6]], False),
+])
+def test_robots_standing_on_the_way_in_a_corridor_congest_it(centres, standing, wall, avoid,
+                                                           is_congested):
+    assert congested(centres, standing, wall, np.asarray(avoid, float).reshape(-1, 2)) \
+        is is_congested
+
+
+def test_congestion_at_the_goal_itself_is_the_queue_rule_s_not_this_one():
+    # the last 1.2 m (crowd_radius) to the goal: goal_crowded judges a queue there
+    near_goal = np.column_stack((np.zeros(21), np.linspace(5.0, 6.0, 21)))
+    queue = [[0.3, 5.2], [-0.4, 5.4], [0.0, 5.6]]
+    assert congested(queue, ahead=near_goal) is False
+    farther = np.column_stack((np.zeros(41), np.linspace(4.0, 6.0, 41)))
+    assert congested([[0.3, 4.2], [-0.4, 4.4], [0.0, 4.6]], ahead=farther) is True
+    assert congested([[0.3, 1.0], [-0.4, 1.8], [0.0, 2.6]],
+                     cfg=dataclasses.replace(CFG, congestion_limit=0)) is False
 
 
 def test_goal_visibility(costmap):
@@ -181,6 +229,26 @@ def test_replace_target_for_a_taken_spot():
     hp.replace_target([1.0, 1.0])
     assert hp.target == pytest.approx([1.0, 1.0])
     assert hp.update(1.0, [1.0, 1.1], True) == HoldingPhase.WAIT
+
+
+def test_a_hold_back_waits_its_time_even_when_the_goal_is_seen_free():
+    hp = spot()
+    hp.hold_back([5.0, 5.0], 0.0, wait=20.0)
+    assert hp.phase == HoldingPhase.TO_HOLD and hp.target == pytest.approx([5.0, 5.0])
+    assert hp.rerouted and hp.held_back(19.9) and not hp.held_back(20.0)
+    assert hp.update(5.0, [5.0, 5.1], None) == HoldingPhase.WAIT
+    for t in np.arange(6.0, 20.0, 0.5):   # seen free, out of sight: holds on
+        assert hp.update(float(t), [5.0, 5.1], False if t < 12 else None) == HoldingPhase.WAIT
+    assert hp.update(20.0, [5.0, 5.1], None) == HoldingPhase.APPROACH  # its time is up
+
+
+def test_a_hold_back_on_a_loop_waits_at_its_place_rather_than_driving_the_loop():
+    hp = HoldingPattern(np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0]]), True, CFG)
+    hp.hold_back([5.0, 5.0], 0.0, wait=10.0)
+    assert hp.update(1.0, [5.0, 5.0], None) == HoldingPhase.WAIT
+    assert hp.target == pytest.approx([5.0, 5.0])
+    assert hp.update(9.0, [5.0, 5.0], None) == HoldingPhase.WAIT
+    assert hp.update(10.0, [5.0, 5.0], None) == HoldingPhase.APPROACH
 
 
 def test_relocate_from_wait():
