@@ -8,7 +8,10 @@ that see each other: a robot yields when it sees another robot within ``yield_ra
 nearer to it by ``yield_margin`` and driving toward it (that one came first). A robot that merely
 stands or passes near the goal is no reason to yield, so two robots that swap places do not wait
 for each other. A queue is a reason: ``crowd_limit`` robots standing near the goal, all nearer
-to it than we are (:func:`goal_crowded`), and we hold as if it were taken.
+to it than we are (:func:`goal_crowded`), and we hold as if it were taken. So is a queue on the
+way there: ``congestion_limit`` robots standing on the path ahead in a narrow place
+(:func:`path_congested`); we hold back at a staging point in the open for ``congestion_wait``
+(:meth:`HoldingPattern.hold_back`), then try again.
 
 The holding pattern (:class:`HoldingPattern`) is a small state machine::
 
@@ -17,6 +20,8 @@ The holding pattern (:class:`HoldingPattern`) is a small state machine::
     TO_HOLD, WAIT --goal seen free for free_confirm_time--> APPROACH
     WAIT     --retry period over and the goal out of sight--> APPROACH (go and look)
     loop     --a loop point reached, retry period over, goal out of sight--> APPROACH
+    APPROACH, TO_HOLD (to the spot) --the way congested--> TO_HOLD (a staging point, held back:
+             neither a free goal nor the retry period ends it before congestion_wait)
 
 It never gives up: a reachable goal is retried until it is free. A robot whose holding spot is
 taken too waits at a staging point (:func:`staging_point`) well away from the busy workstation, the

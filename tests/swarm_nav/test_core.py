@@ -377,3 +377,35 @@ def test_navigators_of_one_process_share_the_static_costmaps_of_one_map(occ):
     d = NavigatorCore(NavigatorConfig(), WAFFLE_FOOTPRINT)  # no keep-out discs
     d.set_map(occ)
     assert d.costmap is a.costmap and d._plan_cm is d.costmap
+
+
+# ------------------------------------------------------------------ congestion
+@pytest.mark.parametrize("limit", [3, 0])
+def test_a_robot_that_sees_a_queue_standing_in_the_corridor_ahead_holds_back_in_the_open(
+        occ, limit):
+    """The congestion rule (swarm_nav.holding.path_congested): a robot on its way down the
+    corridor of slim_blockage's workstations to loader1 sees three robots standing in the lane
+    ahead. It turns back to a staging point in the open, right of the blockage, instead of
+    pressing into them; with ``congestion_limit`` 0 it drives on into the corridor."""
+    cfg = NavigatorConfig()
+    cfg = dataclasses.replace(cfg, holding=dataclasses.replace(cfg.holding,
+                                                               congestion_limit=limit))
+    core = NavigatorCore(cfg, WAFFLE_FOOTPRINT)
+    core.set_map(occ)
+    start = np.array([-6.6, 6.6, -math.pi / 2])
+    core.step(start, 0.0, 0.0, 0.0)
+    core.set_goal(LOADER1, "g", 0.0)
+    me = SimRobot(core, start, log=[])
+    queue = [SimRobot(None, np.array([x, y, -math.pi / 2]))
+             for x, y in ((-6.7, 4.4), (-6.2, 3.7), (-7.2, 3.4))]
+    targets = []
+    simulate([me, *queue], SLIM_BLOCKAGE_WALLS, 12.0, until_done=False,
+             on_tick=lambda t, rs: targets.append(core._target().copy()))
+    open_ = [t for t in targets if core.costmap.distance_at(t[None, :])[0]
+             >= cfg.holding.staging_wall_clearance]
+    if limit:
+        assert core.status.state == NavState.HOLDING
+        assert open_, "never held back in the open"
+        assert me.pose[1] > 4.8  # did not press on into the queue
+    else:
+        assert not open_ and core.status.state == NavState.DRIVING

@@ -84,8 +84,8 @@ _GOAL = [0.0, 6.0]
 _NARROW = 1.0  # [m] wall distance of a centre in the corridor
 
 
-def congested(centres, standing=None, wall=None, avoid=np.zeros((0, 2)), ahead=_AHEAD,
-              cfg=CFG):
+def congested(centres, standing=None, wall=None, avoid=None, ahead=_AHEAD, cfg=CFG):
+    avoid = np.zeros((0, 2)) if avoid is None else avoid
     centres = np.asarray(centres, dtype=float).reshape(-1, 2)
     standing = np.ones(len(centres), bool) if standing is None else np.asarray(standing)
     wall = np.full(len(centres), _NARROW) if wall is None else np.asarray(wall, dtype=float)
