@@ -172,7 +172,7 @@ class HoldingConfig:
     yield_margin: float = _p(0.3, "m", "... nearer by at least this", check=">=0")
     crowd_radius: float = _p(1.2, "m", "robots standing within this of our goal ...",
                              check=">=0")
-    crowd_limit: int = _p(2, "-", "... this many, all nearer to it than we are, make a queue: we "
+    crowd_limit: int = _p(1, "-", "... this many, all nearer to it than we are, make a queue: we "
                           "hold as if the goal were taken (0 = never)", check=">=0")
     congestion_distance: float = _p(3.0, "m", "robots standing on this much of the path ahead ...",
                                     check=">=0")

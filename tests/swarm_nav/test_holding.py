@@ -73,7 +73,8 @@ def test_first_come_first_served(robot, mine, first):
     ([robot_at(0.6, 0.3), robot_at(0.5, -0.6)], [0.7, 0.0], False),   # we are second nearest
 ])
 def test_a_goal_that_robots_stand_about_is_a_queue_to_hold_back_from(robots, mine, crowded):
-    assert goal_crowded(robots, mine, [0.0, 0.0], CFG) is crowded
+    two = dataclasses.replace(CFG, crowd_limit=2)
+    assert goal_crowded(robots, mine, [0.0, 0.0], two) is crowded
     off = dataclasses.replace(CFG, crowd_limit=0)
     assert goal_crowded(robots, mine, [0.0, 0.0], off) is False
 
@@ -123,6 +124,13 @@ def test_congestion_at_the_goal_itself_is_the_queue_rule_s_not_this_one():
     assert congested([[0.3, 4.2], [-0.4, 4.4], [0.0, 4.6]], ahead=farther) is True
     assert congested([[0.3, 1.0], [-0.4, 1.8], [0.0, 2.6]],
                      cfg=dataclasses.replace(CFG, congestion_limit=0)) is False
+
+
+def test_by_default_one_robot_standing_at_the_goal_ahead_of_us_is_a_queue():
+    assert CFG.crowd_limit == 1
+    assert goal_crowded([robot_at(0.6, 0.3)], [2.0, 0.0], [0.0, 0.0], CFG) is True
+    assert goal_crowded([robot_at(0.6, 0.3, vx=0.2)], [2.0, 0.0], [0.0, 0.0], CFG) is False
+    assert goal_crowded([robot_at(0.6, 0.3)], [0.4, 0.0], [0.0, 0.0], CFG) is False
 
 
 def test_goal_visibility(costmap):
