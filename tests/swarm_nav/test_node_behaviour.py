@@ -365,10 +365,6 @@ def docked_at_once(sw: Swarm, goal, ticks) -> list[int]:
                 <= XY_TOL for ns in sw.names) for t in ticks]
 
 
-@pytest.mark.xfail(strict=False, reason="failed in 1 of 2 runs after the queue of one and the "
-                   "congestion rule (stop 27: a clean-clone CI run; passed locally), cause not "
-                   "yet read: a robot may dock without HOLDING or the 120 s timeout may be short "
-                   "now that a congested robot holds back 15-30 s")
 def test_four_robots_dock_at_one_workstation_in_turn(swarm):
     sw = swarm(4)
     _, result = dock_in_turn(sw, LOADER3, AWAY, 120)
