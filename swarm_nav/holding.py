@@ -356,7 +356,7 @@ class HoldingPattern:
         the goal: the way to it is congested (:func:`path_congested`), not the goal taken. The
         robot then retries as from any holding spot."""
         self._enter(HoldingPhase.TO_HOLD, now)
-        self._override = np.asarray(xy, dtype=float).reshape(2)
+        self.replace_target(xy)
         self._held_until = now + max(0.0, float(wait))
         self._free_since = None
 
