@@ -246,6 +246,14 @@ class RecoveryConfig:
     wait_duration: float = _p(2.0, "s", "wait time (nav2 Wait: 5 s), stretched by robot_index % 3",
                               check=">=0")
     time_allowance: float = _p(10.0, "s", "a recovery behaviour gives up after this", check=">0")
+    escape_clearance: float = _p(0.15, "m", "a robot stuck after a whole cycle of recoveries "
+                                 "with an obstacle nearer than this escapes (widens its smallest "
+                                 "gap) instead of waiting, until it has this much", check=">=0")
+    escape_padding: float = _p(0.03, "m", "an escape comes no nearer than this to anything "
+                               "(nor nearer than it is)", check=">=0")
+    escape_speed: float = _p(0.08, "m/s", "fastest forward or backward speed of an escape",
+                             check=">0")
+    escape_turn: float = _p(0.6, "rad/s", "fastest turn of an escape", check=">0")
 
 
 @dataclass(frozen=True)

@@ -819,10 +819,15 @@ class NavigatorCore:
         return stuck or not progressing
 
     def _start_recovery(self, pose: np.ndarray, now: float) -> None:
-        rc = self.cfg.recovery
         tc = self.cfg.traffic
         kind = SEQUENCE[self._recovery_next % len(SEQUENCE)]
         self._recovery_next += 1
+        # a knot: packed in among robots, a whole cycle has not freed us; waiting cannot help,
+        # widening our smallest gap can (recovery.escape_command)
+        if (kind == RecoveryKind.WAIT and self._recovery_next > len(SEQUENCE)
+                and self._packed(pose)):
+            self._begin_recovery(RecoveryKind.ESCAPE, pose, now)
+            return
         # a face-to-face deadlock: the robot the rule picks gets out of the way and waits; once a
         # whole cycle of recoveries has not freed the robot, a robot beside or behind it counts
         # too (two robots side by side, heading opposite ways along a wall, each blocked by the
@@ -834,17 +839,27 @@ class NavigatorCore:
             if must_yield(pose[:2], other, tc.yield_axis_angle) and self._begin_yield(
                     pose, other, now):
                 return
+        self._begin_recovery(kind, pose, now)
+        if kind == RecoveryKind.REPLAN:
+            self._replan(pose, overlay=True)
+
+    def _begin_recovery(self, kind: RecoveryKind, pose: np.ndarray, now: float) -> None:
         spin_sign = 1.0
         if self._path is not None:
             tgt = self._path[min(self._idx + _SPIN_LOOKAHEAD, len(self._path) - 1)] - pose[:2]
             spin_sign = 1.0 if wrap_angle(math.atan2(tgt[1], tgt[0]) - pose[2]) >= 0 else -1.0
-        self._recovery = Recovery(kind, pose, now, rc, self.footprint,
+        self._recovery = Recovery(kind, pose, now, self.cfg.recovery, self.footprint,
                                   self.cfg.dwa.footprint_padding, self.cfg.robot_index, spin_sign)
         self._recoveries += 1
         self._state = NavState.RECOVERING
         self._stuck_since = None
-        if kind == RecoveryKind.REPLAN:
-            self._replan(pose, overlay=True)
+
+    def _packed(self, pose: np.ndarray) -> bool:
+        """Whether another robot is nearer to our footprint than ``escape_clearance``."""
+        if not len(self._dyn):
+            return False
+        gap = footprint_gaps(pose[0], pose[1], pose[2], self._dyn, self.footprint)
+        return bool(gap < self.cfg.recovery.escape_clearance)
 
     def _begin_yield(self, pose: np.ndarray, other: np.ndarray, now: float) -> bool:
         """Plan a retreat off the other robot's way; False if there is none."""
@@ -854,7 +869,8 @@ class NavigatorCore:
         path = plan_retreat(cm, pose[:2], other, self.cfg.traffic, self.cfg.planner)
         if path is None:
             return False
-        self._yield = Yield(path[-1].copy(), now, t_phase=now, other=other.copy())
+        self._yield = Yield(path[-1].copy(), now, t_phase=now, other=other.copy(),
+                            start=pose[:2].copy())
         self._set_path(path, to_goal=False)
         self._recoveries += 1
         self._state = NavState.RECOVERING
@@ -887,6 +903,8 @@ class NavigatorCore:
             self._yield = y
         elif step == YieldStep.DONE:
             self._yield = None
+            if y.phase == "drive":  # the retreat could not start: back to the target's path
+                self._replan(pose, overlay=False)
             holding = self._holding is not None and self._holding.phase != HoldingPhase.APPROACH
             self._state = NavState.HOLDING if holding else NavState.DRIVING
             self._progress.reset(pose, now)
@@ -901,7 +919,7 @@ class NavigatorCore:
         if self._state == NavState.RECOVERING:
             holding = self._holding is not None and self._holding.phase != HoldingPhase.APPROACH
             self._state = NavState.HOLDING if holding else NavState.DRIVING
-        if kind == RecoveryKind.BACKUP:
+        if kind in (RecoveryKind.BACKUP, RecoveryKind.ESCAPE):
             self._replan(pose, overlay=False)
 
     # ------------------------------------------------------------------ helpers
