@@ -2,14 +2,17 @@
 
 import dataclasses
 import math
+import pathlib
 
 import numpy as np
 import pytest
 
 from swarm_common.occupancy import OccupancyMap
+from swarm_common.poi import poi_for_world
 from swarm_nav.config import NavigatorConfig
 from swarm_nav.core import NavigatorCore, NavState, NavStatus
 from swarm_nav.costmap import add_keepout, build_costmap
+from swarm_nav.holding import holding_sites_from_poi
 from tests.swarm_nav.helpers import (
     SLIM_BLOCKAGE_WALLS,
     WAFFLE_FOOTPRINT,
@@ -18,6 +21,7 @@ from tests.swarm_nav.helpers import (
     slim_blockage_map,
 )
 
+WORLDS = pathlib.Path(__file__).resolve().parents[2] / "worlds"
 LOADER1 = np.array([-7.74575, -3.57766, math.pi])
 
 
@@ -409,3 +413,41 @@ def test_a_robot_that_sees_a_queue_standing_in_the_corridor_ahead_holds_back_in_
         assert me.pose[1] > 4.8  # did not press on into the queue
     else:
         assert not open_ and core.status.state == NavState.DRIVING
+
+
+# ------------------------------------------------------------------ knots
+KNOT = {  # 100 robots on slim_blockage, seed 0, at 300 s: x, y [m], yaw [deg], goal loader
+    64: (0.87, 6.98, -14, 6), 32: (1.02, 6.74, 150, 6), 43: (1.29, 6.44, 132, 4),
+    34: (1.01, 6.25, 116, 6)}
+
+
+@pytest.mark.parametrize("escape", [0.15, 0.0])
+def test_robots_packed_body_to_body_in_the_open_escape_the_knot(occ, escape):
+    """Found in a 30-minute shift of 100 robots: these four stood body to body (gaps of 5 cm,
+    the DWA's padding) in the open hall from 177 s to the end, cycling nav2's recoveries and
+    yields. No arc of the DWA's horizon keeps the padding, nor do back-up and spin, and a
+    yield that cannot start its retreat only waited where it stood. With the escape
+    (``escape_clearance`` 0.15 m) each robot slides out of the knot and goes its way; without
+    it (0) the knot holds."""
+    poi = poi_for_world(WORLDS / "slim_blockage.world")
+    sites = holding_sites_from_poi(poi)
+    loaders = {int(w.name[6:]): np.asarray(w.pose, dtype=float) for w in poi.workstations}
+    robots = []
+    for i, (x, y, deg, loader) in KNOT.items():
+        cfg = NavigatorConfig()
+        cfg = dataclasses.replace(cfg, robot_index=i, recovery=dataclasses.replace(
+            cfg.recovery, escape_clearance=escape))
+        core = NavigatorCore(cfg, WAFFLE_FOOTPRINT, sites)
+        core.set_map(occ)
+        pose = np.array([x, y, math.radians(deg)])
+        core.step(pose, 0.0, 0.0, 0.0)
+        core.set_goal(loaders[loader], f"g{i}", 0.0)
+        robots.append(SimRobot(core, pose, log=None))
+    res = simulate(robots, SLIM_BLOCKAGE_WALLS, 150.0, until_done=False)
+    assert res["contact_ticks"] == 0 and res["min_separation"] > 0.02
+    left = [float(np.hypot(*(r.pose[:2] - KNOT[i][:2])))
+            for i, r in zip(KNOT, robots, strict=True)]
+    if escape > 0:
+        assert min(left) > 3.0, left  # every one on its way to the corridor, or there
+    else:
+        assert sorted(left)[1] < 0.5, left  # two or more still in the knot

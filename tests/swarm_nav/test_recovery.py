@@ -6,12 +6,13 @@ import numpy as np
 import pytest
 
 from swarm_nav.config import RecoveryConfig
-from swarm_nav.dwa import Footprint
+from swarm_nav.dwa import Footprint, footprint_gaps, point_gaps
 from swarm_nav.recovery import (
     ProgressChecker,
     Recovery,
     RecoveryKind,
     backup_is_safe,
+    escape_command,
     wait_time,
 )
 from tests.swarm_nav.helpers import WAFFLE_FOOTPRINT, unicycle_step
@@ -83,3 +84,48 @@ def test_spin_turns_the_angle_and_stops_when_blocked():
 def test_replan_is_immediate():
     rec = Recovery(RecoveryKind.REPLAN, np.zeros(3), 0.0, CFG, FP, 0.04)
     assert rec.step(np.zeros(3), np.zeros((0, 2)), 0.0) == (0.0, 0.0, True)
+
+
+def _flank(side: float, gap: float, length: float = 0.3) -> np.ndarray:
+    """Points of another robot's flank parallel to FP at pose (0, 0, 0), ``gap`` [m] off its
+    left (side +1) or right (side -1) edge, over the same stretch of x."""
+    y = FP.y_max + gap if side > 0 else FP.y_min - gap
+    return np.column_stack((np.linspace(FP.x_min, FP.x_min + length, 31), np.full(31, y)))
+
+
+def test_escape_slides_out_from_beside_a_robot_and_never_comes_nearer_than_its_padding():
+    """Two robots side by side, 5 cm apart: driving straight keeps the gap, every turn closes
+    it at first. The escape still gets out (the repulsion potential sees the flank shrink), and
+    ends once the gap is escape_clearance."""
+    other = _flank(+1, 0.05)
+    pose = np.array([0.0, 0.0, 0.0])
+    rec = Recovery(RecoveryKind.ESCAPE, pose, 0.0, CFG, FP, 0.05)
+    v = w = 0.0
+    gaps = []
+    for k in range(200):
+        v_cmd, w_cmd, done = rec.step(pose, other, k * 0.1)
+        if done:
+            break
+        pose, v, w = unicycle_step(pose, v, w, v_cmd, w_cmd, 0.1)
+        gaps.append(float(point_gaps(pose, other, FP).min()))
+    else:
+        raise AssertionError("the escape never ended")
+    assert 0.0 < k * 0.1 <= CFG.time_allowance
+    assert min(gaps) >= CFG.escape_padding - 0.005  # (the unicycle's acceleration lag)
+    assert gaps[-1] >= CFG.escape_clearance - 0.01
+
+
+def test_escape_does_nothing_with_room_or_without_a_way_out():
+    pose = np.array([0.0, 0.0, 0.0])
+    assert escape_command(pose, _flank(+1, CFG.escape_clearance + 0.01), FP, CFG) is None
+    assert escape_command(pose, np.zeros((0, 2)), FP, CFG) is None
+    # boxed in 1 cm off every side: no motion keeps escape_padding, so none is offered
+    box = np.vstack([_flank(+1, 0.01, FP.x_max - FP.x_min), _flank(-1, 0.01, FP.x_max - FP.x_min),
+                     np.column_stack((np.full(31, FP.x_min - 0.01), np.linspace(-0.2, 0.2, 31))),
+                     np.column_stack((np.full(31, FP.x_max + 0.01), np.linspace(-0.2, 0.2, 31)))])
+    assert escape_command(pose, box, FP, CFG) is None
+    # robots on both flanks, 5 cm off: the escape drives along them, straight
+    both = np.vstack([_flank(+1, 0.05), _flank(-1, 0.05)])
+    v, w = escape_command(pose, both, FP, CFG)
+    assert abs(v) == CFG.escape_speed and w == 0.0
+    assert float(footprint_gaps(v * 0.5, 0.0, 0.0, both, FP)) >= 0.05 - 1e-9

@@ -179,6 +179,22 @@ def test_yield_drive_ends_when_stuck_or_after_half_the_timeout():
                   _blocked(False, calls))[0] == YieldStep.ARRIVED   # yield_timeout / 2
 
 
+def test_a_yield_whose_retreat_cannot_start_ends_instead_of_waiting_where_it_stands():
+    calls = []
+    y = Yield(np.array([5.0, 0.0]), 0.0, t_phase=0.0, start=np.array([0.0, 0.0]))
+    assert y.step([0.01, 0.0], 1.0, CFG, 2.0, _drive(0.0, 0.0, False, calls),
+                  _blocked(True, calls))[0] == YieldStep.DRIVE
+    assert y.step([0.02, 0.0], 3.0, CFG, 2.0, _drive(0.0, 0.0, False, calls),
+                  _blocked(True, calls)) == (YieldStep.DONE, 0.0, 0.0)  # 2 cm: no retreat
+    assert y.phase == "drive"
+    # one that did get off its spot waits as before
+    y = Yield(np.array([5.0, 0.0]), 0.0, t_phase=0.0, start=np.array([0.0, 0.0]))
+    y.step([0.2, 0.0], 1.0, CFG, 2.0, _drive(0.0, 0.0, False, calls), _blocked(True, calls))
+    assert y.step([0.2, 0.0], 3.0, CFG, 2.0, _drive(0.0, 0.0, False, calls),
+                  _blocked(True, calls))[0] == YieldStep.ARRIVED
+    assert y.phase == "wait"
+
+
 def test_yield_waits_at_least_the_minimum_and_at_most_the_timeout():
     calls = []
     y = Yield(np.array([0.0, 0.0]), 0.0, phase="wait", t_phase=5.0, clear_since=0.0)
