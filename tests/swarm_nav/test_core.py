@@ -309,9 +309,12 @@ def test_a_robot_pinned_parallel_to_a_wall_escapes_it(occ, escape):
     ``footprint_padding`` (the lidar's noise brings some wall points inside it). Every turn swings
     a corner nearer the wall and driving closes in on it, so the DWA refused every motion for
     ever. Its wall escape may come to ``wall_escape_padding`` of the walls: with the default
-    0.02 m it leaves and arrives; with the escape no looser than the padding it stays pinned."""
+    0.02 m it leaves and arrives; with the escape no looser than the padding it stays pinned.
+    (The escape from a knot, which a wall also starts after a whole cycle of recoveries, is off
+    here: this is the wall escape alone.)"""
     cfg = NavigatorConfig()
-    cfg = dataclasses.replace(cfg, dwa=dataclasses.replace(cfg.dwa, wall_escape_padding=escape))
+    cfg = dataclasses.replace(cfg, dwa=dataclasses.replace(cfg.dwa, wall_escape_padding=escape),
+                              recovery=dataclasses.replace(cfg.recovery, escape_clearance=0.0))
     core = NavigatorCore(cfg, WAFFLE_FOOTPRINT)
     core.set_map(occ)
     pose = np.array([-5.4623, 0.7392, math.radians(88.38)])  # the recorded pose
@@ -327,6 +330,34 @@ def test_a_robot_pinned_parallel_to_a_wall_escapes_it(occ, escape):
     else:
         assert core.status.state != NavState.SUCCEEDED
         assert np.hypot(*(r.pose[:2] - [-5.4623, 0.7392])) < 0.1
+
+
+@pytest.mark.parametrize("escape", [0.15, 0.0])
+def test_a_robot_dithering_parallel_to_a_wall_escapes_it(occ, escape):
+    """Found in a 20-robot shift (seed 1, Srobot5 from 951 s, alone for most of it): a robot
+    stopped parallel to the blockage's east wall, 0.046 m from it, inside ``footprint_padding``.
+    The DWA admitted only turns of +-0.02 rad/s, so it dithered on the spot with "ok" commands
+    (the wall escape runs only when the DWA finds no motion) and the recoveries could not move
+    it: it recovered in place for 350 s. After a whole cycle of recoveries a wall within
+    ``escape_clearance`` counts as a knot, and the escape (recovery.escape_command) takes it out
+    of the padding; with ``escape_clearance`` 0 it stays where it is."""
+    cfg = NavigatorConfig()
+    cfg = dataclasses.replace(cfg, robot_index=5, recovery=dataclasses.replace(
+        cfg.recovery, escape_clearance=escape))
+    core = NavigatorCore(cfg, WAFFLE_FOOTPRINT)
+    core.set_map(occ)
+    pose = np.array([-3.5573, -2.5108, 1.7434])  # the recorded pose
+    core.step(pose, 0.0, 0.0, 0.0)
+    r = SimRobot(core, pose, log=[])
+    goal = np.array([-7.74575, 3.20313, math.pi])  # loader4, round the blockage's south end
+    core.set_goal(goal, "g", 0.0)
+    res = simulate([r], SLIM_BLOCKAGE_WALLS, 120.0)
+    assert res["contact_ticks"] == 0 and res["min_wall_gap"] > 0.02
+    if escape:
+        assert_arrived(r, goal)
+    else:
+        assert core.status.state != NavState.SUCCEEDED and core.status.recoveries >= 5
+        assert np.hypot(*(r.pose[:2] - pose[:2])) < 0.5
 
 
 # ------------------------------------------------------------------ obstacles (exact shortcuts)
