@@ -6,8 +6,9 @@
   up, wait, spin) and checks each motion against the scan before commanding it.
 - The rules between robots (keep right, and who yields in a face-to-face deadlock) live in
   :mod:`swarm_nav.traffic`.
-- A robot packed in among others (a knot: every gap to them below ``escape_clearance``) that a
-  whole cycle has not freed escapes instead of waiting (:func:`escape_command`).
+- A robot packed in among others or against a wall (a knot: a robot or a wall within
+  ``escape_clearance`` of its footprint) that a whole cycle has not freed escapes instead of
+  waiting (:func:`escape_command`).
 - The robot's namespace index only staggers the wait time, so that several robots that are stuck
   together do not retry in lockstep.
 """
@@ -67,7 +68,7 @@ class RecoveryKind(StrEnum):
     BACKUP = "backup"
     WAIT = "wait"
     SPIN = "spin"
-    ESCAPE = "escape"  # not nav2's: widen the smallest gap to the robots packed about us
+    ESCAPE = "escape"  # not nav2's: widen the smallest gap to the robots (or wall) packed about us
 
 
 SEQUENCE = (RecoveryKind.REPLAN, RecoveryKind.BACKUP, RecoveryKind.WAIT, RecoveryKind.SPIN)
