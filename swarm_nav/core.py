@@ -22,8 +22,8 @@ rule (:func:`~swarm_nav.traffic.must_yield`) makes one of two robots retreat off
 other's way and wait until its path is clear (:class:`~swarm_nav.traffic.Yield`); otherwise
 nav2's set (replan around the robots seen, back up, wait, spin), cycled, never giving up on a
 reachable goal; after a whole cycle a robot packed in among others or against a wall (a knot)
-escapes in the wait's turn (:func:`~swarm_nav.recovery.escape_command`). The other robots are known only from
-the scan (:mod:`swarm_nav.perception`).
+escapes in the wait's turn (:func:`~swarm_nav.recovery.escape_command`). The other robots are
+known only from the scan (:mod:`swarm_nav.perception`).
 
 Paths are planned on the static costmap plus keep-out discs about the workstations and holding
 points (robots stop there, so paths to elsewhere keep to the lanes).  Plans are made only on a new
