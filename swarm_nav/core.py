@@ -860,8 +860,9 @@ class NavigatorCore:
         """Whether another robot or a wall is nearer to our footprint than ``escape_clearance``.
 
         A wall counts too: a robot stopped parallel to the blockage's wall, 0.046 m from it,
-        dithered between turns of +-0.02 rad/s (the only motions the DWA admitted) and recovered
-        in place for 350 s of a 20-robot shift (seed 1, Srobot5, from 951 s)."""
+        dithered between turns of +-0.017 and +-0.034 rad/s (the only motions the DWA admitted)
+        and stood from 951 s to the end of a 20-robot shift (seed 1, Srobot5: 839 s of
+        standstills)."""
         pts = np.vstack((self._dyn, self._static_near(pose)))
         if not len(pts):
             return False

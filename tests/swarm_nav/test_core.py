@@ -336,11 +336,12 @@ def test_a_robot_pinned_parallel_to_a_wall_escapes_it(occ, escape):
 def test_a_robot_dithering_parallel_to_a_wall_escapes_it(occ, escape):
     """Found in a 20-robot shift (seed 1, Srobot5 from 951 s, alone for most of it): a robot
     stopped parallel to the blockage's east wall, 0.046 m from it, inside ``footprint_padding``.
-    The DWA admitted only turns of +-0.02 rad/s, so it dithered on the spot with "ok" commands
-    (the wall escape runs only when the DWA finds no motion) and the recoveries could not move
-    it: it recovered in place for 350 s. After a whole cycle of recoveries a wall within
-    ``escape_clearance`` counts as a knot, and the escape (recovery.escape_command) takes it out
-    of the padding; with ``escape_clearance`` 0 it stays where it is."""
+    The DWA admitted only turns of +-0.017 and +-0.034 rad/s, so it dithered on the spot with
+    "ok" commands (the wall escape runs only when the DWA finds no motion) and the recoveries
+    could not move it: it stood 849 s, to the end of the shift. After a whole cycle of
+    recoveries a wall within ``escape_clearance`` counts as a knot, and the escape
+    (recovery.escape_command) takes it out of the padding; with ``escape_clearance`` 0 it stays
+    where it is."""
     cfg = NavigatorConfig()
     cfg = dataclasses.replace(cfg, robot_index=5, recovery=dataclasses.replace(
         cfg.recovery, escape_clearance=escape))
