@@ -64,6 +64,10 @@ _CONTEXT_PARAMS = {
                                 "has this many readers (swarm-up: its metrics listener and the "
                                 "commander), so that a restarted navigator's first statuses reach "
                                 "them all"),
+    "wait_for_cmd_vel_readers": (0, "-", "hold the first answer to the simulator until cmd_vel "
+                                 "has this many readers (swarm-up: the simulator, and its "
+                                 "recorder when it records cmd_vel), so that no reader misses "
+                                 "the first commands"),
     "goal_wait_timeout": (0.5, "s", "wall time the first tick after a goal ended may wait for a "
                           "connected commander's next goal; a wait that times out makes the run "
                           "irreproducible and is counted (nav_status goal_wait_timeouts); "
@@ -298,7 +302,8 @@ class NavigatorNode(Node):
           connected, its next goal has arrived, the commander left, or ``goal_wait_timeout`` wall
           seconds passed (counted in ``goal_wait_timeouts``: the run is no longer reproducible);
           with ``wait_for_commander``, the very first answer waits for a commander to connect,
-          and with ``wait_for_status_readers`` for that many readers of ``nav_status``.
+          and with ``wait_for_status_readers`` / ``wait_for_cmd_vel_readers`` for that many
+          readers of ``nav_status`` / ``cmd_vel``.
         """
         odom = self._pending
         if odom is None:
@@ -335,13 +340,17 @@ class NavigatorNode(Node):
 
     def _start_gate_closed(self) -> bool:
         """Whether the first answer must still wait: for a commander to connect
-        (``wait_for_commander``) and for ``wait_for_status_readers`` readers of ``nav_status``,
-        up to ``COMMANDER_WAIT_S`` wall seconds after the start (then warned, and answered).
+        (``wait_for_commander``), for ``wait_for_status_readers`` readers of ``nav_status`` and
+        for ``wait_for_cmd_vel_readers`` readers of ``cmd_vel``, up to ``COMMANDER_WAIT_S`` wall
+        seconds after the start (then warned, and answered).
 
         A navigator restarted mid-run (a kill-nav fault) is a new DDS participant: a reader that
         discovers it only after a goal ended (its latched ``nav_status`` keeps the last status
-        alone) would never see that goal succeed.  The simulator holds the tick until the
-        restarted navigator answers, so the wait costs wall time, not reproducibility.
+        alone) would never see that goal succeed.  Likewise a recorder matched to ``cmd_vel``
+        only after the first answer has lost it (``cmd_vel`` is volatile): 1 tick in 2 of about
+        15 CI runs of ``tests/swarm_up/test_record.py``, the first 8 simulated s of one robot of
+        a 3-robot group run.  The simulator holds the tick until the navigator answers, so the
+        wait costs wall time, not reproducibility.
         """
         waiting = []
         if (self.get_parameter("wait_for_commander").value
@@ -350,6 +359,9 @@ class NavigatorNode(Node):
         readers = int(self.get_parameter("wait_for_status_readers").value)
         if self.status_pub.get_subscription_count() < readers:
             waiting.append(f"{readers} readers of nav_status")
+        readers = int(self.get_parameter("wait_for_cmd_vel_readers").value)
+        if self.cmd_pub.get_subscription_count() < readers:
+            waiting.append(f"{readers} readers of cmd_vel")
         if not waiting:
             return False
         if time.monotonic() - self._started > COMMANDER_WAIT_S:

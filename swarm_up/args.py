@@ -33,8 +33,9 @@ PER_ROBOT = "per-robot"
 # faster at small sizes too (5 robots on 2 cores, --commanders --rtf 0 --duration 300: RTF 7.8
 # and 391 MB per robot per-robot, 14.0 and 135 MB as 2 groups, the same simulated run), but with
 # 3 robots in groups a recording lost one robot's first 8 simulated s of cmd_vel (the recorder
-# matched the group's writers late; the simulator's start gate waits only for its own): per-robot
-# stays the default here until the recorder's gate covers the navigators' topics too.
+# matched the group's writers late; the simulator's start gate waited only for its own).  The
+# navigators' first answer now waits for the recorder (wait_for_cmd_vel_readers); per-robot stays
+# the default here until a bench round measures the switch.
 PER_ROBOT_MAX = 8
 DEFAULT_READY_TIMEOUT_S = 120.0
 RECORD_IN_RUN_DIR = Path("recording.mcap")  # --record without a path: in the run directory

@@ -27,7 +27,7 @@ COMMANDER_GOAL_WAIT_S = 2.5
 # in navigator_params.  tests/swarm_up/test_validate.py holds this list to the node's.
 CONTEXT_KEYS = frozenset({"use_sim_time", "robot", "poi_file", "map_yaml_path", "robot_name",
                           "wait_for_commander", "wait_for_status_readers",
-                          "goal_wait_timeout"})
+                          "wait_for_cmd_vel_readers", "goal_wait_timeout"})
 
 
 class RunError(Exception):
@@ -154,6 +154,7 @@ def navigator_params(template: dict, ns: str, index: int, cfg: RunConfig,
     from swarm_common.robot_model import load_robot
 
     name = cfg.models[index - 1]
+    recorded = _recorded_robot_topics(cfg, ns)
     params = dict(template)
     params.update(robot_params(template, model if model is not None else load_robot(name)))
     params.update(
@@ -168,14 +169,28 @@ def navigator_params(template: dict, ns: str, index: int, cfg: RunConfig,
         # With commanders, simulated time starts once each robot's commander is connected, and
         # each goal takes effect at a fixed tick: the same seed gives the same run.
         wait_for_commander=bool(cfg.commanders),
-        # swarm-up's metrics listener, and the commander, must hear every status: a navigator
-        # restarted by a fault waits for them before its first answer
-        wait_for_status_readers=1 + int(bool(cfg.commanders)),
+        # swarm-up's metrics listener, the commander and the recorder must hear every status,
+        # and the simulator and the recorder every command: the first answer (also of a
+        # navigator restarted by a fault) waits for them
+        wait_for_status_readers=1 + int(bool(cfg.commanders)) + int("nav_status" in recorded),
+        wait_for_cmd_vel_readers=1 + int("cmd_vel" in recorded),
         # Our commanders answer every ended goal at once; a loaded machine may delay that answer
         # by seconds of wall time, and a wait that times out would make the run irreproducible.
         goal_wait_timeout=COMMANDER_GOAL_WAIT_S if cfg.commanders else 0.5,
     )
     return {f"/{ns}/navigator": {"ros__parameters": params}}
+
+
+def _recorded_robot_topics(cfg: RunConfig, ns: str) -> frozenset[str]:
+    """The topics of robot ``ns`` that ``--record`` / ``--record-topics`` record, by suffix
+    (``cmd_vel``, ``nav_status``, ...); empty without ``--record``."""
+    if cfg.record_path is None:
+        return frozenset()
+    from swarm_up.recording import recorded_topics, select_topics
+
+    return frozenset(t.name.rsplit("/", 1)[-1]
+                     for t in select_topics(recorded_topics((ns,)), cfg.record_topics)
+                     if t.robot == ns)
 
 
 def write_params_files(cfg: RunConfig, template: dict) -> list[Path]:

@@ -40,7 +40,8 @@ LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
 class Probe:
     """The simulator and the commander of one robot ``/hs``, at (0, 0) facing +x."""
 
-    def __init__(self, goal_wait_timeout: float, status_readers: int = 0):
+    def __init__(self, goal_wait_timeout: float, status_readers: int = 0,
+                 cmd_vel_readers: int = 0):
         self.ctx = rclpy.Context()
         rclpy.init(context=self.ctx)
         self.executor = SingleThreadedExecutor(context=self.ctx)
@@ -50,6 +51,7 @@ class Probe:
                 Parameter("map_yaml_path", value=str(ROOT / "maps" / "empty.yaml")),
                 Parameter("goal_wait_timeout", value=goal_wait_timeout),
                 Parameter("wait_for_status_readers", value=status_readers),
+                Parameter("wait_for_cmd_vel_readers", value=cmd_vel_readers),
             ])
         self.node = rclpy.create_node("probe", context=self.ctx)
         self.answers: dict[int, tuple[float, float]] = {}  # tick [ns] -> (v, w)
@@ -165,6 +167,27 @@ def test_the_first_answer_waits_for_the_readers_of_nav_status(probe):
         probe.tick(t0)  # the held tick again, as the simulator re-publishes it
         probe.silent_for(t0, 0.5)
     assert t0 in probe.answers, "the first tick stayed unanswered with both readers there"
+
+
+@pytest.mark.parametrize("probe", [(5.0, 0, 2)], indirect=True)
+def test_the_first_answer_waits_for_the_readers_of_cmd_vel(probe):
+    """``wait_for_cmd_vel_readers`` (swarm-up: the simulator, and the recorder when it records
+    ``cmd_vel``): the first tick is answered only once ``cmd_vel`` has that many readers, so that
+    a recorder matched late does not miss the first commands (``cmd_vel`` is volatile)."""
+    t0 = 10 * TICK_NS
+    probe.tick(t0)
+    assert probe.silent_for(t0, 1.5), "answered with one reader of cmd_vel of two required"
+    late: list[int] = []
+    probe.node.create_subscription(
+        TwistStamped, "/hs/cmd_vel",
+        lambda msg: late.append(msg.header.stamp.sec * NS_PER_S + msg.header.stamp.nanosec),
+        RELIABLE)
+    deadline = time.monotonic() + 10.0
+    while t0 not in probe.answers and time.monotonic() < deadline:
+        probe.tick(t0)  # the held tick again, as the simulator re-publishes it
+        probe.silent_for(t0, 0.5)
+    assert t0 in probe.answers, "the first tick stayed unanswered with both readers there"
+    spin_until(probe.executor, lambda: t0 in late, 5.0, "the first answer at the late reader")
 
 
 @pytest.mark.parametrize("probe", [0.3], indirect=True)

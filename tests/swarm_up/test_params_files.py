@@ -75,6 +75,7 @@ def test_one_file_per_namespace_rooted_at_ns_navigator(cfg, template):
         assert params["robot"] == "turtlebot3_waffle"
         assert params["wait_for_commander"] is True and params["goal_wait_timeout"] == 2.5
         assert params["wait_for_status_readers"] == 2  # the metrics listener and the commander
+        assert params["wait_for_cmd_vel_readers"] == 1  # the simulator
 
 
 def test_without_commanders_no_start_gate_and_the_short_goal_wait(cfg, template):
@@ -84,6 +85,23 @@ def test_without_commanders_no_start_gate_and_the_short_goal_wait(cfg, template)
                             .read_text())["/Srobot1/navigator"]["ros__parameters"]
     assert params["wait_for_commander"] is False and params["goal_wait_timeout"] == 0.5
     assert params["wait_for_status_readers"] == 1  # the metrics listener
+
+
+@pytest.mark.parametrize(("topics", "status_readers", "cmd_vel_readers"), [
+    (None, 3, 2),  # every topic: the recorder reads both
+    ("cmd_vel", 2, 2),
+    ("nav_status|clock", 3, 1),
+    ("ground_truth", 2, 1),
+])
+def test_a_recording_adds_the_recorder_to_the_readers_the_first_answer_waits_for(
+        cfg, template, tmp_path, topics, status_readers, cmd_vel_readers):
+    """The recorder must not miss a robot's first commands or statuses: the first answer waits
+    for it too, on the topics that ``--record-topics`` records."""
+    cfg = replace(cfg, record_path=tmp_path / "run.mcap", record_topics=topics)
+    for path in write_params_files(cfg, template):
+        params = next(iter(yaml.safe_load(path.read_text()).values()))["ros__parameters"]
+        assert params["wait_for_status_readers"] == status_readers, path.name
+        assert params["wait_for_cmd_vel_readers"] == cmd_vel_readers, path.name
 
 
 def test_missing_poi_and_map_give_empty_strings(cfg, template):
