@@ -219,6 +219,7 @@ class NavigatorCore:
         self._stuck_since: float | None = None
         self._blocked_since: float | None = None
         self._crowded_since: float | None = None
+        self._elsewhere = self._avoid  # the other workstations and spots (set per goal)
         self._occupied_since: float | None = None
         self._congestion_judged = -math.inf  # the scan time of the last congestion judgement
         self._scan = np.zeros((0, 2))
@@ -446,8 +447,19 @@ class NavigatorCore:
         points, loop = holding_points_for(self._goal, self.holding_sites, res.path,
                                           self.cfg.holding)
         self._holding = HoldingPattern(points, loop, self.cfg.holding)
+        self._elsewhere = self._other_sites(self._goal[:2])
         self._state = NavState.DRIVING
         self._progress.reset(pose, now)
+
+    def _other_sites(self, goal_xy: np.ndarray) -> np.ndarray:
+        """(J, 2) x, y [m] of the workstations and holding points that are not the goal's own
+        (its workstation within ``workstation_match_radius``, as :func:`holding_points_for`)."""
+        d = [float(np.hypot(*(p[:2] - goal_xy))) for p, _ in self.holding_sites]
+        match = self.cfg.holding.workstation_match_radius
+        own = int(np.argmin(d)) if d and min(d) <= match else -1
+        pts = [np.vstack((p[None, :2], h)) for i, (p, h) in enumerate(self.holding_sites)
+               if i != own]
+        return np.vstack(pts) if pts else np.zeros((0, 2))
 
     def _plan(self, start, target, overlay: bool) -> PlanResult:
         cm = self._plan_cm
@@ -543,7 +555,8 @@ class NavigatorCore:
         if fresh and goal_visible(self.costmap, pose[:2], goal, self.cfg.holding):
             occupied = goal_occupied(self._robots, goal, self.cfg.holding)
             first = (someone_came_first(self._robots, pose[:2], goal, self.cfg.holding)
-                     or goal_crowded(self._robots, pose[:2], goal, self.cfg.holding))
+                     or goal_crowded(self._robots, pose[:2], goal, self.cfg.holding,
+                                     self._elsewhere))
         if self._occupant_stays(occupied, goal, now):
             timeout = self.cfg.holding.occupied_timeout
             self._end(NavState.ABORTED, now, f"goal occupied by a robot that has not moved for "

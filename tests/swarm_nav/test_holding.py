@@ -133,6 +133,17 @@ def test_by_default_one_robot_standing_at_the_goal_ahead_of_us_is_a_queue():
     assert goal_crowded([robot_at(0.6, 0.3)], [0.4, 0.0], [0.0, 0.0], CFG) is False
 
 
+def test_a_robot_on_another_workstations_spot_is_no_queue_for_this_goal():
+    """Robots standing on another workstation or its holding spot (``elsewhere``) wait for that
+    one; only within ``holding_arrive_tolerance`` of such a point are they left out."""
+    spot = np.array([[0.0, 1.1]])  # the next workstation's holding spot, 1.1 m from our goal
+    assert goal_crowded([robot_at(0.0, 1.1)], [0.0, -1.2], [0.0, 0.0], CFG) is True
+    assert goal_crowded([robot_at(0.0, 1.1)], [0.0, -1.2], [0.0, 0.0], CFG, spot) is False
+    assert goal_crowded([robot_at(0.3, 0.8)], [0.0, -1.2], [0.0, 0.0], CFG, spot) is True
+    assert goal_crowded([robot_at(0.0, 1.1), robot_at(0.6, 0.3)], [2.0, 0.0], [0.0, 0.0],
+                        CFG, spot) is True  # the other one still queues
+
+
 def test_goal_visibility(costmap):
     loader1 = [-7.74575, -3.57766]
     assert goal_visible(costmap, [-6.0, -3.5], loader1, CFG)
