@@ -172,8 +172,10 @@ class HoldingConfig:
     yield_margin: float = _p(0.3, "m", "... nearer by at least this", check=">=0")
     crowd_radius: float = _p(1.2, "m", "robots standing within this of our goal ...",
                              check=">=0")
-    crowd_limit: int = _p(1, "-", "... this many, all nearer to it than we are, make a queue: we "
-                          "hold as if the goal were taken (0 = never)", check=">=0")
+    crowd_limit: int = _p(1, "-", "... this many, all nearer to it than we are and not on another "
+                          "workstation or its holding points (within holding_arrive_tolerance), "
+                          "make a queue: we hold as if the goal were taken (0 = never)",
+                          check=">=0")
     congestion_distance: float = _p(3.0, "m", "robots standing on this much of the path ahead ...",
                                     check=">=0")
     congestion_radius: float = _p(0.7, "m", "... centred within this of it, in a narrow place "

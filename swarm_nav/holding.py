@@ -8,7 +8,8 @@ that see each other: a robot yields when it sees another robot within ``yield_ra
 nearer to it by ``yield_margin`` and driving toward it (that one came first). A robot that merely
 stands or passes near the goal is no reason to yield, so two robots that swap places do not wait
 for each other. A queue is a reason: ``crowd_limit`` robots standing near the goal, all nearer
-to it than we are (:func:`goal_crowded`), and we hold as if it were taken. So is a queue on the
+to it than we are and not waiting on another workstation or its holding spot
+(:func:`goal_crowded`), and we hold as if it were taken. So is a queue on the
 way there: ``congestion_limit`` robots standing on the path ahead in a narrow place
 (:func:`path_congested`); we hold back at a staging point in the open for ``congestion_wait``
 (:meth:`HoldingPattern.hold_back`), then try again.
@@ -138,8 +139,8 @@ def goal_crowded(robots: Sequence[SeenRobot], robot_xy, goal_xy, cfg: HoldingCon
     is 1.10-1.18 m from loader k (within ``crowd_radius``) for k = 1, 2, 3, and for loader3
     nearer than loader3's own spot (1.115 m against 1.179 m), so whenever a robot waited for
     loader4 the robot waiting for loader3 held on. At 100 robots, where a spot is rarely
-    empty, 16 robots completed no task in 30 minutes, every one of them sent to loader1, 2 or
-    3 (stop 30).
+    empty, 16 robots completed no task in 30 minutes, 15 of them sent first to loader1, 2 or
+    3; 12 with ``elsewhere`` left out (README, "Long shifts").
 
     Args:
         robots: the robots seen (:func:`~swarm_nav.perception.perceive_robots`).
