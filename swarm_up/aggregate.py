@@ -47,6 +47,10 @@ Definitions (``docs/ARCHITECTURE.md``, ``/<ns>/nav_status``):
   ``task_window_ratio_min`` is the fewest tasks of a whole window after the first, over the mean
   of those windows (issue 9's steadiness check: >= 0.85 means no jam built up; None with fewer
   than one whole window after the first).
+- *tasks per robot* (``tasks_per_robot``): the spread of the tasks over the robots: ``min``,
+  ``median`` and ``max`` of each robot's tasks, and ``without_task``, how many robots completed
+  none (issue 9: every robot must complete tasks; a swarm can be steady while some of its
+  robots starve). None with no robot.
 - *workstations* (``workstations``): one row per workstation of the world's points of interest,
   in file order, for the goals whose pose (``goal_x``, ``goal_y`` of ``nav_status``) lies within
   ``WORKSTATION_MATCH_M`` (0.5 m) of its docking pose: ``goals`` sent there, ``visits`` (goals
@@ -87,6 +91,7 @@ Definitions (``docs/ARCHITECTURE.md``, ``/<ns>/nav_status``):
 from __future__ import annotations
 
 import math
+import statistics
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -466,6 +471,22 @@ def tasks_per_window(times_s: list[float], sim_time_s: float | None,
     }
 
 
+def tasks_per_robot(counts: list[int]) -> dict | None:
+    """The spread of the tasks over the robots (see *tasks per robot*).
+
+    Args:
+        counts: each robot's tasks completed.
+
+    Returns:
+        ``{"min", "median", "max", "without_task"}`` (the median of an even count is the mean of
+        the middle two), or None when ``counts`` is empty.
+    """
+    if not counts:
+        return None
+    return {"min": min(counts), "median": statistics.median(counts), "max": max(counts),
+            "without_task": sum(1 for c in counts if c == 0)}
+
+
 def workstation_table(recorder: RunRecorder, workstations: Mapping[str, tuple[float, float]],
                       match_m: float = WORKSTATION_MATCH_M) -> list[dict]:
     """Goals, visits and waiting per workstation (see *workstations*).
@@ -758,6 +779,7 @@ def aggregate(
         "time_to_task_p95_s": _percentile(durations, 95.0),
         "task_times_s": [round(t, 3) for t, _, _ in tasks],
         **tasks_per_window([t for t, _, _ in tasks], sim_time),
+        "tasks_per_robot": tasks_per_robot([per_robot[ns]["tasks"] for ns in robots]),
         "workstations": workstation_table(recorder, workstations or {}),
         "standstills": standstills,
         "standstill_s": round(sum(_float(e.get("duration_s")) or 0.0 for e in standstills), 3),

@@ -89,6 +89,14 @@ def _windows(metrics: dict) -> str:
     return " / ".join(counts) + (f" (min/mean {ratio:.2f})" if ratio is not None else "")
 
 
+def _per_robot(spread: dict) -> str:
+    """``0 / 5 / 19 (min / median / max), 12 robots without a task``."""
+    out = (f"{_fmt(spread.get('min'))} / {_fmt(spread.get('median'), digits=1)} / "
+           f"{_fmt(spread.get('max'))} (min / median / max)")
+    idle = spread.get("without_task") or 0
+    return out + (f", {idle} robot{'s' if idle != 1 else ''} without a task" if idle else "")
+
+
 def _standstills(episodes: list[dict]) -> str:
     """``5 times (3 robots), 610 s; near loader2 3, (elsewhere) 2``."""
     robots = {e.get("robot") for e in episodes}
@@ -156,6 +164,8 @@ def print_summary(metrics: dict, metrics_files: list[Path]) -> None:
         ("throughput", _fmt(metrics.get("throughput_per_hour"), "tasks/h", 1)),
         *([(f"tasks per {_fmt(metrics.get('task_window_s'), '', 0)} s window",
             _windows(metrics))] if metrics.get("tasks_per_window") else []),
+        *([("tasks per robot", _per_robot(metrics["tasks_per_robot"]))]
+          if metrics.get("tasks_per_robot") else []),
         ("goals reached / aborted",
          f"{_fmt(metrics.get('goals_reached'))} / {_fmt(metrics.get('goals_aborted'))}"),
         ("collisions robot-robot / wall",

@@ -340,6 +340,17 @@ def test_tasks_per_window(times, sim_time, counts, full, ratio):
     assert out["task_window_ratio_min"] == (pytest.approx(ratio) if ratio is not None else None)
 
 
+@pytest.mark.parametrize("counts, spread", [
+    ([3, 0, 7, 0, 5], {"min": 0, "median": 3, "max": 7, "without_task": 2}),
+    ([4, 6], {"min": 4, "median": 5.0, "max": 6, "without_task": 0}),
+    ([], None),
+])
+def test_tasks_per_robot(counts, spread):
+    from swarm_up.aggregate import tasks_per_robot
+
+    assert tasks_per_robot(counts) == spread
+
+
 def _goal(state, goal, x, y, nav_t=None, hold=None):
     values = _status(state, goal, nav_t, hold)
     values.update(goal_x=f"{x:.3f}", goal_y=f"{y:.3f}", goal_yaw="0.0000")
@@ -388,6 +399,7 @@ def test_metrics_carry_windows_and_the_workstation_table():
                   seed=0, coordination="decentralized", wall_time_s=1.0,
                   workstations={"ws": (1.0, 1.0)})
     assert m["tasks_per_window"] == [1, 0, 0] and m["task_windows_full"] == 2
+    assert m["tasks_per_robot"] == {"min": 1, "median": 1, "max": 1, "without_task": 0}
     assert m["workstations"][0]["name"] == "ws" and m["workstations"][0]["visits"] == 1
     json.dumps(m)  # the metrics file stays JSON
     m0 = aggregate(rec, SimSummary(), world="w", seed=0, coordination="decentralized",

@@ -44,6 +44,20 @@ def test_summary_says_where_robots_stood_still(capsys, monkeypatch):
     assert "3 times (2 robots), 436 s; near loader1 2, (elsewhere) 1" in out
 
 
+def test_summary_says_how_the_tasks_spread_over_the_robots(capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "200")  # one table row on one line
+    print_summary({"robots": 100, "tasks_per_robot": {"min": 0, "median": 5.5, "max": 19,
+                                                      "without_task": 12}}, [])
+    out = capsys.readouterr().out
+    assert "0 / 5.5 / 19 (min / median / max), 12 robots without a task" in out
+    print_summary({"robots": 2, "tasks_per_robot": {"min": 3, "median": 4.0, "max": 5,
+                                                    "without_task": 0}}, [])
+    out = capsys.readouterr().out
+    assert "3 / 4.0 / 5 (min / median / max)" in out and "without a task" not in out
+    print_summary({"robots": 2}, [])
+    assert "tasks per robot" not in capsys.readouterr().out
+
+
 def test_summary_says_the_fleets_mix(capsys, monkeypatch):
     monkeypatch.setenv("COLUMNS", "200")  # one table row on one line
     print_summary({"robots": 20, "fleet": {"turtlebot3_waffle": 12, "turtlebot3_burger": 4,
