@@ -275,7 +275,9 @@ def run_figures(record: dict, warmup_s: float) -> dict | None:
 
     Returns:
         ``throughput`` [tasks/h after the warm-up], ``ttt_mean``/``ttt_p95`` [s],
-        ``holding_per_robot`` [s], ``collisions``, ``late_ticks``, ``cpu_per_robot_ms``
+        ``holding_per_robot`` [s], ``idle_robots`` (robots that completed no task) and
+        ``min_tasks`` (the fewest tasks of a robot), ``collisions``, ``late_ticks``,
+        ``cpu_per_robot_ms``
         [ms per simulated s], ``comm_msgs``/``comm_bytes`` [per simulated s, total],
         ``coord_msgs``/``coord_bytes`` (without the map), ``comm_bytes_per_robot``, ``rtf``,
         ``tasks``, ``reproducible``, ``reservation_conflicts``, ``task_times``.
@@ -294,11 +296,14 @@ def run_figures(record: dict, warmup_s: float) -> dict | None:
     coord = [v for k, v in by_topic.items() if k != "map"]
     holding = (m.get("holding_time_s") or 0.0) + (m.get("coordinator_wait_s") or 0.0)
     cpu = record.get("cpu_per_robot")
+    spread = m.get("tasks_per_robot") or {}
     return {
         "throughput": thr,
         "ttt_mean": m.get("time_to_task_mean_s"),
         "ttt_p95": m.get("time_to_task_p95_s"),
         "holding_per_robot": holding / n,
+        "idle_robots": spread.get("without_task"),
+        "min_tasks": spread.get("min"),
         "collisions": (col.get("robot_robot") or 0) + (col.get("robot_wall") or 0),
         "late_ticks": m.get("late_ticks"),
         "cpu_per_robot_ms": cpu * 1000.0 if cpu is not None else None,
@@ -322,6 +327,8 @@ MEASURES = (
     ("ttt_mean", "time to task, mean [s]", 1),
     ("ttt_p95", "time to task, 95th percentile [s]", 1),
     ("holding_per_robot", "holding + waiting per robot [s]", 1),
+    ("idle_robots", "robots without a task", 1),
+    ("min_tasks", "tasks of the robot with the fewest", 1),
     ("collisions", "collisions (robot-robot + wall)", 1),
     ("late_ticks", "late ticks", 1),
     ("cpu_per_robot_ms", "CPU per robot [ms per sim s]", 1),

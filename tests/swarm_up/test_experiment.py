@@ -47,6 +47,7 @@ def test_run_figures_of_a_record():
          "coordinator_wait_s": 12.0, "collisions": {"robot_robot": 1, "robot_wall": 0},
          "late_ticks": 0, "rtf": 5.0, "tasks_completed": 4, "reproducible": True,
          "reservation_conflicts": 0,
+         "tasks_per_robot": {"min": 0, "median": 1.0, "max": 2, "without_task": 1},
          "comm": {"messages_per_s": 0.5, "bytes_per_s": 1000.0,
                   "by_topic": {"map": {"messages": 4, "bytes": 240000},
                                "request": {"messages": 30, "bytes": 6000},
@@ -54,6 +55,7 @@ def test_run_figures_of_a_record():
     f = run_figures({"exit_code": 0, "metrics": m, "cpu_per_robot": 0.02}, warmup_s=120.0)
     assert f["throughput"] == pytest.approx(3 / (180 / 3600))  # 3 tasks after 120 s
     assert f["holding_per_robot"] == pytest.approx(5.0)
+    assert (f["idle_robots"], f["min_tasks"]) == (1, 0)
     assert f["collisions"] == 1 and f["cpu_per_robot_ms"] == pytest.approx(20.0)
     assert f["coord_msgs"] == pytest.approx(90 / 300) and f["coord_bytes"] == 60.0
     assert f["comm_bytes_per_robot"] == 250.0
