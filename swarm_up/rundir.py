@@ -32,11 +32,12 @@ CONTEXT_KEYS = frozenset({"use_sim_time", "robot", "poi_file", "map_yaml_path", 
 
 # Navigator parameters swarm-up sets under --coordination centralized, whatever the template says:
 # the coordinator queues the robots (first come, first served, at its waiting spots), so the
-# navigator's own queue rules must not queue them a second time. With them, a robot sent to its
-# reserved, free workstation held back because the robot the coordinator had parked on that
-# workstation's holding spot stood nearer to it (the queue rule), or because robots parked in the
-# corridor stood on its way (the congestion rule): 10 robots, 300 s, seed 0 completed 29 tasks
-# with 4 standstills of 60 s or more; without them 53 and none (52-55 before the rules existed).
+# navigator's own queue rules must not queue them a second time. With them, robots held back from
+# the free workstations reserved for them (the queue rule takes the robot the coordinator parks
+# on a workstation's holding spot, nearer to it, for a queue; robots parked in the corridor can
+# make the way "congested"; which rule cost how much was not separated): 10 robots, 300 s, seed
+# 0 completed 29 tasks with 4 standstills of 60 s or more; without them 53 and none (55 at
+# 8bb897c, before the rules).
 CENTRALIZED_OVERRIDES = {"crowd_limit": 0, "congestion_limit": 0}
 
 
