@@ -62,6 +62,7 @@ from swarm_nav.holding import (
     HoldingSite,
     goal_crowded,
     goal_occupied,
+    goal_site,
     goal_visible,
     holding_points_for,
     path_congested,
@@ -453,10 +454,8 @@ class NavigatorCore:
 
     def _other_sites(self, goal_xy: np.ndarray) -> np.ndarray:
         """(J, 2) x, y [m] of the workstations and holding points that are not the goal's own
-        (its workstation within ``workstation_match_radius``, as :func:`holding_points_for`)."""
-        d = [float(np.hypot(*(p[:2] - goal_xy))) for p, _ in self.holding_sites]
-        match = self.cfg.holding.workstation_match_radius
-        own = int(np.argmin(d)) if d and min(d) <= match else -1
+        (its workstation: :func:`~swarm_nav.holding.goal_site`)."""
+        own = goal_site(goal_xy, self.holding_sites, self.cfg.holding)
         pts = [np.vstack((p[None, :2], h)) for i, (p, h) in enumerate(self.holding_sites)
                if i != own]
         return np.vstack(pts) if pts else np.zeros((0, 2))

@@ -237,6 +237,30 @@ def goal_visible(costmap: Costmap, robot_xy, goal_xy, cfg: HoldingConfig) -> boo
     return segment_max_cost(costmap, robot_xy, goal_xy) < LETHAL
 
 
+def goal_site(goal, sites: Sequence[HoldingSite], cfg: HoldingConfig,
+              with_points: bool = False) -> int | None:
+    """The index of the goal's own workstation: the nearest site within
+    ``workstation_match_radius`` of the goal.
+
+    Args:
+        goal: (2,) or (3,) the goal in ``map`` [m, rad].
+        sites: the workstations' holding data, each (pose (3,), points (K, 2)) in ``map``.
+        cfg: ``workstation_match_radius`` [m].
+        with_points: only sites that have holding points count.
+
+    Returns:
+        The index into ``sites``, or None when no (such) site is that near.
+    """
+    g = np.asarray(goal, dtype=float).ravel()[:2]
+    best, best_d = None, math.inf
+    for i, (pose, pts) in enumerate(sites):
+        d = float(np.hypot(*(np.asarray(pose, dtype=float)[:2] - g)))
+        if (d <= cfg.workstation_match_radius and d < best_d
+                and (not with_points or np.asarray(pts).size > 0)):
+            best, best_d = i, d
+    return best
+
+
 def holding_points_for(goal, sites: Sequence[HoldingSite], path: Path2D | None,
                        cfg: HoldingConfig) -> tuple[np.ndarray, bool]:
     """Where a robot holds while its goal is taken.
@@ -254,13 +278,9 @@ def holding_points_for(goal, sites: Sequence[HoldingSite], path: Path2D | None,
         itself without a path).
     """
     g = np.asarray(goal, dtype=float).ravel()[:2]
-    best, best_d = None, math.inf
-    for pose, pts in sites:
-        d = float(np.hypot(*(np.asarray(pose, dtype=float)[:2] - g)))
-        pts = np.asarray(pts, dtype=float).reshape(-1, 2)
-        if d <= cfg.workstation_match_radius and d < best_d and len(pts) > 0:
-            best, best_d = pts, d
-    if best is not None:
+    i = goal_site(g, sites, cfg, with_points=True)
+    if i is not None:
+        best = np.asarray(sites[i][1], dtype=float).reshape(-1, 2)
         return best.copy(), len(best) >= 2
     if path is None or len(path) < 2:
         return g[None, :].copy(), False

@@ -13,6 +13,7 @@ from swarm_nav.holding import (
     HoldingPhase,
     goal_crowded,
     goal_occupied,
+    goal_site,
     goal_visible,
     holding_points_for,
     holding_sites_from_poi,
@@ -163,6 +164,17 @@ def test_holding_points_for_a_workstation_and_for_any_goal():
     assert not loop and pts[0] == pytest.approx([3.0 - CFG.holding_distance, 0.0])
     pts, _ = holding_points_for([1.0, 0.0], sites, path[:11], CFG)   # path shorter: its start
     assert pts[0] == pytest.approx([0.0, 0.0])
+
+
+def test_goal_site_is_the_nearest_workstation_within_the_match_radius():
+    sites = [(np.array([0.0, 0.0, 0.0]), np.zeros((0, 2))),          # no holding points
+             (np.array([0.25, 0.0, 0.0]), np.array([[1.0, 1.0]])),
+             (np.array([5.0, 5.0, 0.0]), np.array([[4.0, 4.0]]))]
+    assert goal_site([0.05, 0.0], sites, CFG) == 0
+    assert goal_site([0.05, 0.0], sites, CFG, with_points=True) == 1  # 0.2 m, within 0.3 m
+    assert goal_site([5.1, 5.0, 1.0], sites, CFG) == 2
+    assert goal_site([2.5, 2.5], sites, CFG) is None
+    assert CFG.workstation_match_radius == pytest.approx(0.3)
 
 
 # ---------------------------------------------------------------- the state machine
