@@ -188,6 +188,8 @@ class RunRecorder:
     period_s: float = 0.1  # [s] the control tick (late goals)
     reservation_events: list[dict[str, str]] = field(default_factory=list)
     coordinator_epochs: set[str] = field(default_factory=set)  # one per coordinator start
+    # epochs whose "up" event came: that coordinator has synced and answers requests
+    coordinator_serving: set[str] = field(default_factory=set)
     comm_by_topic: dict[str, list[int]] = field(default_factory=dict)  # topic -> [msgs, bytes]
     map_bytes: int | None = None  # serialized size of the latest /map
     comm_resent: int = 0  # byte-identical copies of requests and assignments (re-sends)
@@ -300,7 +302,9 @@ class RunRecorder:
                 rec.tasks.append((t / NS_PER_S, (t - start) / NS_PER_S,
                                   values.get("workstation", "")))
         elif kind == EVENT_COORDINATOR:
-            self.on_coordinator_up(values.get("epoch", ""))
+            epoch = values.get("epoch", "")
+            self.on_coordinator_up(epoch)
+            self.coordinator_serving.add(epoch)
 
     def on_coordinator_up(self, epoch: str) -> None:
         """A coordinator started with this epoch: heard as its "up" event on ``/swarm/events``

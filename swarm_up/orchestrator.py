@@ -107,7 +107,8 @@ class Orchestrator:
 
             self._acks = AckPublisher()
             per_robot = self.cfg.robots if self.cfg.groups is None else ()
-            self.faults = ProcessFaults(self.sup, per_robot, self._acks, say)
+            self.faults = ProcessFaults(self.sup, per_robot, self._acks, say,
+                                        serving=self._coordinators_serving)
         if self.live is not None:
             url = self.live.start()
             if url is not None:
@@ -178,6 +179,12 @@ class Orchestrator:
             new, self._faults_seen = log[self._faults_seen:], len(log)
         for ev in new:
             self.faults.handle(ev)
+        self.faults.poll()
+
+    def _coordinators_serving(self) -> frozenset[str]:
+        """The epochs of the coordinators that announced themselves serving so far."""
+        with self.listener.lock:
+            return frozenset(self.listener.recorder.coordinator_serving)
 
     def _report_progress(self, every_s: float = 10.0) -> None:
         """One line every ``every_s`` wall seconds: simulated time, RTF, goals, collisions."""

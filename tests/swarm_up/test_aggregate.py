@@ -312,6 +312,7 @@ def test_coordinator_starts_count_each_epoch_once_from_either_source():
     assert rec.coordinator_starts == 1
     rec.on_coordinator_up("b")  # a restart whose "up" event went unheard
     assert rec.coordinator_starts == 2
+    assert rec.coordinator_serving == {"a"}  # only the event says it answers requests
     m = aggregate(rec, SimSummary(), world="w", seed=0, coordination="centralized",
                   wall_time_s=1.0, map_deliveries={})
     assert m["coordinator_starts"] == 2

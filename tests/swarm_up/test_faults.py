@@ -101,6 +101,34 @@ def test_process_faults_kill_and_restart_the_coordinator(sup, tmp_path):
     assert "killed the coordinator at t = 60 s" in lines[0] and "restarted at t = 70 s" in lines[0]
 
 
+def test_a_restarted_coordinator_is_acknowledged_once_it_serves(sup, tmp_path):
+    """With ``serving`` the end of the outage is acknowledged only when a new epoch announced
+    itself (the simulator holds that tick through the coordinator's start-up), or after
+    ``serving_timeout``."""
+    sup.start(_spec(tmp_path, "coordinator"))
+    serving = {"old"}
+    acks, lines = [], []
+    pf = ProcessFaults(sup, (), acks.append, lines.append, serving=lambda: frozenset(serving))
+    pf.handle(_ev(1, "kill-coordinator", "start", duration=10.0))
+    pf.handle(_ev(1, "kill-coordinator", "end", t=70.0, duration=10.0))
+    assert sup.alive("coordinator")
+    pf.poll()
+    assert acks == [FaultAck(1, "start", "swarm-up")]  # started, not serving yet
+    serving.add("new")
+    pf.poll()
+    pf.poll()  # acknowledged once
+    assert acks == [FaultAck(1, "start", "swarm-up"), FaultAck(1, "end", "swarm-up")]
+    assert "serves (epoch new)" in lines[-1] and "t = 70 s" in lines[-1]
+    # a coordinator that never announces itself is acknowledged after the timeout
+    pf.serving_timeout = 0.0
+    pf.handle(_ev(2, "kill-coordinator", "start", t=80.0, duration=5.0))
+    pf.handle(_ev(2, "kill-coordinator", "end", t=85.0, duration=5.0))
+    assert acks[-1] == FaultAck(2, "start", "swarm-up")
+    pf.poll()
+    assert acks[-1] == FaultAck(2, "end", "swarm-up")
+    assert "did not announce itself" in lines[-1]
+
+
 def test_kill_coordinator_without_one_is_acknowledged(sup, tmp_path):
     acks, lines = [], []
     pf = ProcessFaults(sup, (), acks.append, lines.append)
