@@ -126,6 +126,30 @@ def test_a_new_core_adopts_what_robots_report_and_queues_late_claims():
     assert check_reservations(reservations(events)) == []
 
 
+def test_a_new_core_takes_over_every_report_of_a_batch_before_answering():
+    """A restarted coordinator's first batch: a ``done`` stamped before another robot's report
+    is answered only after that report is taken over (robot by robot, r1 got A, for which r3
+    had waited since 10 s; in a 10-robot run a robot got the spot another reported standing
+    on)."""
+    core = make_core({"r1": ["A"], "r2": ["B"], "r3": ["B"]})
+    out, events = core.handle([
+        Request("r1", 4, "done", 40 * T, outcome="succeeded", target="A",
+                holds=("workstation:A",)),  # finished at A during the outage, next: A again
+        Request("r2", 0, "report", 50 * T, holds=("workstation:B",)),
+        Request("r3", 0, "report", 50 * T, holds=("spot:A.0",), waits_for="A", since_ns=10 * T),
+    ])
+    # r3 has waited for A since 10 s: A goes to it, and r1, in line now, waits on A.0
+    assert core.holder_of("workstation:A") == "r3"
+    assert core.holder_of("spot:A.0") == "r1"
+    assert core.holder_of("workstation:B") == "r2"
+    by = {a.robot: a for a in out}
+    assert (by["r3"].kind, by["r3"].target) == ("go", "A")
+    assert (by["r1"].kind, by["r1"].target, by["r1"].waits_for) == ("wait", "A.0", "A")
+    assert check_reservations(reservations(events)) == []
+    spots = [a.target for a in out if a.kind == "wait"]
+    assert len(spots) == len(set(spots))
+
+
 def test_check_reservations_finds_double_holders():
     ev = [{"robot": "r1", "action": "reserve", "resource": "workstation:A", "epoch": "1"},
           {"robot": "r2", "action": "reserve", "resource": "workstation:A", "epoch": "1"},
