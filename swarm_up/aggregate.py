@@ -747,6 +747,9 @@ def aggregate(
         entry = comm["per_robot"][ns]
         per_robot[ns]["tasks"] = (len(recorder.per_robot[ns].tasks) if centralized
                                   else per_robot[ns]["goals_reached"])
+        if centralized:  # its tasks, not its goals (a goal to a waiting spot is no task)
+            per_robot[ns]["task_times_s"] = sorted(round(t, 3) for t, _, _ in
+                                                   recorder.per_robot[ns].tasks)
         per_robot[ns]["comm_messages"] = entry["messages"]
         per_robot[ns]["comm_bytes"] = entry["bytes"]
     fleet = None

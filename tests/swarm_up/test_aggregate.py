@@ -291,6 +291,15 @@ def test_centralized_tasks_waiting_conflicts_and_communication_load():
                   wall_time_s=1.0, map_deliveries={"r1": 1, "r2": 2})
     assert m["tasks_completed"] == 1 and m["goals_reached"] == 0
     assert m["task_times_s"] == [130.0] and m["time_to_task_mean_s"] == 130.0
+    # per robot too, its tasks and not its goals: r2 reaching its waiting spot is no task
+    rec.on_status("r2", {"state": "SUCCEEDED", "goal_id": "5.000000000",
+                         "stamp": "40.000000000", "navigation_time_s": "35.0"}, 1.0)
+    m = aggregate(rec, SimSummary(), world="w", seed=0, coordination="centralized",
+                  wall_time_s=1.0, map_deliveries={"r1": 1, "r2": 2})
+    assert m["per_robot"]["r1"]["task_times_s"] == [130.0]
+    assert m["per_robot"]["r2"]["task_times_s"] == []
+    assert m["per_robot"]["r2"]["goals_reached"] == 1
+    assert m["task_times_s"] == [130.0]
     assert m["throughput_after_warmup_per_hour"] == pytest.approx(1 / (80 / 3600))
     assert m["coordinator_wait_s"] == pytest.approx(130.1 + 50.0)  # r1's spot open to the end
     assert m["reservation_conflicts"] == 0 and m["coordinator_starts"] == 1
