@@ -79,11 +79,13 @@ class Swarm:
         n: robots ``Srobot1..n``.
         world: world name or path.
         poi: the points-of-interest file the navigators get (holding spots).
+        nav_params: navigator parameters that override ``params/navigator.yaml``'s.
     """
 
     def __init__(self, tmp_path: Path, n: int, world: str = "slim_blockage",
-                 poi: Path | None = SLIM_POI):
+                 poi: Path | None = SLIM_POI, nav_params: dict | None = None):
         self.dir = tmp_path
+        self.nav_params = dict(nav_params or {})
         self.names = [f"Srobot{i}" for i in range(1, n + 1)]
         self.world = world
         self.poi = poi
@@ -107,7 +109,7 @@ class Swarm:
         for i, ns in enumerate(self.names, start=1):
             values = dict(TEMPLATE, use_sim_time=True, robot_name=ns, robot_index=i,
                           poi_file=str(self.poi) if self.poi else "", map_yaml_path="",
-                          robot="turtlebot3_waffle")
+                          robot="turtlebot3_waffle", **self.nav_params)
             (params / f"{ns}.yaml").write_text(yaml.safe_dump(
                 {f"/{ns}/navigator": {"ros__parameters": values}}, sort_keys=False))
         # The probe first, so that it hears the simulator from its first tick.
@@ -132,11 +134,17 @@ class Swarm:
                           ",".join(self.names), "--params-dir", str(params)],
                          self.dir / "nav.log")
         # The simulator publishes ground truth only once it has matched a reader, which may
-        # be a few ticks after its first: wait for every robot's, so that the truth of a test
-        # starts before its first goal.
-        self.spin_until(lambda: all(self.statuses[ns] and self.truth[ns] for ns in self.names)
+        # be a few ticks after its first: wait until the probe sees every robot's truth
+        # publisher, so that the truth of a test starts before its first goal moves a robot.
+        # Not for a truth message: after its first answer a navigator holds the simulator for
+        # its first goal (up to goal_wait_timeout), so none may come before that goal (a CI run
+        # waited on one until the hold ran out and the unpaced simulator ran on, 100 s ahead
+        # of the goal that followed).
+        self.spin_until(lambda: all(self.statuses[ns] for ns in self.names)
+                        and all(node.count_publishers(f"/{ns}/ground_truth")
+                                for ns in self.names)
                         and all(p.get_subscription_count() for p in self.goal_pubs.values()),
-                        60, "every navigator to report ready and every ground truth")
+                        60, "every navigator to report ready and every ground truth publisher")
         return self
 
     def close(self) -> dict | None:
@@ -385,15 +393,24 @@ BAD_GOALS = [
     ((50.0, 50.0), "goal outside map"),
     ((6.5, -3.0), "no path"),              # the closed bottom-right pocket
 ]
+SPAWN1 = (0.0, 0.0, math.pi)  # Srobot1's spawn pose (worlds/slim_blockage.yaml spawn)
 
 
 def test_unreachable_goals_are_aborted_at_once_with_the_reason(swarm):
-    sw = swarm(1)
+    # "At once" is in simulated time, so every goal must reach the navigator while it holds the
+    # simulator: after a goal ended it waits up to goal_wait_timeout wall seconds for the next
+    # (4 s here, not 0.5, for a loaded CI machine; below the simulator's --command-timeout 5).
+    # Before its first goal it holds once more, if it sees the probe's goal publisher in time:
+    # a first goal to where the robot stands ends at once and starts the holding for sure.
+    sw = swarm(1, nav_params={"goal_wait_timeout": 4.0})
+    assert sw.wait_result("Srobot1", sw.send("Srobot1", *SPAWN1), 30).state == "SUCCEEDED"
+    timeouts = sw.statuses["Srobot1"][-1].values["goal_wait_timeouts"]
     for (x, y), reason in BAD_GOALS:
         gid = sw.send("Srobot1", x, y, 0.0)
         result = sw.wait_result("Srobot1", gid, 10)
         assert result.state == "ABORTED", ((x, y), result)
         assert result.values["reason"] == reason, ((x, y), result)
+        assert result.values["goal_wait_timeouts"] == timeouts, ((x, y), result)  # held
         assert result.t - float(gid) <= 1.0, ((x, y), result)  # within 1 s simulated
     # The robot never moved off its spawn point (0, 0).
     x, y, _ = sw.pose_at("Srobot1", sw.status_ns("Srobot1"))
