@@ -10,6 +10,9 @@ MAPS_DIR = ROOT / "maps"
 ROBOTS_DIR = ROOT / "robots"
 PARAMS_DIR = ROOT / "params"
 ROBOT_PARAMS_DIR = PARAMS_DIR / "robots"
+# Fast DDS profiles without shared memory (swarm_up.children.shm_free_env).
+FASTDDS_UDP_ONLY_PROFILE = PARAMS_DIR / "fastdds_udp_only.xml"
+FASTDDS_UDP_LOOPBACK_PROFILE = PARAMS_DIR / "fastdds_udp_loopback.xml"
 
 
 def default_map_for(world_path: str | Path) -> Path | None:

@@ -26,6 +26,53 @@ def command(script: str, module: str, func: str = "main") -> list[str]:
     return [sys.executable, "-c", f"import sys; from {module} import {func}; sys.exit({func}())"]
 
 
+PROFILES_ENV = "FASTRTPS_DEFAULT_PROFILES_FILE"
+"""The variable by which Fast DDS (2.14, rmw_fastrtps) loads an XML profiles file at start-up."""
+RANGE_ENV = "ROS_AUTOMATIC_DISCOVERY_RANGE"
+
+
+def shm_free_env(env: dict[str, str]) -> dict[str, str]:
+    """``env`` for a process that fault injection may SIGKILL: Fast DDS without shared memory.
+
+    A process killed while it held a shared-memory port's interprocess mutex can leave every
+    other process that writes to that port blocked in ``Publisher.publish`` (seen once: the
+    simulator stuck in ``SharedMemManager::Port::try_push`` -> ``regenerate_port``; Fast DDS
+    2.14.5; docs/ARCHITECTURE.md "Known limits").  A process without the shared-memory
+    transport owns no such port; the others reach it over loopback UDP.
+
+    - Range ``LOCALHOST``: rmw_fastrtps 8.4 then sets the transports to shared memory + UDPv4
+      whatever a profile says, so the process gets the range ``SUBNET`` and
+      ``params/fastdds_udp_loopback.xml``: UDPv4 on the loopback interface only, discovery by
+      unicast to 127.0.0.1; it hears and is heard by the same processes as under LOCALHOST.
+    - Any other range: ``params/fastdds_udp_only.xml``, the built-in transports but shared
+      memory (``FASTDDS_BUILTIN_TRANSPORTS=UDPv4`` would do the same, but not under LOCALHOST).
+    - A profiles file the user set in ``FASTRTPS_DEFAULT_PROFILES_FILE`` is kept, and ``env``
+      returned unchanged.
+
+    Args:
+        env: the children's environment.
+
+    Returns:
+        A copy of ``env`` for the process.
+    """
+    from swarm_common.paths import FASTDDS_UDP_LOOPBACK_PROFILE, FASTDDS_UDP_ONLY_PROFILE
+
+    out = dict(env)
+    if out.get(PROFILES_ENV):
+        return out
+    if out.get(RANGE_ENV, "").upper() == "LOCALHOST":
+        out[RANGE_ENV] = "SUBNET"
+        out[PROFILES_ENV] = str(FASTDDS_UDP_LOOPBACK_PROFILE)
+    else:
+        out[PROFILES_ENV] = str(FASTDDS_UDP_ONLY_PROFILE)
+    return out
+
+
+def fault_killed_robots(cfg: RunConfig) -> frozenset[str]:
+    """The robots whose processes a ``kill-nav`` or ``kill-robot`` fault of the run kills."""
+    return frozenset(f.robot for f in cfg.faults if f.kind in ("kill-nav", "kill-robot"))
+
+
 def faults_file(cfg: RunConfig) -> Path:
     """``RUN/faults.yaml``: the run's fault schedule as given to the simulator."""
     return cfg.run_dir / "faults.yaml"
@@ -72,12 +119,15 @@ def child_specs(cfg: RunConfig):
         specs.append(coordinator_spec(cfg, env))
 
     if cfg.groups is None:
+        # A robot that a fault kills gets processes that own no shared-memory port.
+        killed = fault_killed_robots(cfg)
+        robot_env = {ns: shm_free_env(env) if ns in killed else env for ns in cfg.robots}
         nav = command("swarm-nav", "swarm_nav.node")
         for ns in cfg.robots:
             argv = nav + ["--ros-args", "-r", f"__ns:=/{ns}",
                           "--params-file", str(params / f"{ns}.yaml")]
             specs.append(ChildSpec(f"nav_{ns}", tuple(argv), logs / f"nav_{ns}.log",
-                                   kind="nav", robots=(ns,), env=env))
+                                   kind="nav", robots=(ns,), env=robot_env[ns]))
         if cfg.commanders:
             cmd = command("swarm-commander", "swarm_commander.cli")
             for ns in cfg.robots:
@@ -86,7 +136,7 @@ def child_specs(cfg: RunConfig):
                 if coordinated:
                     argv.append("--coordinated")
                 specs.append(ChildSpec(f"cmd_{ns}", tuple(argv), logs / f"cmd_{ns}.log",
-                                       kind="cmd", robots=(ns,), env=env))
+                                       kind="cmd", robots=(ns,), env=robot_env[ns]))
     else:
         for g, group in enumerate(cfg.groups, start=1):
             argv = [sys.executable, "-m", "swarm_up.group", "--namespaces", ",".join(group),
@@ -142,7 +192,11 @@ this name in the supervisor (``Supervisor.pid(COORDINATOR)``)."""
 
 
 def coordinator_spec(cfg: RunConfig, env: dict):
-    """The coordinator's :class:`~swarm_up.supervisor.ChildSpec` (restarted when it crashes)."""
+    """The coordinator's :class:`~swarm_up.supervisor.ChildSpec` (restarted when it crashes).
+
+    It always runs without Fast DDS shared memory (:func:`shm_free_env`): a ``kill-coordinator``
+    fault, or anyone, may SIGKILL it, and its traffic (a few requests and answers per task) is
+    light."""
     from swarm_up.supervisor import ChildSpec
 
     argv = command("swarm-coordinator", "swarm_coordinator.node") + [
@@ -150,4 +204,4 @@ def coordinator_spec(cfg: RunConfig, env: dict):
         "--world", str(cfg.world_path), "--seed", str(cfg.seed), "--robot", cfg.robot,
         "--start-timeout", repr(cfg.ready_timeout)]
     return ChildSpec(COORDINATOR, tuple(argv), cfg.run_dir / "logs" / f"{COORDINATOR}.log",
-                     kind="coord", env=env)
+                     kind="coord", env=shm_free_env(env))
