@@ -44,8 +44,9 @@ def shm_free_env(env: dict[str, str]) -> dict[str, str]:
       whatever a profile says, so the process gets the range ``SUBNET`` and
       ``params/fastdds_udp_loopback.xml``: UDPv4 on the loopback interface only, discovery by
       unicast to 127.0.0.1; it hears and is heard by the same processes as under LOCALHOST.
-    - Any other range: ``params/fastdds_udp_only.xml``, the built-in transports but shared
-      memory (``FASTDDS_BUILTIN_TRANSPORTS=UDPv4`` would do the same, but not under LOCALHOST).
+    - Any other range: ``params/fastdds_udp_only.xml``, UDPv4 alone instead of the built-in
+      shared memory + UDPv4 (``FASTDDS_BUILTIN_TRANSPORTS=UDPv4`` would do the same, but not
+      under LOCALHOST).
     - A profiles file the user set in ``FASTRTPS_DEFAULT_PROFILES_FILE`` is kept, and ``env``
       returned unchanged.
 
