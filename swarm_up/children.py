@@ -29,6 +29,7 @@ def command(script: str, module: str, func: str = "main") -> list[str]:
 PROFILES_ENV = "FASTRTPS_DEFAULT_PROFILES_FILE"
 """The variable by which Fast DDS (2.14, rmw_fastrtps) loads an XML profiles file at start-up."""
 RANGE_ENV = "ROS_AUTOMATIC_DISCOVERY_RANGE"
+LOCALHOST_ONLY_ENV = "ROS_LOCALHOST_ONLY"  # deprecated in Jazzy; "1" overrides the range
 
 
 def shm_free_env(env: dict[str, str]) -> dict[str, str]:
@@ -44,6 +45,8 @@ def shm_free_env(env: dict[str, str]) -> dict[str, str]:
       whatever a profile says, so the process gets the range ``SUBNET`` and
       ``params/fastdds_udp_loopback.xml``: UDPv4 on the loopback interface only, discovery by
       unicast to 127.0.0.1; it hears and is heard by the same processes as under LOCALHOST.
+      ``ROS_LOCALHOST_ONLY=1`` (which rcl lets override the range) counts as LOCALHOST, and is
+      turned off for the process.
     - Any other range: ``params/fastdds_udp_only.xml``, UDPv4 alone instead of the built-in
       shared memory + UDPv4 (``FASTDDS_BUILTIN_TRANSPORTS=UDPv4`` would do the same, but not
       under LOCALHOST).
@@ -61,7 +64,8 @@ def shm_free_env(env: dict[str, str]) -> dict[str, str]:
     out = dict(env)
     if out.get(PROFILES_ENV):
         return out
-    if out.get(RANGE_ENV, "").upper() == "LOCALHOST":
+    if out.get(LOCALHOST_ONLY_ENV) == "1" or out.get(RANGE_ENV, "").upper() == "LOCALHOST":
+        out[LOCALHOST_ONLY_ENV] = "0"
         out[RANGE_ENV] = "SUBNET"
         out[PROFILES_ENV] = str(FASTDDS_UDP_LOOPBACK_PROFILE)
     else:

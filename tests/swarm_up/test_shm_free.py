@@ -15,14 +15,29 @@ from std_msgs.msg import String
 
 from swarm_common.faults import parse_faults
 from swarm_common.paths import FASTDDS_UDP_LOOPBACK_PROFILE, FASTDDS_UDP_ONLY_PROFILE
-from swarm_up.children import PROFILES_ENV, RANGE_ENV, child_specs, shm_free_env
+from swarm_up.children import (
+    LOCALHOST_ONLY_ENV,
+    PROFILES_ENV,
+    RANGE_ENV,
+    child_specs,
+    shm_free_env,
+)
 from tests.support.ros import ros_context, spin_until
 from tests.swarm_up.test_params_files import cfg  # noqa: F401 - the RunConfig fixture
 
 
 def test_localhost_becomes_a_loopback_only_udp_profile():
     env = shm_free_env({RANGE_ENV: "LOCALHOST", "ROS_DOMAIN_ID": "7"})
-    assert env == {RANGE_ENV: "SUBNET", "ROS_DOMAIN_ID": "7",
+    assert env == {RANGE_ENV: "SUBNET", "ROS_DOMAIN_ID": "7", LOCALHOST_ONLY_ENV: "0",
+                   PROFILES_ENV: str(FASTDDS_UDP_LOOPBACK_PROFILE)}
+
+
+def test_localhost_only_counts_as_localhost_and_is_turned_off():
+    # rcl lets ROS_LOCALHOST_ONLY=1 override the range ("'localhost_only' is enabled,
+    # 'automatic_discovery_range' and 'static_peers' will be ignored"), and rmw then adds
+    # shared memory again.
+    env = shm_free_env({LOCALHOST_ONLY_ENV: "1"})
+    assert env == {RANGE_ENV: "SUBNET", LOCALHOST_ONLY_ENV: "0",
                    PROFILES_ENV: str(FASTDDS_UDP_LOOPBACK_PROFILE)}
 
 
