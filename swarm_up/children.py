@@ -65,7 +65,8 @@ def shm_free_env(env: dict[str, str]) -> dict[str, str]:
     if out.get(PROFILES_ENV):
         return out
     if out.get(LOCALHOST_ONLY_ENV) == "1" or out.get(RANGE_ENV, "").upper() == "LOCALHOST":
-        out[LOCALHOST_ONLY_ENV] = "0"
+        if LOCALHOST_ONLY_ENV in out:  # set at all, it makes rcl warn: only when it was
+            out[LOCALHOST_ONLY_ENV] = "0"
         out[RANGE_ENV] = "SUBNET"
         out[PROFILES_ENV] = str(FASTDDS_UDP_LOOPBACK_PROFILE)
     else:

@@ -28,7 +28,7 @@ from tests.swarm_up.test_params_files import cfg  # noqa: F401 - the RunConfig f
 
 def test_localhost_becomes_a_loopback_only_udp_profile():
     env = shm_free_env({RANGE_ENV: "LOCALHOST", "ROS_DOMAIN_ID": "7"})
-    assert env == {RANGE_ENV: "SUBNET", "ROS_DOMAIN_ID": "7", LOCALHOST_ONLY_ENV: "0",
+    assert env == {RANGE_ENV: "SUBNET", "ROS_DOMAIN_ID": "7",
                    PROFILES_ENV: str(FASTDDS_UDP_LOOPBACK_PROFILE)}
 
 
