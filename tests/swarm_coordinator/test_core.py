@@ -150,6 +150,27 @@ def test_a_new_core_takes_over_every_report_of_a_batch_before_answering():
     assert len(spots) == len(set(spots))
 
 
+def test_a_new_core_queues_every_waiter_of_a_batch_before_handing_over():
+    """A workstation free at the restart goes to the robot that has waited for it longest,
+    whatever order their reports come in (robot by robot, the first report's robot got it: 10
+    robots, seed 2, coordinator killed at 180 s and restarted at 210 s: loader5 went to Srobot1,
+    parked in the hall since 124.5 s, over Srobot4 on loader5's holding spot since 105 s, and
+    stood idle for the 74 s Srobot1 took to come)."""
+    core = make_core({"r1": ["A"], "r2": ["A"], "r3": ["B"]})
+    out, events = core.handle([
+        Request("r1", 0, "report", 50 * T, holds=("spot:park1",), waits_for="A",
+                since_ns=20 * T),
+        Request("r2", 0, "report", 50 * T, holds=("spot:A.0",), waits_for="A", since_ns=10 * T),
+        Request("r3", 0, "report", 50 * T, holds=("workstation:B",)),
+    ])
+    assert core.holder_of("workstation:A") == "r2"
+    assert core.queue("A") == ("r1",)
+    by = {a.robot: a for a in out}
+    assert (by["r2"].kind, by["r2"].target) == ("go", "A")
+    assert "r1" not in by or by["r1"].kind == "wait"
+    assert check_reservations(reservations(events)) == []
+
+
 def test_check_reservations_finds_double_holders():
     ev = [{"robot": "r1", "action": "reserve", "resource": "workstation:A", "epoch": "1"},
           {"robot": "r2", "action": "reserve", "resource": "workstation:A", "epoch": "1"},
