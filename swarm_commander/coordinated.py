@@ -119,6 +119,7 @@ class CoordinatedRunner:
         self._next_send = 0.0
         self._backoff = cfg.retry_first
         self._current: Assignment | None = None
+        self._wait_since_ns = 0  # when the current wait began (its place in the queue)
         self._unsent: Assignment | None = None
         self._applied = 0  # highest assignment seq applied in this epoch
         self._resync = False  # a new coordinator is to be told what we hold
@@ -274,6 +275,11 @@ class CoordinatedRunner:
 
     # -- helpers ----------------------------------------------------------------------------
     def _drive(self, a: Assignment) -> None:
+        prev = self._current
+        if a.kind == "wait" and not (
+                prev is not None and prev.kind == "wait" and prev.waits_for == a.waits_for
+                and prev.task_start_ns == a.task_start_ns):
+            self._wait_since_ns = a.stamp_ns  # a new wait; a move to another spot keeps its
         self._current = a
         if self.nav.go_to_pose_at(_pose_msg(a.pose), a.stamp_ns):
             self._unsent = None
@@ -286,7 +292,11 @@ class CoordinatedRunner:
             return (), "", 0
         if a.kind == "go":
             return (workstation_resource(a.target),), "", 0
-        return (spot_resource(a.target),), a.waits_for, a.stamp_ns
+        # Its place in the queue is when the wait began, not when it was moved to this spot
+        # (parking to holding spot): reported with the move's stamp, a robot that had waited on
+        # loader5's holding spot since 105 s came after one parked in the hall since 124.5 s,
+        # and a restarted coordinator gave loader5 to the one in the hall (10 robots, seed 2).
+        return (spot_resource(a.target),), a.waits_for, self._wait_since_ns
 
     def _make(self, kind: str, outcome: str = "", target: str = "",
               seq: int | None = None) -> Request:
