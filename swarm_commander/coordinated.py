@@ -279,7 +279,7 @@ class CoordinatedRunner:
         if a.kind == "wait" and not (
                 prev is not None and prev.kind == "wait" and prev.waits_for == a.waits_for
                 and prev.task_start_ns == a.task_start_ns):
-            self._wait_since_ns = a.stamp_ns  # a new wait; a move to another spot keeps its
+            self._wait_since_ns = a.stamp_ns  # a new wait (a move to another spot is not)
         self._current = a
         if self.nav.go_to_pose_at(_pose_msg(a.pose), a.stamp_ns):
             self._unsent = None
