@@ -126,8 +126,8 @@ def child_specs(cfg: RunConfig):
 
     if cfg.groups is None:
         # A robot that a fault kills gets processes that own no shared-memory port.
-        killed = fault_killed_robots(cfg)
-        robot_env = {ns: shm_free_env(env) if ns in killed else env for ns in cfg.robots}
+        killed, free_env = fault_killed_robots(cfg), shm_free_env(env)
+        robot_env = {ns: free_env if ns in killed else env for ns in cfg.robots}
         nav = command("swarm-nav", "swarm_nav.node")
         for ns in cfg.robots:
             argv = nav + ["--ros-args", "-r", f"__ns:=/{ns}",

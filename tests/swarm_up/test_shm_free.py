@@ -15,6 +15,7 @@ from std_msgs.msg import String
 
 from swarm_common.faults import parse_faults
 from swarm_common.paths import FASTDDS_UDP_LOOPBACK_PROFILE, FASTDDS_UDP_ONLY_PROFILE
+from swarm_up.args import RunConfig
 from swarm_up.children import (
     LOCALHOST_ONLY_ENV,
     PROFILES_ENV,
@@ -58,18 +59,20 @@ def test_the_profiles_are_bundled():
         assert "<type>UDPv4</type>" in text and "SHM" not in text
 
 
+def shm_free_children(run: RunConfig) -> set[str]:
+    """The names of the children of ``run`` that get a profile of their own."""
+    return {s.name for s in child_specs(run)
+            if s.env.get(PROFILES_ENV) != os.environ.get(PROFILES_ENV)}
+
+
 def test_only_the_children_a_fault_kills_go_without_shared_memory(cfg):  # noqa: F811
     faults = parse_faults("kill-nav:2@10,kill-robot:3@20,freeze:1@5+5", cfg.robots)
     cfg = replace(cfg, faults=faults, coordination="centralized")
-    envs = {s.name: s.env for s in child_specs(cfg)}
-    shm_free = {name for name, env in envs.items()
-                if env.get(PROFILES_ENV) != os.environ.get(PROFILES_ENV)}
-    assert shm_free == {"coordinator", "nav_Srobot2", "cmd_Srobot2", "nav_Srobot3",
-                        "cmd_Srobot3"}
+    assert shm_free_children(cfg) == {"coordinator", "nav_Srobot2", "cmd_Srobot2",
+                                      "nav_Srobot3", "cmd_Srobot3"}
     # Without kill faults, only the coordinator (anyone may kill it; its traffic is light).
     cfg = replace(cfg, faults=parse_faults("freeze:1@5+5", cfg.robots))
-    assert {s.name for s in child_specs(cfg) if PROFILES_ENV in s.env
-            and s.env[PROFILES_ENV] != os.environ.get(PROFILES_ENV)} == {"coordinator"}
+    assert shm_free_children(cfg) == {"coordinator"}
 
 
 PEER = textwrap.dedent("""
