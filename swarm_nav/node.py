@@ -75,6 +75,14 @@ _CONTEXT_PARAMS = {
 }
 GOAL_WAIT_POLL_S = 0.05  # [s] wall: how often a waiting tick checks its commander is still there
 COMMANDER_WAIT_S = 60.0  # [s] wall: how long the first answer waits for a commander to connect
+CMD_VEL_HISTORY = 300  # [messages] kept for late-joining readers: 30 s simulated at 10 Hz
+CMD_VEL_QOS = QoSProfile(depth=CMD_VEL_HISTORY, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+"""``cmd_vel``'s publisher: reliable and transient-local, like ``/rosout``, so that a reader that
+asks for transient-local (swarm-up's recorder) gets the commands sent before it matched.  A
+writer matches a reader before the reader matches the writer; what the writer sends in between,
+a volatile reader drops (23 ticks of one robot in one CI run, the navigator's start gate passed on
+the writer's side).  Volatile readers (the simulator) are unaffected."""
 
 
 def stamp_ns(stamp) -> int:
@@ -179,7 +187,7 @@ class NavigatorNode(Node):
         reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        self.cmd_pub = self.create_publisher(TwistStamped, "cmd_vel", reliable)
+        self.cmd_pub = self.create_publisher(TwistStamped, "cmd_vel", CMD_VEL_QOS)
         self.plan_pub = self.create_publisher(Path, "plan", latched)
         self.status_pub = self.create_publisher(DiagnosticStatus, "nav_status", latched)
         self.create_subscription(OccupancyGrid, "/map", self._on_map, latched)
@@ -347,9 +355,11 @@ class NavigatorNode(Node):
         A navigator restarted mid-run (a kill-nav fault) is a new DDS participant: a reader that
         discovers it only after a goal ended (its latched ``nav_status`` keeps the last status
         alone) would never see that goal succeed.  Likewise a recorder matched to ``cmd_vel``
-        only after the first answer has lost it (``cmd_vel`` is volatile): 1 tick in 2 of about
-        15 CI runs of ``tests/swarm_up/test_record.py``, the first 8 simulated s of one robot of
-        a 3-robot group run.  The simulator holds the tick until the navigator answers, so the
+        only after the first answer had lost it while ``cmd_vel`` was volatile: 1 tick in 2 of
+        about 15 CI runs of ``tests/swarm_up/test_record.py``, the first 8 simulated s of one
+        robot of a 3-robot group run.  This gate counts the writer's matches only; the reader's
+        side can lag behind (23 ticks lost once more), which :data:`CMD_VEL_QOS`'s history
+        covers.  The simulator holds the tick until the navigator answers, so the
         wait costs wall time, not reproducibility.
         """
         waiting = []

@@ -76,6 +76,8 @@ PROGRESS_EVERY_S = 5.0  # [s] wall between the floor simulator's progress lines
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
+CMD_VEL_QOS = QoSProfile(depth=300, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
 EVENTS_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
 # The subscribers' side is imported from the real nodes: the commander's NAV_STATUS_QOS and the
@@ -387,7 +389,7 @@ class FloorNavigatorNode(Node):
         self._last_status_ns = -STATUS_PERIOD_NS
         self._now_ns = 0
         # Publishers, subscribers, service (swarm_nav.node's).
-        self.cmd_pub = self.create_publisher(TwistStamped, "cmd_vel", RELIABLE)
+        self.cmd_pub = self.create_publisher(TwistStamped, "cmd_vel", CMD_VEL_QOS)
         self.plan_pub = self.create_publisher(PathMsg, "plan", LATCHED)
         self.status_pub = self.create_publisher(DiagnosticStatus, "nav_status", LATCHED)
         self.create_subscription(OccupancyGrid, "/map", self._on_map, LATCHED)

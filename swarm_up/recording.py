@@ -50,6 +50,8 @@ _RELIABLE = {"history": "keep_last", "depth": 10, "reliability": "reliable",
              "durability": "volatile"}
 _LATCHED = {"history": "keep_last", "depth": 1, "reliability": "reliable",
             "durability": "transient_local"}
+_CMD_VEL = {"history": "keep_last", "depth": 300, "reliability": "reliable",
+            "durability": "transient_local"}  # swarm_nav.node.CMD_VEL_QOS: history for late readers
 _SENSOR = {"history": "keep_last", "depth": 5, "reliability": "best_effort",
            "durability": "volatile"}
 _EVENTS = {"history": "keep_last", "depth": 1000, "reliability": "reliable",
@@ -81,7 +83,7 @@ ROBOT_TOPICS = (  # (suffix, type, qos) of every robot's recorded topics
     ("scan", "sensor_msgs/msg/LaserScan", _SENSOR),
     ("odom", "nav_msgs/msg/Odometry", _RELIABLE),
     ("ground_truth", "nav_msgs/msg/Odometry", _RELIABLE),
-    ("cmd_vel", "geometry_msgs/msg/TwistStamped", _RELIABLE),
+    ("cmd_vel", "geometry_msgs/msg/TwistStamped", _CMD_VEL),
     ("plan", "nav_msgs/msg/Path", _LATCHED),
     ("nav_status", "diagnostic_msgs/msg/DiagnosticStatus", _LATCHED),
 )

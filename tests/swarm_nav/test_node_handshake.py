@@ -190,6 +190,33 @@ def test_the_first_answer_waits_for_the_readers_of_cmd_vel(probe):
     spin_until(probe.executor, lambda: t0 in late, 5.0, "the first answer at the late reader")
 
 
+@pytest.mark.parametrize("probe", [0.0], indirect=True)
+def test_a_reader_that_joins_late_gets_the_earlier_commands(probe):
+    """``cmd_vel`` keeps ``CMD_VEL_HISTORY`` commands for transient-local readers (swarm-up's
+    recorder): a reader matched after ten answers gets all ten, stamped in order, and a volatile
+    reader such as the simulator's gets none of them."""
+    ticks = [(10 + k) * TICK_NS for k in range(10)]
+    for t in ticks:
+        probe.tick(t)
+        probe.answer(t, 10.0)
+    history, volatile = [], []
+
+    def stamps(into):
+        return lambda msg: into.append(msg.header.stamp.sec * NS_PER_S + msg.header.stamp.nanosec)
+
+    probe.node.create_subscription(TwistStamped, "/hs/cmd_vel", stamps(history), QoSProfile(
+        depth=100, reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    probe.node.create_subscription(TwistStamped, "/hs/cmd_vel", stamps(volatile), RELIABLE)
+    spin_until(probe.executor, lambda: len(history) >= len(ticks), 5.0, "the earlier commands")
+    t = ticks[-1] + TICK_NS
+    probe.tick(t)
+    probe.answer(t, 5.0)
+    spin_until(probe.executor, lambda: t in history and t in volatile, 5.0, "the next command")
+    assert history == ticks + [t]
+    assert volatile == [t]
+
+
 @pytest.mark.parametrize("probe", [0.3], indirect=True)
 def test_a_commander_that_never_answers_costs_one_timeout_and_is_counted(probe):
     t0 = 10 * TICK_NS
