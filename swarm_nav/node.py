@@ -338,6 +338,8 @@ class NavigatorNode(Node):
             return False
         if not self._answered:
             return self._start_gate_closed()
+        if self._goals:  # the next goal came, stamped ahead: it applies at its stamp
+            return False
         # The first tick answered after the goal ended (normally the next one; a later one when
         # that tick's odometry or scan was lost, e.g. to a drop fault) waits, once, unless the
         # commander said no goal is coming (a cancel while no goal runs).

@@ -190,6 +190,38 @@ def test_the_first_answer_waits_for_the_readers_of_cmd_vel(probe):
     spin_until(probe.executor, lambda: t0 in late, 5.0, "the first answer at the late reader")
 
 
+@pytest.mark.parametrize("probe", [5.0], indirect=True)
+def test_a_goal_stamped_ahead_ends_the_wait_and_applies_at_its_stamp(probe):
+    """A commander that parks its robot until a known time (``swarm-up --crews``) sends the next
+    goal at once, stamped ahead: the tick waiting for it is answered at once, the robot stands
+    until the stamp, and the goal takes effect at the first tick after it."""
+    t0 = 10 * TICK_NS
+    probe.tick(t0)
+    probe.answer(t0, 10.0)
+    spin_until(probe.executor, lambda: probe.status.get("stamp") == "1.000000000", 5.0,
+               "the status of the first tick")
+    probe.send_goal(t0, 0.1, 0.0)  # within the goal tolerance: reached at once
+    t1 = t0 + TICK_NS
+    probe.tick(t1)
+    probe.answer(t1, 5.0)
+    spin_until(probe.executor, lambda: probe.status.get("state") == "SUCCEEDED", 5.0,
+               "the first goal reached")
+    ahead = t1 + 5 * TICK_NS
+    t2 = t1 + TICK_NS
+    probe.tick(t2)
+    assert probe.silent_for(t2, 0.5), "the tick after the goal ended did not wait for a goal"
+    probe.send_goal(ahead, 3.0, 0.0)
+    assert probe.answer(t2, 2.0) < 1.0, "a goal stamped ahead did not end the wait"
+    t = t2
+    while t <= ahead:
+        assert probe.answers[t] == (0.0, 0.0), f"moved at {t} before the goal's stamp {ahead}"
+        t += TICK_NS
+        probe.tick(t)
+        assert probe.answer(t, 2.0) < 1.0
+    assert probe.answers[t][0] > 0.0, "the goal did not take effect after its stamp"
+    assert probe.status["goal_wait_timeouts"] == "0"
+
+
 @pytest.mark.parametrize("probe", [0.0], indirect=True)
 def test_a_reader_that_joins_late_gets_the_earlier_commands(probe):
     """``cmd_vel`` keeps ``CMD_VEL_HISTORY`` commands for transient-local readers (swarm-up's
