@@ -50,8 +50,9 @@ _RELIABLE = {"history": "keep_last", "depth": 10, "reliability": "reliable",
              "durability": "volatile"}
 _LATCHED = {"history": "keep_last", "depth": 1, "reliability": "reliable",
             "durability": "transient_local"}
+# swarm_nav.node.CMD_VEL_QOS: a history for late readers
 _CMD_VEL = {"history": "keep_last", "depth": 300, "reliability": "reliable",
-            "durability": "transient_local"}  # swarm_nav.node.CMD_VEL_QOS: history for late readers
+            "durability": "transient_local"}
 _SENSOR = {"history": "keep_last", "depth": 5, "reliability": "best_effort",
            "durability": "volatile"}
 _EVENTS = {"history": "keep_last", "depth": 1000, "reliability": "reliable",
