@@ -193,8 +193,8 @@ def test_the_first_answer_waits_for_the_readers_of_cmd_vel(probe):
 @pytest.mark.parametrize("probe", [5.0], indirect=True)
 def test_a_goal_stamped_ahead_ends_the_wait_and_applies_at_its_stamp(probe):
     """A commander that holds its robot until a known time (a coordinator's hand-over) sends
-    the next goal at once, stamped ahead: the tick waiting for it is answered at once, the robot stands
-    until the stamp, and the goal takes effect at the first tick after it."""
+    the next goal at once, stamped ahead: the tick waiting for it is answered at once, the
+    robot stands until the stamp, and the goal takes effect at the first tick after it."""
     t0 = 10 * TICK_NS
     probe.tick(t0)
     probe.answer(t0, 10.0)
