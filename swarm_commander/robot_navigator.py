@@ -76,10 +76,10 @@ NAV_STATUS_QOS = QoSProfile(
     reliability=QoSReliabilityPolicy.RELIABLE,
     durability=QoSDurabilityPolicy.TRANSIENT_LOCAL,
     history=QoSHistoryPolicy.KEEP_LAST,
-    depth=10,  # the publisher keeps 1 (latched); 10 here so no transition is lost in a burst
+    depth=10,  # 10 here so no transition is lost in a burst
 )
 """QoS of our ``nav_status`` subscription; compatible with the navigator's (reliable, transient
-local, depth 1)."""
+local, depth 100: ``swarm_nav.node.NAV_STATUS_QOS``)."""
 
 MAP_FRAME = "map"
 

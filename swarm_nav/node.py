@@ -83,6 +83,13 @@ asks for transient-local (swarm-up's recorder) gets the commands sent before it 
 writer matches a reader before the reader matches the writer; what the writer sends in between,
 a volatile reader drops (23 ticks of one robot in one CI run, the navigator's start gate passed on
 the writer's side).  Volatile readers (the simulator) are unaffected."""
+NAV_STATUS_HISTORY = 100  # [messages] kept for late-joining readers: 50 s simulated at 2 Hz
+NAV_STATUS_QOS = QoSProfile(depth=NAV_STATUS_HISTORY, reliability=ReliabilityPolicy.RELIABLE,
+                            durability=DurabilityPolicy.TRANSIENT_LOCAL)
+"""``nav_status``'s publisher: reliable and transient-local with a history, for the reason
+:data:`CMD_VEL_QOS` has one: a reader whose side matched late (the start gate counts the
+writer's side) still gets every status, not the last alone, and so every goal, even one that
+ended, or whose navigator was killed, before the reader matched."""
 
 
 def stamp_ns(stamp) -> int:
@@ -189,7 +196,7 @@ class NavigatorNode(Node):
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.cmd_pub = self.create_publisher(TwistStamped, "cmd_vel", CMD_VEL_QOS)
         self.plan_pub = self.create_publisher(Path, "plan", latched)
-        self.status_pub = self.create_publisher(DiagnosticStatus, "nav_status", latched)
+        self.status_pub = self.create_publisher(DiagnosticStatus, "nav_status", NAV_STATUS_QOS)
         self.create_subscription(OccupancyGrid, "/map", self._on_map, latched)
         # Odometry and scans come every tick: read raw with swarm_common.cdr, no message objects
         # (rclpy built 15 of them per odometry message, 10 % of a group process's CPU).
@@ -334,10 +341,12 @@ class NavigatorNode(Node):
         self._tick(odom)
 
     def _awaits_goal(self, t: int) -> bool:
+        if not self._answered and self._start_gate_closed():
+            return True  # even with a goal there: a restarted navigator gets one at once
         if any(stamp < t for stamp, _, _ in self._goals):
             return False
         if not self._answered:
-            return self._start_gate_closed()
+            return False
         if self._goals:  # the next goal came, stamped ahead: it applies at its stamp
             return False
         # The first tick answered after the goal ended (normally the next one; a later one when
@@ -354,15 +363,16 @@ class NavigatorNode(Node):
         for ``wait_for_cmd_vel_readers`` readers of ``cmd_vel``, up to ``COMMANDER_WAIT_S`` wall
         seconds after the start (then warned, and answered).
 
-        A navigator restarted mid-run (a kill-nav fault) is a new DDS participant: a reader that
-        discovers it only after a goal ended (its latched ``nav_status`` keeps the last status
-        alone) would never see that goal succeed.  Likewise a recorder matched to ``cmd_vel``
-        only after the first answer had lost it while ``cmd_vel`` was volatile: 1 tick in 2 of
-        about 15 CI runs of ``tests/swarm_up/test_record.py``, the first 8 simulated s of one
-        robot of a 3-robot group run.  This gate counts the writer's matches only; the reader's
-        side can lag behind (23 ticks lost once more), which :data:`CMD_VEL_QOS`'s history
-        covers.  The simulator holds the tick until the navigator answers, so the
-        wait costs wall time, not reproducibility.
+        The gate holds even when a goal is already there: a navigator restarted mid-run (a
+        kill-nav fault) is a new writer and gets its commander's goal again at once; a reader
+        that discovered it only after that goal ended would never see the goal.  Likewise a
+        recorder matched to ``cmd_vel`` only after the first answer had lost it while
+        ``cmd_vel`` was volatile: 1 tick in 2 of about 15 CI runs of
+        ``tests/swarm_up/test_record.py``, the first 8 simulated s of one robot of a 3-robot
+        group run.  This gate counts the writer's matches only; the reader's
+        side can lag behind (23 ticks lost once more), which the histories of
+        :data:`CMD_VEL_QOS` and :data:`NAV_STATUS_QOS` cover.  The simulator holds the tick
+        until the navigator answers, so the wait costs wall time, not reproducibility.
         """
         waiting = []
         if (self.get_parameter("wait_for_commander").value

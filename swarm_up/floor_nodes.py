@@ -49,7 +49,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 from std_srvs.srv import Trigger
 
-from swarm_commander.robot_navigator import NAV_STATUS_QOS
+from swarm_commander.robot_navigator import NAV_STATUS_QOS as COMMANDER_STATUS_QOS
 from swarm_common.cdr import (
     LaserScanWriter,
     OdometryWriter,
@@ -78,11 +78,12 @@ LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
 CMD_VEL_QOS = QoSProfile(depth=300, reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
+NAV_STATUS_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
+                            durability=DurabilityPolicy.TRANSIENT_LOCAL)
 EVENTS_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
 # The subscribers' side is imported from the real nodes: the commander's NAV_STATUS_QOS and the
 # metrics node's STATUS_QOS / EVENTS_QOS / CLOCK_QOS.
-COMMANDER_STATUS_QOS = NAV_STATUS_QOS
 
 
 class _Cpu:
@@ -391,7 +392,7 @@ class FloorNavigatorNode(Node):
         # Publishers, subscribers, service (swarm_nav.node's).
         self.cmd_pub = self.create_publisher(TwistStamped, "cmd_vel", CMD_VEL_QOS)
         self.plan_pub = self.create_publisher(PathMsg, "plan", LATCHED)
-        self.status_pub = self.create_publisher(DiagnosticStatus, "nav_status", LATCHED)
+        self.status_pub = self.create_publisher(DiagnosticStatus, "nav_status", NAV_STATUS_QOS)
         self.create_subscription(OccupancyGrid, "/map", self._on_map, LATCHED)
         # Raw, read with swarm_common.cdr, as the real navigator does.
         self.create_subscription(LaserScan, "scan", self._on_scan, qos_profile_sensor_data,

@@ -46,7 +46,7 @@ from swarm_up.aggregate import RunRecorder
 
 STATUS_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
-    # The navigators publish with depth 1 (latched); the reader keeps 100 per robot, 50
+    # The navigators keep 100 for late readers (NAV_STATUS_QOS); the reader keeps 100 per robot, 50
     # simulated seconds of statuses at 2 Hz, so a listener thread that falls behind under load
     # still sees every SUCCEEDED before the next goal's status (tests/swarm_up/test_metrics.py).
     depth=100,

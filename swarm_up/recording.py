@@ -53,6 +53,9 @@ _LATCHED = {"history": "keep_last", "depth": 1, "reliability": "reliable",
 # swarm_nav.node.CMD_VEL_QOS: a history for late readers
 _CMD_VEL = {"history": "keep_last", "depth": 300, "reliability": "reliable",
             "durability": "transient_local"}
+# swarm_nav.node.NAV_STATUS_QOS: likewise
+_NAV_STATUS = {"history": "keep_last", "depth": 100, "reliability": "reliable",
+               "durability": "transient_local"}
 _SENSOR = {"history": "keep_last", "depth": 5, "reliability": "best_effort",
            "durability": "volatile"}
 _EVENTS = {"history": "keep_last", "depth": 1000, "reliability": "reliable",
@@ -86,7 +89,7 @@ ROBOT_TOPICS = (  # (suffix, type, qos) of every robot's recorded topics
     ("ground_truth", "nav_msgs/msg/Odometry", _RELIABLE),
     ("cmd_vel", "geometry_msgs/msg/TwistStamped", _CMD_VEL),
     ("plan", "nav_msgs/msg/Path", _LATCHED),
-    ("nav_status", "diagnostic_msgs/msg/DiagnosticStatus", _LATCHED),
+    ("nav_status", "diagnostic_msgs/msg/DiagnosticStatus", _NAV_STATUS),
 )
 
 

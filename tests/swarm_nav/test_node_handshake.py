@@ -169,6 +169,27 @@ def test_the_first_answer_waits_for_the_readers_of_nav_status(probe):
     assert t0 in probe.answers, "the first tick stayed unanswered with both readers there"
 
 
+@pytest.mark.parametrize("probe", [(5.0, 2)], indirect=True)
+def test_a_goal_already_there_does_not_open_the_start_gate(probe):
+    """A navigator restarted mid-run (a kill-nav fault) gets its commander's goal again before
+    it answers its first tick, stamped in the past: it still waits for the readers of
+    ``nav_status``, or a reader that matches only after that goal ended never learns of it
+    (a goal missing from a workstation's count in 1 of about 30 CI runs of
+    ``tests/test_e2e_faults.py``)."""
+    t0 = 10 * TICK_NS
+    probe.send_goal(t0 - 2 * TICK_NS, 2.0, 0.0)
+    spin_until(probe.executor, lambda: len(probe.nav._goals) == 1, 5.0, "the goal")
+    probe.tick(t0)
+    assert probe.silent_for(t0, 1.5), "a waiting goal let the first answer past the start gate"
+    probe.node.create_subscription(DiagnosticStatus, "/hs/nav_status", lambda msg: None, LATCHED)
+    deadline = time.monotonic() + 10.0
+    while t0 not in probe.answers and time.monotonic() < deadline:
+        probe.tick(t0)  # the held tick again, as the simulator re-publishes it
+        probe.silent_for(t0, 0.5)
+    assert t0 in probe.answers, "the first tick stayed unanswered with both readers there"
+    assert probe.answers[t0][0] > 0.0, "the goal did not take effect on the first tick"
+
+
 @pytest.mark.parametrize("probe", [(5.0, 0, 2)], indirect=True)
 def test_the_first_answer_waits_for_the_readers_of_cmd_vel(probe):
     """``wait_for_cmd_vel_readers`` (swarm-up: the simulator, and the recorder when it records
@@ -247,6 +268,36 @@ def test_a_reader_that_joins_late_gets_the_earlier_commands(probe):
     spin_until(probe.executor, lambda: t in history and t in volatile, 5.0, "the next command")
     assert history == ticks + [t]
     assert volatile == [t]
+
+
+@pytest.mark.parametrize("probe", [0.0], indirect=True)
+def test_a_reader_that_joins_late_gets_the_statuses_of_goals_gone_by(probe):
+    """``nav_status`` keeps ``NAV_STATUS_HISTORY`` statuses: a reader matched after a goal was
+    replaced by the next still learns of the first (swarm-up's metrics count goals per
+    workstation from these), where a latched last status alone would name only the second."""
+    t0 = 10 * TICK_NS
+    probe.tick(t0)
+    probe.answer(t0, 10.0)
+    ids, t = [], t0
+    for x in (2.0, -2.0):
+        probe.send_goal(t, x, 0.0)  # replaces the running goal, if any
+        ids.append(f"{t // NS_PER_S}.{t % NS_PER_S:09d}")
+        deadline = time.monotonic() + 5.0
+        while probe.status.get("goal_id") != ids[-1] and time.monotonic() < deadline:
+            t += TICK_NS  # a running goal's tick is answered at once: the goal may come later
+            probe.tick(t)
+            probe.answer(t, 5.0)
+            probe.silent_for(t + TICK_NS, 0.05)
+        assert probe.status.get("goal_id") == ids[-1], f"goal {ids[-1]} never ran"
+    seen: list[str] = []
+    probe.node.create_subscription(
+        DiagnosticStatus, "/hs/nav_status",
+        lambda msg: seen.append({kv.key: kv.value for kv in msg.values}.get("goal_id", "")),
+        QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
+                   durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    spin_until(probe.executor, lambda: ids[-1] in seen, 5.0, "the history")
+    assert ids[0] in seen, f"the first goal's statuses were not kept: {seen}"
+    assert seen.index(ids[0]) < seen.index(ids[-1])
 
 
 @pytest.mark.parametrize("probe", [0.3], indirect=True)
