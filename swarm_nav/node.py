@@ -341,11 +341,9 @@ class NavigatorNode(Node):
         self._tick(odom)
 
     def _awaits_goal(self, t: int) -> bool:
-        if not self._answered and self._start_gate_closed():
-            return True  # even with a goal there: a restarted navigator gets one at once
+        if not self._answered:  # even with a goal there: a restarted navigator gets one at once
+            return self._start_gate_closed()
         if any(stamp < t for stamp, _, _ in self._goals):
-            return False
-        if not self._answered:
             return False
         if self._goals:  # the next goal came, stamped ahead: it applies at its stamp
             return False
