@@ -24,7 +24,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import LaserScan
 
-from swarm_common.stamps import NS_PER_S
+from swarm_common.stamps import NS_PER_S, format_stamp_ns
 from swarm_nav.node import NavigatorNode
 from tests.support.ros import spin_until
 
@@ -110,6 +110,14 @@ class Probe:
             self.executor.spin_once(timeout_sec=0.02)
         return t not in self.answers
 
+    def republish_until_answered(self, t: int, timeout: float) -> None:
+        """Publish held tick ``t`` again every 0.5 s wall, as the simulator does, until it is
+        answered or ``timeout`` wall seconds passed (the caller asserts which)."""
+        deadline = time.monotonic() + timeout
+        while t not in self.answers and time.monotonic() < deadline:
+            self.tick(t)
+            self.silent_for(t, 0.5)
+
     def send_goal(self, stamp: int, x: float, y: float) -> None:
         goal = PoseStamped()
         self._stamp(goal, stamp)
@@ -162,10 +170,7 @@ def test_the_first_answer_waits_for_the_readers_of_nav_status(probe):
     probe.tick(t0)
     assert probe.silent_for(t0, 1.5), "answered with one reader of nav_status of two required"
     probe.node.create_subscription(DiagnosticStatus, "/hs/nav_status", lambda msg: None, LATCHED)
-    deadline = time.monotonic() + 10.0
-    while t0 not in probe.answers and time.monotonic() < deadline:
-        probe.tick(t0)  # the held tick again, as the simulator re-publishes it
-        probe.silent_for(t0, 0.5)
+    probe.republish_until_answered(t0, 10.0)
     assert t0 in probe.answers, "the first tick stayed unanswered with both readers there"
 
 
@@ -182,10 +187,7 @@ def test_a_goal_already_there_does_not_open_the_start_gate(probe):
     probe.tick(t0)
     assert probe.silent_for(t0, 1.5), "a waiting goal let the first answer past the start gate"
     probe.node.create_subscription(DiagnosticStatus, "/hs/nav_status", lambda msg: None, LATCHED)
-    deadline = time.monotonic() + 10.0
-    while t0 not in probe.answers and time.monotonic() < deadline:
-        probe.tick(t0)  # the held tick again, as the simulator re-publishes it
-        probe.silent_for(t0, 0.5)
+    probe.republish_until_answered(t0, 10.0)
     assert t0 in probe.answers, "the first tick stayed unanswered with both readers there"
     assert probe.answers[t0][0] > 0.0, "the goal did not take effect on the first tick"
 
@@ -203,10 +205,7 @@ def test_the_first_answer_waits_for_the_readers_of_cmd_vel(probe):
         TwistStamped, "/hs/cmd_vel",
         lambda msg: late.append(msg.header.stamp.sec * NS_PER_S + msg.header.stamp.nanosec),
         RELIABLE)
-    deadline = time.monotonic() + 10.0
-    while t0 not in probe.answers and time.monotonic() < deadline:
-        probe.tick(t0)  # the held tick again, as the simulator re-publishes it
-        probe.silent_for(t0, 0.5)
+    probe.republish_until_answered(t0, 10.0)
     assert t0 in probe.answers, "the first tick stayed unanswered with both readers there"
     spin_until(probe.executor, lambda: t0 in late, 5.0, "the first answer at the late reader")
 
@@ -281,7 +280,7 @@ def test_a_reader_that_joins_late_gets_the_statuses_of_goals_gone_by(probe):
     ids, t = [], t0
     for x in (2.0, -2.0):
         probe.send_goal(t, x, 0.0)  # replaces the running goal, if any
-        ids.append(f"{t // NS_PER_S}.{t % NS_PER_S:09d}")
+        ids.append(format_stamp_ns(t))
         deadline = time.monotonic() + 5.0
         while probe.status.get("goal_id") != ids[-1] and time.monotonic() < deadline:
             t += TICK_NS  # a running goal's tick is answered at once: the goal may come later
