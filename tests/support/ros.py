@@ -48,14 +48,22 @@ def stop(proc: subprocess.Popen, timeout: float = 5.0) -> int | None:
 
 @contextlib.contextmanager
 def ros_context():
-    """An rclpy context of its own, with a single-threaded executor spun by the caller."""
+    """An rclpy context of its own, with a single-threaded executor spun by the caller.
+
+    On exit every node added to the executor is destroyed before the context shuts down: a
+    shut-down context whose nodes live on keeps its DDS participant, and its endpoints stay
+    discoverable until garbage collection, so a later test would see, say, a ``/swarm/markers``
+    subscriber that is long gone (CI stop 33)."""
     ctx = rclpy.Context()
     rclpy.init(context=ctx)
     executor = SingleThreadedExecutor(context=ctx)
     try:
         yield ctx, executor
     finally:
+        nodes = executor.get_nodes()
         executor.shutdown()
+        for node in nodes:
+            node.destroy_node()
         rclpy.try_shutdown(context=ctx)
 
 
