@@ -223,6 +223,7 @@ class NavigatorCore:
         self._elsewhere = self._avoid  # the other workstations and spots (set per goal)
         self._occupied_since: float | None = None
         self._congestion_judged = -math.inf  # the scan time of the last congestion judgement
+        self._reached = 0  # goals reached since the navigator started
         self._scan = np.zeros((0, 2))
         self._dyn = np.zeros((0, 2))
         self._robots: list[SeenRobot] = []
@@ -534,6 +535,7 @@ class NavigatorCore:
         return 0.0, 0.0
 
     def _end(self, state: NavState, now: float, reason: str) -> None:
+        self._reached += state == NavState.SUCCEEDED
         self._state = state
         self._reason = reason
         self._t_end = now
@@ -615,8 +617,18 @@ class NavigatorCore:
 
     def _way_congested(self, hp: HoldingPattern, now: float) -> bool:
         """Whether the way to the goal (or to its holding spot) is congested
-        (:func:`~swarm_nav.holding.path_congested`), judged once per scan while driving there."""
+        (:func:`~swarm_nav.holding.path_congested`), judged once per scan while driving there.
+
+        Never for a starving robot (``starvation_time`` > 0, off by default): one that has
+        reached no goal since the navigator started and has held ``starvation_time`` for this
+        goal. The rule keeps robots out of a crowded corridor, and at 100 robots on
+        slim_blockage it kept some out for good: 12 robots had reached no goal after 30 minutes
+        (seed 0). With 300 s, 6 had, but the tasks fell from 527 to 484 and the last 10-minute
+        window to 0.82 of the mean (README, "Long shifts")."""
         hc = self.cfg.holding
+        if (hc.starvation_time > 0 and self._reached == 0
+                and self._holding_time >= hc.starvation_time):
+            return False
         if (hc.congestion_limit <= 0 or self._path is None or hp.rerouted
                 or hp.phase == HoldingPhase.WAIT or self._scan_time <= self._congestion_judged
                 or now - self._scan_time > self.cfg.scan_max_age):

@@ -447,6 +447,33 @@ def test_a_robot_that_sees_a_queue_standing_in_the_corridor_ahead_holds_back_in_
         assert not open_ and core.status.state == NavState.DRIVING
 
 
+@pytest.mark.parametrize(("reached", "held", "held_back"),
+                         [(0, 299.0, True), (0, 300.0, False), (1, 300.0, True)])
+def test_a_starving_robot_is_held_back_by_congestion_no_more(occ, reached, held, held_back):
+    """``starvation_time`` 300 s: the scene of the test above, for a robot that has held that
+    long for its goal. If it has reached no goal since its navigator started, it presses on into
+    the corridor as the robots inside it do; one that has reached a goal, or has held less,
+    holds back. (The holding time and the count of goals reached are set directly: the rule
+    reads nothing else.)"""
+    cfg = NavigatorConfig()
+    cfg = dataclasses.replace(cfg, holding=dataclasses.replace(cfg.holding,
+                                                               starvation_time=300.0))
+    core = NavigatorCore(cfg, WAFFLE_FOOTPRINT)
+    core.set_map(occ)
+    start = np.array([-6.6, 6.6, -math.pi / 2])
+    core.step(start, 0.0, 0.0, 0.0)
+    core.set_goal(LOADER1, "g", 0.0)
+    core._reached, core._holding_time = reached, held
+    me = SimRobot(core, start, log=[])
+    queue = [SimRobot(None, np.array([x, y, -math.pi / 2]))
+             for x, y in ((-6.7, 4.4), (-6.2, 3.7), (-7.2, 3.4))]
+    simulate([me, *queue], SLIM_BLOCKAGE_WALLS, 3.0, until_done=False)
+    assert NavigatorConfig().holding.starvation_time == 0.0  # off unless asked for
+    assert (core.status.state == NavState.HOLDING) is held_back
+    assert (core._holding.target is not None) is held_back
+    assert (me.pose[1] < start[1] - 0.3) is not held_back  # drove on down the corridor
+
+
 # ------------------------------------------------------------------ knots
 KNOT = {  # 100 robots on slim_blockage, seed 0, at 300 s: x, y [m], yaw [deg], goal loader
     64: (0.87, 6.98, -14, 6), 32: (1.02, 6.74, 150, 6), 43: (1.29, 6.44, 132, 4),
