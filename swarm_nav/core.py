@@ -223,7 +223,7 @@ class NavigatorCore:
         self._elsewhere = self._avoid  # the other workstations and spots (set per goal)
         self._occupied_since: float | None = None
         self._congestion_judged = -math.inf  # the scan time of the last congestion judgement
-        self._reached = 0  # goals reached since the navigator started
+        self._reached_goal = False  # a goal reached since the navigator started
         self._scan = np.zeros((0, 2))
         self._dyn = np.zeros((0, 2))
         self._robots: list[SeenRobot] = []
@@ -535,7 +535,7 @@ class NavigatorCore:
         return 0.0, 0.0
 
     def _end(self, state: NavState, now: float, reason: str) -> None:
-        self._reached += state == NavState.SUCCEEDED
+        self._reached_goal |= state == NavState.SUCCEEDED
         self._state = state
         self._reason = reason
         self._t_end = now
@@ -626,7 +626,7 @@ class NavigatorCore:
         (seed 0). With 300 s, 6 had, but the tasks fell from 527 to 484 and the last 10-minute
         window to 0.82 of the mean (README, "Long shifts")."""
         hc = self.cfg.holding
-        if (hc.starvation_time > 0 and self._reached == 0
+        if (hc.starvation_time > 0 and not self._reached_goal
                 and self._holding_time >= hc.starvation_time):
             return False
         if (hc.congestion_limit <= 0 or self._path is None or hp.rerouted

@@ -448,7 +448,7 @@ def test_a_robot_that_sees_a_queue_standing_in_the_corridor_ahead_holds_back_in_
 
 
 @pytest.mark.parametrize(("reached", "held", "held_back"),
-                         [(0, 299.0, True), (0, 300.0, False), (1, 300.0, True)])
+                         [(False, 299.0, True), (False, 300.0, False), (True, 300.0, True)])
 def test_a_starving_robot_is_held_back_by_congestion_no_more(occ, reached, held, held_back):
     """``starvation_time`` 300 s: the scene of the test above, for a robot that has held that
     long for its goal. If it has reached no goal since its navigator started, it presses on into
@@ -456,6 +456,7 @@ def test_a_starving_robot_is_held_back_by_congestion_no_more(occ, reached, held,
     holds back. (The holding time and the count of goals reached are set directly: the rule
     reads nothing else.)"""
     cfg = NavigatorConfig()
+    assert cfg.holding.starvation_time == 0.0  # off unless asked for
     cfg = dataclasses.replace(cfg, holding=dataclasses.replace(cfg.holding,
                                                                starvation_time=300.0))
     core = NavigatorCore(cfg, WAFFLE_FOOTPRINT)
@@ -463,12 +464,11 @@ def test_a_starving_robot_is_held_back_by_congestion_no_more(occ, reached, held,
     start = np.array([-6.6, 6.6, -math.pi / 2])
     core.step(start, 0.0, 0.0, 0.0)
     core.set_goal(LOADER1, "g", 0.0)
-    core._reached, core._holding_time = reached, held
+    core._reached_goal, core._holding_time = reached, held
     me = SimRobot(core, start, log=[])
     queue = [SimRobot(None, np.array([x, y, -math.pi / 2]))
              for x, y in ((-6.7, 4.4), (-6.2, 3.7), (-7.2, 3.4))]
     simulate([me, *queue], SLIM_BLOCKAGE_WALLS, 3.0, until_done=False)
-    assert NavigatorConfig().holding.starvation_time == 0.0  # off unless asked for
     assert (core.status.state == NavState.HOLDING) is held_back
     assert (core._holding.target is not None) is held_back
     assert (me.pose[1] < start[1] - 0.3) is not held_back  # drove on down the corridor
