@@ -9,11 +9,15 @@ It waits for the robot's navigator (its first ``nav_status``), then visits the s
 route, one task per stop, and prints one line per task::
 
     [Srobot3] task 4: reached loader2 in 41.2 s (sim)
-    [Srobot3] task 5: failed to reach loader1 after 0.4 s (sim): goal inside an obstacle
+    [Srobot3] task 5: reached loader4 in 63.0 s (sim), sent to loader3 (taken)
+    [Srobot3] task 6: failed to reach loader1 after 0.4 s (sim): goal inside an obstacle
 
-and, at the end or on Ctrl-C, a summary line. ``NS`` may also be a robot number, joined to
-``--name-prefix`` (``3`` → ``Srobot3``). The node is ``/<NS>/commander``; it uses simulated time
-unless ``--ros-args -p use_sim_time:=false`` says otherwise.
+and, at the end or on Ctrl-C, a summary line. A navigator holding for a taken workstation may
+take another free one of its kind instead (its ``swap_range``): the line names the one reached,
+and the next stop is skipped if it is that one (the robot stands on it). ``NS`` may also be a
+robot number, joined to ``--name-prefix`` (``3`` → ``Srobot3``). The node is
+``/<NS>/commander``; it uses simulated time unless ``--ros-args -p use_sim_time:=false`` says
+otherwise.
 
 :class:`CommanderRunner` is the commander without the process around it: it owns the route state
 and is driven by its navigator node's callbacks (a wall-clock timer and the end of each task),
@@ -23,6 +27,7 @@ never by a blocking loop, so the commanders of many robots can share one executo
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from collections.abc import Callable
@@ -42,7 +47,7 @@ from swarm_commander.robot_navigator import BasicNavigator, TaskResult
 from swarm_commander.route import FixedRoute, RandomRoute, RouteStop, build_route, visits
 from swarm_common import cli
 from swarm_common.errors import EXIT_BAD_INPUT, EXIT_OK, EXIT_RUNTIME, InputError, run_cli
-from swarm_common.geometry import yaw_to_quaternion
+from swarm_common.geometry import pose2d, yaw_to_quaternion
 
 PROG = "swarm-commander"
 NODE_NAME = "commander"
@@ -89,10 +94,14 @@ class CommanderRunner:
         self.reached = 0
         self.failed = 0
         self.canceled = 0
+        self.skipped = 0
+        """Stops skipped because the robot already stood there (it took that workstation)."""
         self.error: str | None = None
         """The one-line error when the commander gave up (no navigator), else None."""
         self.finished = Future()
         self._visits = visits(route, cfg.loops)
+        self._stops = route.stops
+        self._took: str | None = None  # the stop the last task took instead of the one sent
         self._started = False
         self._pending: RouteStop | None = None
         self._current: RouteStop | None = None
@@ -160,11 +169,15 @@ class CommanderRunner:
                 return
             self._report(self.nav.getResult())
             self._current = None
-        if self._pending is None:
+        while self._pending is None:
             visit = next(self._visits, None)
             if visit is None:
                 self._finish()
                 return
+            if visit[1].name == self._took:  # the last task took this one: we stand on it
+                self._took = None
+                self.skipped += 1
+                continue
             self._pending = visit[1]
         if self.nav.goToPose(_pose_msg(self._pending)):
             self._current, self._pending = self._pending, None
@@ -178,11 +191,15 @@ class CommanderRunner:
         elapsed = (self._now_ns() - self._task_start_ns) / 1e9
         head = f"[{self.label}] task {self.tasks}:"
         name, clock = self._current.name, self.clock_label
+        feedback = self.nav.getFeedback()
         if result == TaskResult.SUCCEEDED:
             self.reached += 1
-            self.emit(f"{head} reached {name} in {elapsed:.1f} s ({clock})")
+            stop = self._reached_stop(feedback)
+            self._took = stop.name if stop is not self._current else None
+            sent = f", sent to {name} (taken)" if self._took else ""
+            self.emit(f"{head} reached {stop.name} in {elapsed:.1f} s ({clock}){sent}")
             return
-        feedback = self.nav.getFeedback()
+        self._took = None
         reason = feedback.reason if feedback is not None and feedback.reason else "no reason given"
         if result == TaskResult.CANCELED:
             self.canceled += 1
@@ -191,6 +208,18 @@ class CommanderRunner:
         else:
             self.failed += 1
             self.emit(f"{head} failed to reach {name} after {elapsed:.1f} s ({clock}): {reason}")
+
+    def _reached_stop(self, feedback) -> RouteStop:
+        """The stop the navigator reached: the one sent, unless it reports a goal 1 cm or more
+        away from it (it took another workstation); then the route's stop within 1 cm of that
+        goal, or, if the route has none there, a stop named by the goal's x, y [m]."""
+        goal = feedback.goal if feedback is not None else None
+        if goal is None or math.dist(goal[:2], self._current.pose[:2]) < 0.01:
+            return self._current
+        near = min(self._stops, key=lambda s: math.dist(goal[:2], s.pose[:2]))
+        if math.dist(goal[:2], near.pose[:2]) < 0.01:
+            return near
+        return RouteStop(f"({goal[0]:.2f}, {goal[1]:.2f})", pose2d(*goal))
 
     def _finish(self) -> None:
         self.stop()

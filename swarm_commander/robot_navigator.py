@@ -123,6 +123,9 @@ class NavFeedback:
         goal_id: the id (``"<sec>.<nanosec:09d>"``) of the goal being driven to.
         holding_time: [s] spent in the holding pattern for the current pose.
         reason: the navigator's reason, e.g. why a goal was aborted; ``""`` if none.
+        goal: (x [m], y [m], yaw [rad]) in ``map`` of the goal the navigator drives to, as it
+            reports it: the pose sent, or another workstation of its kind taken instead
+            (``swap_range``); None before the navigator reported one.
     """
 
     distance_remaining: float = 0.0
@@ -135,6 +138,7 @@ class NavFeedback:
     goal_id: str = ""
     holding_time: float = 0.0
     reason: str = ""
+    goal: tuple[float, float, float] | None = None
 
 
 @dataclass
@@ -589,6 +593,7 @@ class BasicNavigator(Node):
             goal_id=task.goal_id,
             holding_time=status.holding_time or 0.0,
             reason=status.reason,
+            goal=status.goal,
         )
 
     def _in_executor(self) -> bool:

@@ -185,9 +185,12 @@ class HoldingConfig:
                                "staging point (0 = never)", check=">=0")
     congestion_wait: float = _p(15.0, "s", "... for at least this long, stretched by "
                                 "robot_index % 5 quarters, then try again", check=">=0")
-    starvation_time: float = _p(0.0, "s", "a robot that has reached no goal yet and has held "
+    starvation_time: float = _p(300.0, "s", "a robot that has reached no goal yet and has held "
                                 "this long for its goal is held back by congestion no more "
                                 "(0 = always held back)", check=">=0")
+    swap_range: float = _p(2.5, "m", "a holding robot that sees, in line of sight and within "
+                           "this, another workstation of its goal's kind free (as judged for "
+                           "its own goal) takes that one instead (0 = never)", check=">=0")
     moving_speed: float = _p(0.08, "m/s", "a robot seen moving faster than this toward the goal "
                              "is approaching it, away from it is leaving it", check=">=0")
     workstation_match_radius: float = _p(0.3, "m", "a goal this close to a workstation uses its "

@@ -175,16 +175,26 @@ class NavigatorCore:
         footprint: (K, 2) footprint polygon x, y [m] in ``base_footprint`` (its bounding box is
             used), or a :class:`~swarm_nav.dwa.Footprint`.
         holding_sites: per workstation (pose (3,) [m, rad], holding points (K, 2) [m]) in ``map``.
+        site_kinds: per workstation of ``holding_sites``, its kind
+            (:func:`~swarm_nav.holding.workstation_kind`): a holding robot may take another free
+            workstation of its goal's kind (``swap_range``). Empty (the default): never.
+
+    Raises:
+        ValueError: ``site_kinds`` is neither empty nor one per holding site.
     """
 
     def __init__(self, cfg: NavigatorConfig, footprint,
-                 holding_sites: Sequence[HoldingSite] = ()):
+                 holding_sites: Sequence[HoldingSite] = (), site_kinds: Sequence[str] = ()):
         self.cfg = cfg
         self.footprint = (footprint if isinstance(footprint, Footprint)
                           else Footprint.from_polygon(footprint))
         self.holding_sites = [
             (np.asarray(p, dtype=float), np.asarray(h, dtype=float).reshape(-1, 2))
             for p, h in holding_sites]
+        if site_kinds and len(site_kinds) != len(self.holding_sites):
+            raise ValueError(f"site_kinds: {len(site_kinds)} kinds for "
+                             f"{len(self.holding_sites)} holding sites")
+        self.site_kinds = [str(k) for k in site_kinds]
         avoid = [p[None, :2] for p, _ in self.holding_sites] + [h for _, h in self.holding_sites]
         self._avoid = np.vstack(avoid) if avoid else np.zeros((0, 2))
         self.costmap: Costmap | None = None
@@ -223,6 +233,11 @@ class NavigatorCore:
         self._elsewhere = self._avoid  # the other workstations and spots (set per goal)
         self._occupied_since: float | None = None
         self._congestion_judged = -math.inf  # the scan time of the last congestion judgement
+        self._swap_judged = -math.inf  # the scan time of the last look for another workstation
+        self._sent_goal: np.ndarray | None = None  # the goal as set, before any swap
+        self._last_site: int | None = None  # the holding site of the last goal reached
+        self.swaps = 0
+        """Goals for which another workstation was taken instead, since the navigator started."""
         self._reached_goal = False  # a goal reached since the navigator started
         self._scan = np.zeros((0, 2))
         self._dyn = np.zeros((0, 2))
@@ -257,6 +272,7 @@ class NavigatorCore:
         g = np.asarray(goal, dtype=float).ravel()
         self._goal = g[:3].copy() if g.size >= 3 else np.array([*g[:2], 0.0])
         self._goal_id = str(goal_id)
+        self._sent_goal = None
         self._reason = ""
         self._t_goal = now
         self._t_end = None
@@ -520,6 +536,11 @@ class NavigatorCore:
             if np.hypot(*(pose[:2] - self._goal[:2])) > self.cfg.goal.xy_goal_tolerance:
                 shift = np.hypot(*(self._adjusted_goal - self._goal[:2]))
                 note = f"goal was in the inflation: reached the free spot {shift:.2f} m from it"
+            if self._sent_goal is not None:
+                (x, y), (x0, y0) = self._goal[:2], self._sent_goal[:2]
+                note = "; ".join(filter(None, (
+                    f"took the workstation at ({x:.3f}, {y:.3f}), free while the goal at "
+                    f"({x0:.3f}, {y0:.3f}) was taken", note)))
             self._end(NavState.SUCCEEDED, now, note)
             return 0.0, 0.0
         decel = abs(self.cfg.dwa.decel_lim_theta)
@@ -535,7 +556,9 @@ class NavigatorCore:
         return 0.0, 0.0
 
     def _end(self, state: NavState, now: float, reason: str) -> None:
-        self._reached_goal |= state == NavState.SUCCEEDED
+        if state == NavState.SUCCEEDED:
+            self._reached_goal = True
+            self._last_site = goal_site(self._goal[:2], self.holding_sites, self.cfg.holding)
         self._state = state
         self._reason = reason
         self._t_end = now
@@ -564,6 +587,9 @@ class NavigatorCore:
                       f"{timeout:g} s")
             return
         hp.update(now, pose[:2], occupied, first)
+        if (hp.phase != HoldingPhase.APPROACH and fresh and not hp.held_back(now)
+                and self._swap_judged < self._scan_time and self._take_another(pose, now)):
+            return
         if self._way_congested(hp, now):
             hc = self.cfg.holding
             wait = hc.congestion_wait * (1.0 + 0.25 * (self.cfg.robot_index % 5))
@@ -590,6 +616,55 @@ class NavigatorCore:
         if moved:
             self._replan(pose, overlay=False)
             self._progress.reset(pose, now)
+
+    def _take_another(self, pose: np.ndarray, now: float) -> bool:
+        """While holding for a workstation, take another one of its kind instead, if one is free.
+
+        Judged once per fresh scan, when not held back by congestion: the nearest workstation of
+        the goal's kind (:attr:`site_kinds`), other than the goal's own and the one of the last
+        goal reached (the robot would only go back where it came from), within ``swap_range`` of
+        the robot and in line of sight, that no robot stands on or drives onto, that no nearer
+        robot is heading for, and where no robots queue (the judgements made for the goal itself:
+        :func:`~swarm_nav.holding.goal_occupied`, :func:`~swarm_nav.holding.someone_came_first`,
+        :func:`~swarm_nav.holding.goal_crowded`). The goal becomes that workstation's docking pose
+        (``nav_status`` reports it; the goal id stays), the holding pattern starts afresh for it.
+        Our design (SPEC §5 has the robot hold until its own goal is free): at 100 robots in
+        slim_blockage, a robot that reached the loaders' corridor no longer leaves it without a
+        task while the loader beside its own is free (README "Long shifts").
+
+        Returns:
+            True if the goal changed.
+        """
+        hc = self.cfg.holding
+        self._swap_judged = self._scan_time
+        if hc.swap_range <= 0 or not self.site_kinds:
+            return False
+        own = goal_site(self._goal[:2], self.holding_sites, hc)
+        if own is None:
+            return False
+        best, best_d = None, math.inf
+        for i, (p, _h) in enumerate(self.holding_sites):
+            if i in (own, self._last_site) or self.site_kinds[i] != self.site_kinds[own]:
+                continue
+            d = float(np.hypot(*(p[:2] - pose[:2])))
+            if d > hc.swap_range or d >= best_d:
+                continue
+            if (not goal_visible(self.costmap, pose[:2], p[:2], hc)
+                    or goal_occupied(self._robots, p[:2], hc)
+                    or someone_came_first(self._robots, pose[:2], p[:2], hc)
+                    or goal_crowded(self._robots, pose[:2], p[:2], hc, self._other_sites(p[:2]))):
+                continue
+            best, best_d = i, d
+        if best is None or self._plan(pose[:2], self.holding_sites[best][0][:2],
+                                      overlay=False).path is None:
+            return False
+        self.swaps += 1
+        if self._sent_goal is None:
+            self._sent_goal = self._goal.copy()
+        self._goal = self.holding_sites[best][0][:3].copy()
+        self._occupied_since = None
+        self._start_goal(pose, now)
+        return True
 
     def _occupant_stays(self, occupied: bool | None, goal: np.ndarray, now: float) -> bool:
         """Whether the goal has been seen taken for ``occupied_timeout`` by a robot that does not

@@ -35,6 +35,7 @@ points of interest; a goal that is no workstation holds ``holding_distance`` bac
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Sequence
 from enum import StrEnum
 
@@ -64,6 +65,25 @@ def holding_sites_from_poi(poi) -> list[HoldingSite]:
     return [(np.asarray(w.pose, dtype=float).copy(),
              np.asarray(w.holding, dtype=float).reshape(-1, 2).copy())
             for w in poi.workstations]
+
+
+def workstation_kind(name: str) -> str:
+    """The kind of a workstation: its name without a trailing number and separator
+    (``"loader3"`` and ``"loader_12"`` are ``"loader"``; ``"packing"`` is ``"packing"``).
+
+    Workstations of one kind are interchangeable: a holding robot may take another free one of
+    its goal's kind instead (``swap_range``). Our convention, for worlds whose points of interest
+    number workstations that do the same job.
+    """
+    return re.sub(r"[\s_-]*\d+$", "", str(name)) or str(name)
+
+
+def site_kinds_from_poi(poi) -> list[str]:
+    """The :func:`workstation_kind` of each workstation of a world's points of interest, in the
+    order of :func:`holding_sites_from_poi`; ``[]`` for ``None``."""
+    if poi is None:
+        return []
+    return [workstation_kind(w.name) for w in poi.workstations]
 
 
 def _toward(robot: SeenRobot, goal_xy: np.ndarray) -> float:

@@ -47,7 +47,7 @@ from swarm_common.stamps import NS_PER_S, format_stamp
 from swarm_nav import jit
 from swarm_nav.config import NavigatorConfig, flat_defaults
 from swarm_nav.core import NavigatorCore
-from swarm_nav.holding import holding_sites_from_poi
+from swarm_nav.holding import holding_sites_from_poi, site_kinds_from_poi
 
 STATUS_PERIOD_NS = NS_PER_S // 2  # nav_status at 2 Hz simulated, and on every change of state
 # Parameters that describe the robot and its world rather than an algorithm.
@@ -158,7 +158,7 @@ class NavigatorNode(Node):
         # cmd_vel goes out every tick: written as CDR bytes (swarm_common.cdr), no message object
         self._cmd_writer = TwistStampedWriter(f"{self.ns}/base_footprint")
         self._plan_writer = PathWriter("map")
-        self.core = NavigatorCore(self.cfg, robot.footprint, sites)
+        self.core = NavigatorCore(self.cfg, robot.footprint, *sites)
         took = jit.warm_up()  # before the first tick needs the compiled kernels (once a process)
         if took > 2.0:
             self.get_logger().info(f"compiled the navigator's kernels in {took:.1f} s "
@@ -233,7 +233,8 @@ class NavigatorNode(Node):
 
         robot = load_robot(self.get_parameter("robot").value)
         poi_file = self.get_parameter("poi_file").value
-        sites = holding_sites_from_poi(load_poi(poi_file)) if poi_file else []
+        poi = load_poi(poi_file) if poi_file else None
+        sites = holding_sites_from_poi(poi), site_kinds_from_poi(poi)
         # The DWA checks the robot's own footprint (NavigatorCore); the costmap inflates by
         # robot_radius and the DWA samples up to max_vel_*: say when a params file made for
         # another robot does not fit this one (swarm-up writes fitted ones, rundir.robot_params).

@@ -225,8 +225,8 @@ class RunRecorder:
             rec.goal_wait_timeouts = waits
         if goal and status.holding_time is not None:
             rec.holding_s[goal] = status.holding_time
-        if goal and status.goal is not None and goal not in rec.goal_xy:
-            rec.goal_xy[goal] = (status.goal[0], status.goal[1])
+        if goal and status.goal is not None:  # the latest: a holding robot may take another
+            rec.goal_xy[goal] = (status.goal[0], status.goal[1])  # workstation (swap_range)
         if goal and goal not in rec.applied and status.stamp_ns is not None \
                 and status.navigation_time is not None and state not in (None, NavState.IDLE):
             rec.applied.add(goal)

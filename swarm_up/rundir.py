@@ -37,8 +37,9 @@ CONTEXT_KEYS = frozenset({"use_sim_time", "robot", "poi_file", "map_yaml_path", 
 # on a workstation's holding spot, nearer to it, for a queue; robots parked in the corridor can
 # make the way "congested"; which rule cost how much was not separated): 10 robots, 300 s, seed
 # 0 completed 29 tasks with 4 standstills of 60 s or more; without them 53 and none (55 at
-# 8bb897c, before the rules).
-CENTRALIZED_OVERRIDES = {"crowd_limit": 0, "congestion_limit": 0}
+# 8bb897c, before the rules). And the coordinator reserves one workstation for each robot: its
+# navigator must not take another one instead (swap_range).
+CENTRALIZED_OVERRIDES = {"crowd_limit": 0, "congestion_limit": 0, "swap_range": 0.0}
 
 
 class RunError(Exception):

@@ -450,15 +450,13 @@ def test_a_robot_that_sees_a_queue_standing_in_the_corridor_ahead_holds_back_in_
 @pytest.mark.parametrize(("reached", "held", "held_back"),
                          [(False, 299.0, True), (False, 300.0, False), (True, 300.0, True)])
 def test_a_starving_robot_is_held_back_by_congestion_no_more(occ, reached, held, held_back):
-    """``starvation_time`` 300 s: the scene of the test above, for a robot that has held that
-    long for its goal. If it has reached no goal since its navigator started, it presses on into
-    the corridor as the robots inside it do; one that has reached a goal, or has held less,
-    holds back. (The holding time and the count of goals reached are set directly: the rule
-    reads nothing else.)"""
+    """``starvation_time`` 300 s (the default): the scene of the test above, for a robot that
+    has held that long for its goal. If it has reached no goal since its navigator started, it
+    presses on into the corridor as the robots inside it do; one that has reached a goal, or has
+    held less, holds back. (The holding time and whether a goal was reached are set directly:
+    the rule reads nothing else.)"""
     cfg = NavigatorConfig()
-    assert cfg.holding.starvation_time == 0.0  # off unless asked for
-    cfg = dataclasses.replace(cfg, holding=dataclasses.replace(cfg.holding,
-                                                               starvation_time=300.0))
+    assert cfg.holding.starvation_time == 300.0
     core = NavigatorCore(cfg, WAFFLE_FOOTPRINT)
     core.set_map(occ)
     start = np.array([-6.6, 6.6, -math.pi / 2])
