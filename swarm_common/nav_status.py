@@ -23,7 +23,9 @@ key                           value
 ``recoveries``                recovery behaviours run for this goal (integer)
 ``holding_time_s``            [s] spent holding for this goal, 3 decimals
 ``goal_wait_timeouts``        goal-wait timeouts since the navigator started (integer)
-``reason``                    why the goal was aborted (or a note on success), else ``""``
+``reason``                    why the goal was aborted (or a note on success), else ``""``;
+                              on success at another workstation than the goal sent (the
+                              navigator's ``swap_range``) it begins with :data:`TOOK_ANOTHER`
 ============================  ===============================================================
 
 :func:`decode` is tolerant, because a reader must never crash on another process's message:
@@ -45,6 +47,7 @@ __all__ = [
     "OK",
     "OUTCOMES",
     "TERMINAL",
+    "TOOK_ANOTHER",
     "WARN",
     "NavState",
     "NavStatusRecord",
@@ -72,6 +75,11 @@ OUTCOMES = (NavState.SUCCEEDED, NavState.ABORTED, NavState.CANCELED)
 
 TERMINAL = (NavState.IDLE, *OUTCOMES)
 """The states in which no goal is being driven to."""
+
+TOOK_ANOTHER = "took the workstation at "
+"""How the reason of a goal reached at another workstation than the one sent begins: the
+navigator took a free one of its kind while the goal was taken (``swap_range``); the goal's
+``goal_x``/``goal_y`` are then the workstation reached."""
 
 OK, WARN, ERROR = 0, 1, 2
 """``diagnostic_msgs/DiagnosticStatus`` levels (its ``OK``, ``WARN``, ``ERROR`` bytes)."""

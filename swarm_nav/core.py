@@ -42,7 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from swarm_common.geometry import Path2D, Points2D, Pose2D, wrap_angle
-from swarm_common.nav_status import TERMINAL, NavState
+from swarm_common.nav_status import TERMINAL, TOOK_ANOTHER, NavState
 from swarm_common.occupancy import OccupancyMap
 from swarm_nav import core_kernels, perception_kernels
 from swarm_nav.config import CostmapConfig, NavigatorConfig
@@ -539,7 +539,7 @@ class NavigatorCore:
             if self._sent_goal is not None:
                 (x, y), (x0, y0) = self._goal[:2], self._sent_goal[:2]
                 note = "; ".join(filter(None, (
-                    f"took the workstation at ({x:.3f}, {y:.3f}), free while the goal at "
+                    f"{TOOK_ANOTHER}({x:.3f}, {y:.3f}), free while the goal at "
                     f"({x0:.3f}, {y0:.3f}) was taken", note)))
             self._end(NavState.SUCCEEDED, now, note)
             return 0.0, 0.0

@@ -103,7 +103,7 @@ from swarm_common.coordination import (
     check_reservations,
 )
 from swarm_common.faults import FaultEvent
-from swarm_common.nav_status import NavState, decode
+from swarm_common.nav_status import TOOK_ANOTHER, NavState, decode
 from swarm_common.sim_summary import RobotSummary, SimSummary, SimSummaryError
 from swarm_common.stamps import NS_PER_S, parse_stamp
 
@@ -147,6 +147,7 @@ class RobotRecord:
     holding_s: dict[str, float] = field(default_factory=dict)  # goal id -> latest holding [s]
     anonymous_reached: int = 0
     anonymous_aborted: int = 0
+    took_another: int = 0  # goals reached at another workstation than the one sent
     anonymous_ttg: list[float] = field(default_factory=list)
     collisions: int = 0  # from /swarm/events
     spawned: bool = False
@@ -249,6 +250,7 @@ class RunRecorder:
             if goal:
                 if goal not in rec.reached:
                     rec.reached[goal] = ttg
+                    rec.took_another += status.reason.startswith(TOOK_ANOTHER)
                     if status.stamp_ns is not None:
                         rec.task_times.append(status.stamp_ns / 1e9)
             elif previous != NavState.SUCCEEDED:
@@ -418,6 +420,7 @@ def _robot_metrics(rec: RobotRecord, sim: RobotSummary) -> dict:
     return {
         "goals_reached": len(rec.reached) + rec.anonymous_reached,
         "goals_aborted": len(rec.aborted) + rec.anonymous_aborted,
+        "goals_at_another_workstation": rec.took_another,
         "collisions": sim.collisions if sim.collisions is not None else rec.collisions,
         "distance_m": sim.distance_m,
         "holding_time_s": sum(rec.holding_s.values()),
@@ -777,6 +780,8 @@ def aggregate(
         "spawn_to_ready_s": recorder.spawn_to_ready_s(),
         "goals_reached": reached,
         "goals_aborted": sum(r["goals_aborted"] for r in per_robot.values()),
+        "goals_at_another_workstation": sum(r["goals_at_another_workstation"]
+                                            for r in per_robot.values()),
         "tasks_completed": tasks_completed,
         "throughput_per_hour": (tasks_completed / hours) if hours else None,
         "warmup_s": WARMUP_S,

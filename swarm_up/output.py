@@ -167,7 +167,9 @@ def print_summary(metrics: dict, metrics_files: list[Path]) -> None:
         *([("tasks per robot", _per_robot(metrics["tasks_per_robot"]))]
           if metrics.get("tasks_per_robot") else []),
         ("goals reached / aborted",
-         f"{_fmt(metrics.get('goals_reached'))} / {_fmt(metrics.get('goals_aborted'))}"),
+         f"{_fmt(metrics.get('goals_reached'))} / {_fmt(metrics.get('goals_aborted'))}"
+         + (f"; {metrics['goals_at_another_workstation']} at another workstation"
+            if metrics.get("goals_at_another_workstation") else "")),
         ("collisions robot-robot / wall",
          f"{_fmt(col.get('robot_robot'))} / {_fmt(col.get('robot_wall'))}"),
         ("min separation", _fmt(metrics.get("min_separation_m"), "m")),

@@ -4,8 +4,10 @@ It subscribes ``<ns>/goal_pose``, publishes ``<ns>/nav_status`` (DiagnosticStatu
 transient local, depth 1, as docs/ARCHITECTURE.md fixes it) ``IDLE`` at start, then
 ``PLANNING`` -> ``DRIVING`` -> ``SUCCEEDED`` ``drive_time`` wall seconds after a goal, with the
 distance remaining shrinking linearly; a goal with ``x > abort_x`` is ``ABORTED`` at once (reason
-"goal outside the map"); ``<ns>/navigator/cancel`` (std_srvs/Trigger) cancels the running goal.
-It republishes its status at 2 Hz, and uses the wall clock (``use_sim_time`` False).
+"goal outside the map"); a goal listed in ``take_instead`` is reached at another pose, as a
+navigator that took another workstation (``swap_range``) reports it;
+``<ns>/navigator/cancel`` (std_srvs/Trigger) cancels the running goal. It republishes its
+status at 2 Hz, and uses the wall clock (``use_sim_time`` False).
 """
 
 from __future__ import annotations
@@ -52,16 +54,18 @@ class FakeNavigatorNode(Node):
         drive_time: [s] wall from a goal to SUCCEEDED.
         abort_x: [m] goals with ``x`` above it are aborted.
         ignore_goals: the first this many goals are dropped (stays IDLE), as by a restart.
+        take_instead: goal (x, y) [m] -> the pose (x, y, yaw) reached instead of it.
         context: the rclpy context.
     """
 
     def __init__(self, namespace, *, drive_time=0.3, abort_x=100.0, ignore_goals=0,
-                 context=None):
+                 take_instead=None, context=None):
         super().__init__("navigator", namespace=namespace, context=context,
                          parameter_overrides=[Parameter("use_sim_time", value=False)])
         self.drive_time = drive_time
         self.abort_x = abort_x
         self.ignore_goals = ignore_goals
+        self.take_instead = dict(take_instead or {})
         self.goals: list[tuple[str, float, float]] = []  # (goal_id, x, y) of every goal received
         self.cancels = 0
         self.state = "IDLE"
@@ -114,6 +118,12 @@ class FakeNavigatorNode(Node):
         if self.state in ACTIVE:
             self.elapsed = now - self.start
             if self.elapsed >= self.drive_time:
+                other = self.take_instead.get(self.goal[:2])
+                if other is not None:
+                    self.reason = (f"took the workstation at ({other[0]:.3f}, {other[1]:.3f}), "
+                                   f"free while the goal at ({self.goal[0]:.3f}, "
+                                   f"{self.goal[1]:.3f}) was taken")
+                    self.goal = tuple(other)
                 self.position = self.goal[:2]
                 self._set("SUCCEEDED")
                 return

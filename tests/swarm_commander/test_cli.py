@@ -279,6 +279,39 @@ def test_runners_of_several_robots_share_one_executor(context, tmp_path):
     assert runners[0].summary().startswith(f"[{names[0]}] summary: 6 tasks: 6 reached")
 
 
+def test_the_line_names_the_workstation_the_navigator_took_and_its_stop_is_skipped(context,
+                                                                                   tmp_path):
+    """The navigator takes loader2 when sent to loader1 (taken) and the pose (5, 5) when sent
+    to unload: the lines name what was reached, and the route's next stop, loader2, where the
+    robot now stands, is skipped (route: loader1, loader2, unload, twice)."""
+    ns = f"Tswap{next(_COUNTER)}"
+    (tmp_path / "w.yaml").write_text(POI_YAML)
+    stops = stops_from_workstations(load_poi(tmp_path / "w.yaml").workstations)
+    take = {STATIONS["loader1"]: (2.0, 1.0, 1.5708), STATIONS["unload"]: (5.0, 5.0, 0.0)}
+    lines: list[str] = []
+    executor = SingleThreadedExecutor(context=context)
+    with running_fake_navigator(ns, context, drive_time=0.1, take_instead=take) as fake:
+        nav = BasicNavigator(node_name="commander", namespace=ns, context=context,
+                             parameter_overrides=[Parameter("use_sim_time", value=False)])
+        cfg = CommanderConfig(loops=2, wait_timeout=10.0)
+        runner = CommanderRunner(nav, FixedRoute(stops), cfg, emit=lines.append)
+        executor.add_node(nav)
+        try:
+            deadline = time.monotonic() + 20.0
+            while not runner.finished.done():
+                assert time.monotonic() < deadline, lines
+                executor.spin_once(timeout_sec=0.1)
+        finally:
+            executor.shutdown(timeout_sec=0)
+            nav.destroy_node()
+    assert runner.finished.result() == 0
+    assert [(x, y) for _, x, y in fake.goals] == [STATIONS["loader1"], STATIONS["unload"]] * 2
+    assert (runner.tasks, runner.reached, runner.skipped) == (4, 4, 2)
+    tails = [re.sub(r" in \d+\.\d s \(wall\)", "", line.split(": ", 1)[1]) for line in lines]
+    assert tails == ["reached loader2, sent to loader1 (taken)",
+                     "reached (5.00, 5.00), sent to unload (taken)"] * 2
+
+
 def test_subprocesses_inherit_the_private_domain():
     assert os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
     assert os.environ["ROS_DOMAIN_ID"] == os.environ["SWARM_WB_TEST_DOMAIN"]

@@ -12,7 +12,7 @@ from swarm_common.poi import poi_for_world
 from swarm_nav.config import NavigatorConfig
 from swarm_nav.core import NavigatorCore, NavState, NavStatus
 from swarm_nav.costmap import add_keepout, build_costmap
-from swarm_nav.holding import holding_sites_from_poi
+from swarm_nav.holding import holding_sites_from_poi, site_kinds_from_poi, workstation_kind
 from tests.swarm_nav.helpers import (
     SLIM_BLOCKAGE_WALLS,
     WAFFLE_FOOTPRINT,
@@ -470,6 +470,96 @@ def test_a_starving_robot_is_held_back_by_congestion_no_more(occ, reached, held,
     assert (core.status.state == NavState.HOLDING) is held_back
     assert (core._holding.target is not None) is held_back
     assert (me.pose[1] < start[1] - 0.3) is not held_back  # drove on down the corridor
+
+
+def _loaders():
+    """slim_blockage's holding sites, their kinds and the workstations by name."""
+    poi = poi_for_world(WORLDS / "slim_blockage.world")
+    ws = {w.name: np.asarray(w.pose, dtype=float) for w in poi.workstations}
+    return holding_sites_from_poi(poi), site_kinds_from_poi(poi), ws
+
+
+def test_workstations_of_one_kind_share_their_name_before_the_number():
+    assert [workstation_kind(n) for n in ("loader3", "loader_12", "rack-2", "cnc 4")] == [
+        "loader", "loader", "rack", "cnc"]
+    assert [workstation_kind(n) for n in ("packing", "assembly_west", "7")] == [
+        "packing", "assembly_west", "7"]
+    assert site_kinds_from_poi(None) == []
+    sites, kinds, _ = _loaders()
+    assert kinds == ["loader"] * 6 and len(sites) == 6
+    with pytest.raises(ValueError, match="site_kinds: 2 kinds for 6 holding sites"):
+        NavigatorCore(NavigatorConfig(), WAFFLE_FOOTPRINT, sites, ["loader", "loader"])
+
+
+@pytest.mark.parametrize("kinds", ["poi", "none", "other", "off"])
+def test_a_holding_robot_takes_the_free_workstation_beside_its_taken_goal(occ, kinds):
+    """loader4 and loader5 are taken by robots that stay; loader3, 2.23 m below loader4, is
+    free. A robot sent to loader4 holds at loader4's spot (the gap toward loader3) and, seeing
+    loader3 free within
+    ``swap_range`` (2.5 m), docks there instead: SUCCEEDED, with loader3 as the goal in its
+    status and a note naming both. Without kinds (``kinds`` "none"), with every loader but
+    loader4 of another kind ("other") or with ``swap_range`` 0 ("off") it holds for loader4,
+    as SPEC §5 says."""
+    sites, site_kinds, ws = _loaders()
+    if kinds == "none":
+        site_kinds = []
+    elif kinds == "other":
+        site_kinds = ["loader" if i == 3 else "unloader" for i in range(len(sites))]
+    cfg = dataclasses.replace(NavigatorConfig(), robot_index=1)
+    if kinds == "off":
+        cfg = dataclasses.replace(cfg, holding=dataclasses.replace(cfg.holding, swap_range=0.0))
+    core = NavigatorCore(cfg, WAFFLE_FOOTPRINT, sites, site_kinds)
+    core.set_map(occ)
+    start = np.array([-6.3, 5.0, -math.pi / 2])
+    core.step(start, 0.0, 0.0, 0.0)
+    core.set_goal(ws["loader4"], "g", 0.0)
+    me = SimRobot(core, start, log=[])
+    parked = [SimRobot(None, ws[n].copy()) for n in ("loader4", "loader5")]
+    res = simulate([me, *parked], SLIM_BLOCKAGE_WALLS, 60.0, until_done=True)
+    assert res["contact_ticks"] == 0 and res["min_separation"] > 0.05
+    st = core.status
+    if kinds == "poi":
+        assert_arrived(me, ws["loader3"])
+        assert st.goal_id == "g" and core.swaps == 1
+        assert st.goal == pytest.approx(tuple(ws["loader3"]), abs=1e-9)
+        assert st.reason == ("took the workstation at (-7.746, 0.973), free while the goal at "
+                             "(-7.746, 3.203) was taken")
+    else:
+        assert st.state == NavState.HOLDING and core.swaps == 0, st
+        assert st.goal == pytest.approx(tuple(ws["loader4"]), abs=1e-9)
+        assert np.hypot(*(me.pose[:2] - ws["loader3"][:2])) > 0.6
+
+
+@pytest.mark.parametrize("came_from_loader3", [True, False])
+def test_a_holding_robot_never_takes_the_workstation_it_came_from(occ, came_from_loader3):
+    """A robot docked at loader3 and is sent on to loader4, which is taken (loader2 and loader5
+    too). It does not turn back to loader3, free behind it: that would be a task without a
+    trip. The same robot, standing there without having reached loader3 as a goal, takes it."""
+    sites, site_kinds, ws = _loaders()
+    core = NavigatorCore(dataclasses.replace(NavigatorConfig(), robot_index=1),
+                         WAFFLE_FOOTPRINT, sites, site_kinds)
+    core.set_map(occ)
+    start = np.array([-6.6, ws["loader3"][1], math.pi])
+    core.step(start, 0.0, 0.0, 0.0)
+    me = SimRobot(core, start, log=[])
+    parked = [SimRobot(None, ws[n].copy()) for n in ("loader2", "loader4", "loader5")]
+    core.set_goal(ws["loader3"] if came_from_loader3 else ws["loader4"], "g1", 0.0)
+    docked = []
+
+    def on_tick(t, robots):
+        if core.status.goal_id == "g1" and core.status.state == NavState.SUCCEEDED:
+            docked.append(me.pose.copy())
+            if came_from_loader3:
+                core.set_goal(ws["loader4"], "g2", t)
+    res = simulate([me, *parked], SLIM_BLOCKAGE_WALLS, 90.0, until_done=False, on_tick=on_tick)
+    assert res["contact_ticks"] == 0
+    assert docked and np.hypot(*(docked[0][:2] - ws["loader3"][:2])) <= 0.25
+    if came_from_loader3:
+        assert core.status.goal_id == "g2"
+        assert core.status.state == NavState.HOLDING and core.swaps == 0, core.status
+    else:
+        assert_arrived(me, ws["loader3"])
+        assert core.swaps == 1
 
 
 # ------------------------------------------------------------------ knots

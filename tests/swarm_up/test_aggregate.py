@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 
+from swarm_common.nav_status import TOOK_ANOTHER
 from swarm_common.sim_summary import SimSummary
 from swarm_up.aggregate import RunRecorder, aggregate, load_sim_summary
 
@@ -392,6 +393,18 @@ def test_workstation_table_matches_goals_to_the_nearest_docking_pose():
     assert rows["unused"]["goals"] == 0 and rows["unused"]["mean_wait_s"] is None
     assert (rows["(other)"]["goals"], rows["(other)"]["holding_time_s"]) == (1, 1.5)
     assert (rows["(other)"]["x"], rows["loader2"]["x"]) == (None, 5.0)
+    # a goal whose navigator took another workstation counts where it was reached
+    rec3 = RunRecorder(robots=("r1",))
+    rec3.on_status("r1", _goal("HOLDING", "1.000000000", 0.0, 0.0, 5.0, hold=3.0), 1.0)
+    took = {**_goal("SUCCEEDED", "1.000000000", 5.0, 0.0, 9.0, hold=3.0),
+            "reason": f"{TOOK_ANOTHER}(5.000, 0.000), free while the goal at (0.000, 0.000) "
+                      "was taken"}
+    rec3.on_status("r1", took, 2.0)
+    rec3.on_status("r1", took, 2.5)  # the same status again counts once
+    assert rec3.per_robot["r1"].took_another == 1
+    rows3 = {row["name"]: row for row in workstation_table(rec3, stations)}
+    assert (rows3["loader1"]["goals"], rows3["loader2"]["goals"]) == (0, 1)
+    assert (rows3["loader2"]["visits"], rows3["loader2"]["holding_time_s"]) == (1, 3.0)
     # no goal near no workstation: no (other) row
     rec2 = RunRecorder(robots=("r1",))
     rec2.on_status("r1", _goal("SUCCEEDED", "1.000000000", 5.4, 0.0, 3.0), 1.0)

@@ -107,13 +107,16 @@ def test_a_recording_adds_the_recorder_to_the_readers_the_first_answer_waits_for
 @pytest.mark.parametrize("coordination", ["decentralized", "centralized"])
 def test_centralized_runs_leave_the_queueing_to_the_coordinator(cfg, template, coordination):
     """Under --coordination centralized the navigator's own queue and congestion rules are off
-    (the coordinator queues the robots); decentralized runs keep the template's values."""
+    (the coordinator queues the robots), and so is taking another workstation (the coordinator
+    reserves one); decentralized runs keep the template's values."""
     cfg = replace(cfg, coordination=coordination)
-    template = {**template, "crowd_limit": 1, "congestion_limit": 3}  # the defaults' values
-    expected = (0, 0) if coordination == "centralized" else (1, 3)
+    template = {**template, "crowd_limit": 1, "congestion_limit": 3,
+                "swap_range": 2.5}  # the defaults' values
+    expected = (0, 0, 0.0) if coordination == "centralized" else (1, 3, 2.5)
     for path in write_params_files(cfg, template):
         params = next(iter(yaml.safe_load(path.read_text()).values()))["ros__parameters"]
-        assert (params["crowd_limit"], params["congestion_limit"]) == expected, path.name
+        assert (params["crowd_limit"], params["congestion_limit"],
+                params["swap_range"]) == expected, path.name
 
 
 def test_missing_poi_and_map_give_empty_strings(cfg, template):
