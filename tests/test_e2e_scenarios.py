@@ -195,7 +195,9 @@ AWAY = [(-7.74575, 3.20313, math.pi), (-7.74575, 5.78442, math.pi),
 
 
 def test_eight_robots_sent_to_one_workstation_dock_in_turn(swarm):
-    sw = swarm(8)
+    # the queue itself: none takes the free loader beside loader3 instead (swap_range 0; with
+    # it, test_node_behaviour's four robots sent to one taken workstation)
+    sw = swarm(8, nav_params={"swap_range": 0.0})
     # a robot that saw the queue and waits out of sight of loader3 may come back to find it
     # free (goal_crowded): 1 of the 7 did so in 2 of 8 runs on a loaded machine, never more
     docked, result = dock_in_turn(sw, LOADER3, AWAY, 180, may_skip_holding=2)

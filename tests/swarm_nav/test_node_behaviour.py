@@ -28,7 +28,7 @@ from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-from swarm_common.nav_status import OUTCOMES
+from swarm_common.nav_status import OUTCOMES, TOOK_ANOTHER
 from swarm_common.stamps import NS_PER_S, format_stamp
 from tests.support.ros import ros_context, spin_until, start, stop
 
@@ -374,7 +374,7 @@ def docked_at_once(sw: Swarm, goal, ticks) -> list[int]:
 
 
 def test_four_robots_dock_at_one_workstation_in_turn(swarm):
-    sw = swarm(4)
+    sw = swarm(4, nav_params={"swap_range": 0.0})  # the queue: none takes another loader
     _, result = dock_in_turn(sw, LOADER3, AWAY, 120)
     assert_no_collisions(sw)
     # From ground truth, every tick: never two robot centres in the goal disc at once.
@@ -383,6 +383,40 @@ def test_four_robots_dock_at_one_workstation_in_turn(swarm):
     assert ticks[-1] >= round(result.t * NS_PER_S)  # ... up to the last docking
     assert all(math.dist(sw.truth[ns][ticks[0]][:2], LOADER3[:2]) > 5.0 for ns in sw.names)
     assert max(docked_at_once(sw, LOADER3, ticks)) == 1  # someone docked, never two at once
+
+
+LOADERS = {f"loader{i}": (-7.74575, y, math.pi) for i, y in enumerate(
+    (-3.57766, -1.38526, 0.97297, 3.20313, 5.78442, 8.36337), start=1)}
+
+
+def test_robots_sent_to_one_taken_workstation_take_the_free_ones_of_its_kind(swarm):
+    """The defaults (``swap_range`` 2.5 m): four robots sent to loader3 at once, none sent on.
+    The first docks there; the others, holding for it, take free loaders within 2.5 m instead:
+    each SUCCEEDED, docked at the loader its status names, the note saying so, never two robots
+    at one loader; a robot left without a free loader in reach holds."""
+    sw = swarm(4)
+    assert TEMPLATE["swap_range"] == 2.5
+    goal_ids = sw.send_together(dict.fromkeys(sw.names, LOADER3))
+    done = lambda: sum((ns, g) in sw.results for ns, g in goal_ids.items())  # noqa: E731
+    sw.spin_until(lambda: done() >= 3, 150, "three robots docked")
+    third_ns = max(sw.status_ns(ns) for ns in sw.names)  # a fourth may still take one
+    sw.spin_until(lambda: done() == 4 or min(sw.status_ns(ns) for ns in sw.names)
+                  >= third_ns + 20 * NS_PER_S, 60, "20 simulated s more")
+    at: dict[str, str] = {}
+    for ns, g in goal_ids.items():
+        result = sw.results.get((ns, g))
+        if result is None:
+            assert sw.statuses[ns][-1].state == "HOLDING", (ns, sw.statuses[ns][-1])
+            continue
+        goal = (float(result.values["goal_x"]), float(result.values["goal_y"]))
+        name = next(n for n, p in LOADERS.items() if math.dist(p[:2], goal) < 0.01)
+        assert_reached(sw, ns, result, LOADERS[name])
+        assert (name != "loader3") == result.values["reason"].startswith(TOOK_ANOTHER), result
+        at[ns] = name
+    print(f"docked: {at}")
+    assert list(at.values()).count("loader3") == 1
+    assert len(set(at.values())) == len(at) >= 3  # one robot per loader, two took another
+    assert_no_collisions(sw)
 
 
 # -- 4. unreachable goals are aborted at once, with the reason -------------------------------
