@@ -694,12 +694,13 @@ class NavigatorCore:
         """Whether the way to the goal (or to its holding spot) is congested
         (:func:`~swarm_nav.holding.path_congested`), judged once per scan while driving there.
 
-        Never for a starving robot (``starvation_time`` > 0, off by default): one that has
+        Never for a starving robot (``starvation_time`` > 0; 300 s by default): one that has
         reached no goal since the navigator started and has held ``starvation_time`` for this
         goal. The rule keeps robots out of a crowded corridor, and at 100 robots on
         slim_blockage it kept some out for good: 12 robots had reached no goal after 30 minutes
-        (seed 0). With 300 s, 6 had, but the tasks fell from 527 to 484 and the last 10-minute
-        window to 0.82 of the mean (README, "Long shifts")."""
+        (seed 0). With 300 s alone, 6 had, but the tasks fell from 527 to 484 and the last
+        10-minute window to 0.82 of the mean; with taking another free workstation
+        (``swap_range``) too, it is the default (README, "Long shifts")."""
         hc = self.cfg.holding
         if (hc.starvation_time > 0 and not self._reached_goal
                 and self._holding_time >= hc.starvation_time):
