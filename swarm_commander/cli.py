@@ -273,8 +273,9 @@ def _parser() -> argparse.ArgumentParser:
                         ".world/.sdf path (default: %(default)s)")
     p.add_argument("--route", default="random", metavar="random|PATH.yaml",
                    help="'random': every workstation once per loop in a seeded random order; "
-                        "or a route file (waypoints: names or {name, x, y, yaw}) "
-                        "(default: %(default)s)")
+                        "or a route file (waypoints: names or {name, x, y, yaw}). The next stop "
+                        "is skipped when it is the workstation the navigator has just taken "
+                        "instead of the one sent (swap_range) (default: %(default)s)")
     p.add_argument("--loops", type=cli.non_negative_int, default=0, metavar="N",
                    help="loops over the route; 0 = forever (default: %(default)s)")
     p.add_argument("--seed", type=cli.seed, default=0, metavar="S",
