@@ -536,7 +536,8 @@ class NavigatorCore:
             if np.hypot(*(pose[:2] - self._goal[:2])) > self.cfg.goal.xy_goal_tolerance:
                 shift = np.hypot(*(self._adjusted_goal - self._goal[:2]))
                 note = f"goal was in the inflation: reached the free spot {shift:.2f} m from it"
-            if self._sent_goal is not None:
+            if (self._sent_goal is not None  # another workstation (not back to the one sent)
+                    and np.hypot(*(self._goal[:2] - self._sent_goal[:2])) > _EPS):
                 (x, y), (x0, y0) = self._goal[:2], self._sent_goal[:2]
                 note = "; ".join(filter(None, (
                     f"{TOOK_ANOTHER}({x:.3f}, {y:.3f}), free while the goal at "

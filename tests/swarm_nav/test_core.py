@@ -530,6 +530,29 @@ def test_a_holding_robot_takes_the_free_workstation_beside_its_taken_goal(occ, k
         assert np.hypot(*(me.pose[:2] - ws["loader3"][:2])) > 0.6
 
 
+def test_a_robot_that_took_another_workstation_and_came_back_to_its_own_reports_no_swap(occ):
+    """The scene above; once the robot has taken loader3, a robot docks there and loader4's
+    leaves: the robot takes loader4 back, and reaches its own goal without a note."""
+    sites, site_kinds, ws = _loaders()
+    core = NavigatorCore(dataclasses.replace(NavigatorConfig(), robot_index=1),
+                         WAFFLE_FOOTPRINT, sites, site_kinds)
+    core.set_map(occ)
+    start = np.array([-6.3, 5.0, -math.pi / 2])
+    core.step(start, 0.0, 0.0, 0.0)
+    core.set_goal(ws["loader4"], "g", 0.0)
+    me = SimRobot(core, start, log=[])
+    on4, on5 = SimRobot(None, ws["loader4"].copy()), SimRobot(None, ws["loader5"].copy())
+
+    def on_tick(t, robots):
+        if core.swaps == 1 and on4.pose[0] < 0.0:
+            on4.pose = ws["loader3"].copy()  # the one on loader4 "moves" onto loader3
+    res = simulate([me, on4, on5], SLIM_BLOCKAGE_WALLS, 90.0, until_done=True, on_tick=on_tick)
+    assert res["contact_ticks"] == 0
+    assert core.swaps == 2
+    assert_arrived(me, ws["loader4"])
+    assert core.status.reason == ""
+
+
 @pytest.mark.parametrize("came_from_loader3", [True, False])
 def test_a_holding_robot_never_takes_the_workstation_it_came_from(occ, came_from_loader3):
     """A robot docked at loader3 and is sent on to loader4, which is taken (loader2 and loader5
