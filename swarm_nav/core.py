@@ -237,7 +237,8 @@ class NavigatorCore:
         self._sent_goal: np.ndarray | None = None  # the goal as set, before any swap
         self._last_site: int | None = None  # the holding site of the last goal reached
         self.swaps = 0
-        """Goals for which another workstation was taken instead, since the navigator started."""
+        """Times a holding robot took another workstation (back to the one sent counts too),
+        since the navigator started."""
         self._reached_goal = False  # a goal reached since the navigator started
         self._scan = np.zeros((0, 2))
         self._dyn = np.zeros((0, 2))
