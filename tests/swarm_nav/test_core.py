@@ -495,11 +495,10 @@ def test_workstations_of_one_kind_share_their_name_before_the_number():
 def test_a_holding_robot_takes_the_free_workstation_beside_its_taken_goal(occ, kinds):
     """loader4 and loader5 are taken by robots that stay; loader3, 2.23 m below loader4, is
     free. A robot sent to loader4 holds at loader4's spot (the gap toward loader3) and, seeing
-    loader3 free within
-    ``swap_range`` (2.5 m), docks there instead: SUCCEEDED, with loader3 as the goal in its
-    status and a note naming both. Without kinds (``kinds`` "none"), with every loader but
-    loader4 of another kind ("other") or with ``swap_range`` 0 ("off") it holds for loader4,
-    as SPEC §5 says."""
+    loader3 free within ``swap_range`` (2.5 m), docks there instead: SUCCEEDED, with loader3 as
+    the goal in its status and a note naming both. Without kinds (``kinds`` "none"), with every
+    loader but loader4 of another kind ("other") or with ``swap_range`` 0 ("off") it holds for
+    loader4, as SPEC §5 says."""
     sites, site_kinds, ws = _loaders()
     if kinds == "none":
         site_kinds = []
@@ -544,8 +543,8 @@ def test_a_robot_that_took_another_workstation_and_came_back_to_its_own_reports_
     on4, on5 = SimRobot(None, ws["loader4"].copy()), SimRobot(None, ws["loader5"].copy())
 
     def on_tick(t, robots):
-        if core.swaps == 1 and on4.pose[0] < 0.0:
-            on4.pose = ws["loader3"].copy()  # the one on loader4 "moves" onto loader3
+        if core.swaps == 1 and np.allclose(on4.pose, ws["loader4"]):
+            on4.pose = ws["loader3"].copy()  # the one on loader4 "moves" onto loader3, once
     res = simulate([me, on4, on5], SLIM_BLOCKAGE_WALLS, 90.0, until_done=True, on_tick=on_tick)
     assert res["contact_ticks"] == 0
     assert core.swaps == 2
