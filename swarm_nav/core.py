@@ -456,8 +456,10 @@ class NavigatorCore:
         return self._out(cmd.v, cmd.w)
 
     # ------------------------------------------------------------------ goal and plan
-    def _start_goal(self, pose: np.ndarray, now: float) -> None:
-        res = self._plan(pose[:2], self._goal[:2], overlay=False)
+    def _start_goal(self, pose: np.ndarray, now: float, res: PlanResult | None = None) -> None:
+        """Plan to the goal (or take ``res``, a plan to it already made) and start driving."""
+        if res is None:
+            res = self._plan(pose[:2], self._goal[:2], overlay=False)
         if res.path is None:
             self._end(NavState.ABORTED, now, res.reason)
             return
@@ -657,15 +659,17 @@ class NavigatorCore:
                     or goal_crowded(self._robots, pose[:2], p[:2], hc, self._other_sites(p[:2]))):
                 continue
             best, best_d = i, d
-        if best is None or self._plan(pose[:2], self.holding_sites[best][0][:2],
-                                      overlay=False).path is None:
+        if best is None:
+            return False
+        res = self._plan(pose[:2], self.holding_sites[best][0][:2], overlay=False)
+        if res.path is None:
             return False
         self.swaps += 1
         if self._sent_goal is None:
             self._sent_goal = self._goal.copy()
         self._goal = self.holding_sites[best][0][:3].copy()
         self._occupied_since = None
-        self._start_goal(pose, now)
+        self._start_goal(pose, now, res)
         return True
 
     def _occupant_stays(self, occupied: bool | None, goal: np.ndarray, now: float) -> bool:
