@@ -89,6 +89,10 @@ class SimSettings:
         wait_for_reader: a node (``name`` or ``/ns/name``) whose subscriptions to the
             simulator's topics must be matched before simulated time starts (``swarm-up
             --record`` passes its recorder), or None; given up after ``READER_GRACE_S``.
+        reader_subscriptions: how many subscriptions of ``wait_for_reader`` to the simulator's
+            topics it waits for: those discovered so far are not all of them while discovery
+            runs (``swarm-up`` passes the recorder's count,
+            :func:`swarm_up.recording.simulator_readers`) [-].
         gui: open PyBullet's window.
         faults: the ``--faults`` SPEC (inline syntax or YAML path, :mod:`swarm_common.faults`),
             or None.
@@ -109,6 +113,7 @@ class SimSettings:
     inactive_after: int = 1  # [ticks]
     wait_for: int = 0  # [robots]
     wait_for_reader: str | None = None
+    reader_subscriptions: int = 1  # [subscriptions]
     gui: bool = False
     faults: str | None = None
     fault_ack_timeout: float = 10.0  # [s] wall
@@ -543,8 +548,9 @@ class SimulatorNode(Node):
         self._publish_events(statuses)
 
     def _reader_matched(self, deadline: float) -> bool:
-        """Whether the ``wait_for_reader`` node's subscriptions to this node's topics are all
-        matched by their publishers (True without such a node, or after ``deadline``)."""
+        """Whether the ``wait_for_reader`` node has ``reader_subscriptions`` subscriptions to
+        this node's topics and all of them are matched by their publishers (True without such a
+        node, or after ``deadline``)."""
         name = self.settings.wait_for_reader
         if name is None or time.monotonic() > deadline:
             return True
@@ -555,7 +561,7 @@ class SimulatorNode(Node):
             return False
         pubs = {pub.topic_name: pub for pub in self.publishers}
         mine = [pubs[t] for t, _ in topics if t in pubs]
-        return bool(mine) and all(
+        return len(mine) >= max(1, self.settings.reader_subscriptions) and all(
             pub.get_subscription_count() >= self.count_subscribers(pub.topic_name)
             for pub in mine)
 
@@ -709,6 +715,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--wait-for-reader", default=None, metavar="NODE",
                    help="also hold the first tick until NODE's subscriptions to the simulator's "
                    f"topics are matched (given up after {READER_GRACE_S:g} s) [none]")
+    p.add_argument("--reader-subscriptions", type=cli.positive_int, default=1, metavar="K",
+                   help="with --wait-for-reader: wait until NODE has K subscriptions to the "
+                   "simulator's topics, all matched [1]")
     p.add_argument("--faults", default=None, metavar="SPEC",
                    help="inject faults at simulated times: KIND[:TARGET]@TIME[+DURATION],... "
                    "or a YAML file (kinds kill-nav, kill-robot, freeze, drop, kill-coordinator; "
@@ -733,7 +742,8 @@ def parse_settings(argv: list[str]) -> SimSettings:
         world=a.world, robot=a.robot, swarm_size=a.swarm_size, name_prefix=a.name_prefix,
         seed=a.seed, rtf=a.rtf, duration=a.duration, map_path=a.map, summary=a.summary,
         control_rate=a.control_rate, command_timeout=a.command_timeout, wait_for=a.wait_for,
-        wait_for_reader=a.wait_for_reader, gui=a.gui, faults=a.faults,
+        wait_for_reader=a.wait_for_reader, reader_subscriptions=a.reader_subscriptions,
+        gui=a.gui, faults=a.faults,
         fault_ack_timeout=a.fault_ack_timeout,
     )
 

@@ -91,6 +91,7 @@ def child_specs(cfg: RunConfig):
     Returns:
         A list of :class:`swarm_up.supervisor.ChildSpec`.
     """
+    from swarm_up.recording import RECORDER_NODE, simulator_readers
     from swarm_up.supervisor import ChildSpec
 
     logs = cfg.run_dir / "logs"
@@ -113,10 +114,9 @@ def child_specs(cfg: RunConfig):
         sim += ["--faults", str(faults_file(cfg))]
     if cfg.gui:
         sim.append("--gui")
-    if cfg.record_path is not None:  # the recorder gets the first tick on (docs/ARCHITECTURE.md)
-        from swarm_up.recording import RECORDER_NODE
-
-        sim += ["--wait-for-reader", RECORDER_NODE]
+    readers = 0 if cfg.record_path is None else simulator_readers(cfg.robots, cfg.record_topics)
+    if readers:  # the recorder gets the first tick on (docs/ARCHITECTURE.md)
+        sim += ["--wait-for-reader", RECORDER_NODE, "--reader-subscriptions", str(readers)]
     specs = [ChildSpec("sim", tuple(sim), logs / "sim.log", kind="sim", restart=False, env=env)]
     if cfg.record_path is not None:  # started first: swarm-up waits for it before the rest
         specs.insert(0, recorder_spec(cfg, env))

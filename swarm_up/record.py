@@ -118,13 +118,8 @@ def make_node(recording: rec.McapRecording, robots, selected, tf: rec.TfBuilder 
             self.recording = recording
             self._tf_topic = next((t for t in selected if t.name == rec.TF_TOPIC), None)
             # subscriptions
-            wanted = {t.name: t for t in selected if t.name != rec.TF_TOPIC}
-            if tf is not None:  # /tf needs every robot's odom and ground truth
-                for t in rec.recorded_topics(robots):
-                    if t.name.rsplit("/", 1)[-1] in ("odom", "ground_truth"):
-                        wanted.setdefault(t.name, t)
             self.subs = []
-            for t in wanted.values():
+            for t in rec.recorder_subscriptions(robots, selected):
                 module, cls = _TYPES[t.type]
                 msg_type = getattr(importlib.import_module(module), cls)
                 self.subs.append(self.create_subscription(

@@ -131,6 +131,44 @@ def select_topics(topics, pattern: str | None) -> tuple[RecordedTopic, ...]:
     return tuple(t for t in topics if rx.search(t.name))
 
 
+SIMULATOR_TOPICS = ("/clock", "/map", "/swarm/events")
+SIMULATOR_ROBOT_TOPICS = ("scan", "odom", "ground_truth")
+"""The recorded topics that ``swarm-sim`` publishes (swarm_sim/node.py): swarm-wide names, and
+each robot's suffixes."""
+
+
+def recorder_subscriptions(robots, selected) -> tuple[RecordedTopic, ...]:
+    """The topics the recorder subscribes to: the ``selected`` ones but ``/tf``, which it builds
+    from every robot's ``odom`` and ``ground_truth`` (subscribed to as well when ``/tf`` is
+    selected).
+
+    Args:
+        robots: namespaces without ``/``.
+        selected: the :class:`RecordedTopic` to write (:func:`select_topics`).
+    """
+    wanted = {t.name: t for t in selected if t.name != TF_TOPIC}
+    if any(t.name == TF_TOPIC for t in selected):
+        for t in recorded_topics(robots):
+            if t.name.rsplit("/", 1)[-1] in ("odom", "ground_truth"):
+                wanted.setdefault(t.name, t)
+    return tuple(wanted.values())
+
+
+def simulator_readers(robots, pattern: str | None) -> int:
+    """How many of the recorder's subscriptions (``--record-topics pattern``) are to topics the
+    simulator publishes: the simulator's start gate waits until that many are matched
+    (``swarm-sim --reader-subscriptions``), so that a subscription discovered late does not lose
+    the first ticks.
+
+    Raises:
+        re.error: ``pattern`` is not a regular expression.
+    """
+    subs = recorder_subscriptions(robots, select_topics(recorded_topics(robots), pattern))
+    return sum(1 for t in subs
+               if t.name in SIMULATOR_TOPICS
+               or (t.robot and t.name.rsplit("/", 1)[-1] in SIMULATOR_ROBOT_TOPICS))
+
+
 # ------------------------------------------------------------------------------------ metadata
 def qos_yaml(profiles: list[dict]) -> str:
     """``offered_qos_profiles`` as rosbag2 writes it (``qos.cpp``, bag version 9).

@@ -73,3 +73,53 @@ def test_a_mix_that_does_not_add_up_exits_2_with_one_line_as_a_process():
     assert res.stderr.splitlines() == [
         "swarm-sim: error: --robot: the counts of 'turtlebot3_waffle:1,turtlebot3_burger:1' add "
         "up to 2, not to --swarm-size 3"]
+
+
+# -- the start gate's reader (swarm-up --record) -------------------------------------------------
+
+
+class _Pub:
+    def __init__(self, topic, matched):
+        self.topic_name, self.matched = topic, matched
+
+    def get_subscription_count(self):
+        return self.matched
+
+
+class _Gate:
+    """What ``SimulatorNode._reader_matched`` reads of its node: the reader's subscriptions
+    discovered so far, and this node's publishers with their matched counts."""
+
+    def __init__(self, need, discovered, matched=1):
+        self.settings = parse_settings(["--wait-for-reader", "swarm_recorder",
+                                        "--reader-subscriptions", str(need)])
+        topics = ["/clock", "/Srobot1/odom", "/Srobot1/ground_truth", "/Srobot2/odom"]
+        self.publishers = [_Pub(t, matched) for t in topics]
+        self.discovered = topics[:discovered]
+
+    def get_subscriber_names_and_types_by_node(self, name, ns):
+        assert (name, ns) == ("swarm_recorder", "/")
+        return [(t, ["nav_msgs/msg/Odometry"]) for t in self.discovered]
+
+    def count_subscribers(self, topic):
+        return 1
+
+
+@pytest.mark.parametrize(("need", "discovered", "matched", "opens"), [
+    (3, 1, 1, False),  # one of three discovered and matched: the others would lose ticks
+    (3, 2, 1, False),
+    (3, 3, 1, True),
+    (3, 3, 0, False),  # discovered, not matched yet
+    (1, 1, 1, True),
+])
+def test_the_gate_waits_for_every_subscription_of_the_reader(need, discovered, matched, opens):
+    from swarm_sim.node import SimulatorNode
+
+    gate = _Gate(need, discovered, matched)
+    assert SimulatorNode._reader_matched(gate, deadline=float("inf")) is opens
+    assert SimulatorNode._reader_matched(gate, deadline=0.0) is True  # given up
+
+
+def test_reader_subscriptions_must_be_positive():
+    with pytest.raises(InputError, match="^--reader-subscriptions: must be a positive integer"):
+        parse_settings(["--reader-subscriptions", "0"])

@@ -264,3 +264,34 @@ def test_a_killed_writer_leaves_every_finished_chunk(tmp_path):
     assert 480 <= len(got) < 510  # all but the chunk being built (< 16 KiB, < 23 messages)
     assert got == [(i + 1) * 100_000_000 for i in range(len(got))]  # in order, none missing
     assert error is None or isinstance(error, McapError | EOFError)
+
+
+@pytest.mark.parametrize(("pattern", "subscriptions", "simulator"), [
+    (None, 15, 9),  # all but /tf; the simulator's: /clock, /map, /swarm/events, scan/odom/gt x 2
+    ("^/Srobot1/odom$|^/tf$", 4, 4),  # /tf is built from both robots' odom and ground truth
+    ("nav_status|cmd_vel", 4, 0),  # the navigators' topics only
+    ("ground_truth|events", 3, 3),
+])
+def test_recorder_subscriptions_and_the_simulators_share(pattern, subscriptions, simulator):
+    robots = ("Srobot1", "Srobot2")
+    subs = rec.recorder_subscriptions(robots, rec.select_topics(rec.recorded_topics(robots),
+                                                                 pattern))
+    assert len(subs) == subscriptions and rec.TF_TOPIC not in {t.name for t in subs}
+    assert rec.simulator_readers(robots, pattern) == simulator
+
+
+@pytest.mark.parametrize(("topics", "gate"), [
+    (["--record-topics", "^/Srobot1/odom$|^/tf$"], ["--wait-for-reader", "swarm_recorder",
+                                                    "--reader-subscriptions", "4"]),
+    (["--record-topics", "nav_status"], []),  # nothing of the simulator's: no gate
+])
+def test_swarm_up_tells_the_simulator_how_many_readers_to_wait_for(tmp_path, topics, gate):
+    from swarm_up.args import build_parser, validate
+    from swarm_up.children import child_specs
+
+    cfg = validate(build_parser().parse_args(
+        ["--swarm-size", "2", "--record", str(tmp_path / "r.mcap"), *topics,
+         "--run-dir", str(tmp_path / "run")]))
+    sim = next(s for s in child_specs(cfg) if s.name == "sim").argv
+    at = sim.index("--wait-for-reader") if "--wait-for-reader" in sim else len(sim)
+    assert list(sim[at:at + 4]) == gate
