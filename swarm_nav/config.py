@@ -188,6 +188,9 @@ class HoldingConfig:
     starvation_time: float = _p(300.0, "s", "a robot that has reached no goal yet and has held "
                                 "this long for its goal is held back by congestion no more "
                                 "(0 = always held back)", check=">=0")
+    starvation_congestion_limit: int = _p(6, "-", "... but by this many robots standing on "
+                                          "its way, as congestion_limit (0 = by none)",
+                                          check=">=0")
     swap_range: float = _p(2.5, "m", "a holding robot that sees, in line of sight and within "
                            "this, another workstation of its goal's kind free (as judged for "
                            "its own goal) takes that one instead (0 = never)", check=">=0")

@@ -700,31 +700,35 @@ class NavigatorCore:
         """Whether the way to the goal (or to its holding spot) is congested
         (:func:`~swarm_nav.holding.path_congested`), judged once per scan while driving there.
 
-        Never for a starving robot (``starvation_time`` > 0; 300 s by default): one that has
-        reached no goal since the navigator started and has held ``starvation_time`` for this
-        goal. The rule keeps robots out of a crowded corridor, and at 100 robots on
-        slim_blockage it kept some out for good: 12 robots had reached no goal after 30 minutes
-        (seed 0). With 300 s alone, 6 had, but the tasks fell from 527 to 484 and the last
-        10-minute window to 0.82 of the mean; with taking another free workstation
-        (``swap_range``) too, it is the default (README, "Long shifts")."""
+        A starving robot (``starvation_time`` > 0; 300 s by default: one that has reached no
+        goal since the navigator started and has held ``starvation_time`` for this goal) is held
+        back only by a longer queue, ``starvation_congestion_limit`` robots (6; 0: by none).
+        The rule keeps robots out of a crowded corridor, and at 100 robots on slim_blockage it
+        kept some out for good: 12 robots had reached no goal after 30 minutes (seed 0). With
+        300 s alone, 6 had, but the tasks fell from 527 to 484 and the last 10-minute window to
+        0.82 of the mean; with taking another free workstation (``swap_range``) too, it is the
+        default (README, "Long shifts"). Held back by nothing, the starving robots flooded the
+        corridor on seed 1: from 700 s 8 to 12 of them were in it at once, 31 to 45 robots in
+        all against 17 to 22 before, and it locked up (530 tasks, the last window 146)."""
         hc = self.cfg.holding
+        limit = hc.congestion_limit
         if (hc.starvation_time > 0 and not self._reached_goal
                 and self._holding_time >= hc.starvation_time):
-            return False
-        if (hc.congestion_limit <= 0 or self._path is None or hp.rerouted
+            limit = hc.starvation_congestion_limit
+        if (hc.congestion_limit <= 0 or limit <= 0 or self._path is None or hp.rerouted
                 or hp.phase == HoldingPhase.WAIT or self._scan_time <= self._congestion_judged
                 or now - self._scan_time > self.cfg.scan_max_age):
             return False
         self._congestion_judged = self._scan_time
         seen = self._seen
-        if len(seen.centres) < hc.congestion_limit:
+        if len(seen.centres) < limit:
             return False
         s0 = self._path_s[self._idx]
         hi = int(np.searchsorted(self._path_s, s0 + hc.congestion_distance))
         ahead = self._path[self._idx:max(hi, self._idx + 1)]
         standing = ~(seen.known & (seen.speed > hc.moving_speed))
         return path_congested(seen.centres, standing, ahead, self._path[-1], self._avoid,
-                              self.costmap.distance_at(seen.centres), hc)
+                              self.costmap.distance_at(seen.centres), hc, limit)
 
     def _staging(self, pose: np.ndarray) -> np.ndarray:
         """A staging point away from the goal and the robots seen (or where the robot is)."""

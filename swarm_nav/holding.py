@@ -197,7 +197,8 @@ def goal_crowded(robots: Sequence[SeenRobot], robot_xy, goal_xy, cfg: HoldingCon
 
 
 def path_congested(centres: np.ndarray, standing: np.ndarray, ahead: np.ndarray, goal_xy,
-                   avoid: np.ndarray, wall_distance: np.ndarray, cfg: HoldingConfig) -> bool:
+                   avoid: np.ndarray, wall_distance: np.ndarray, cfg: HoldingConfig,
+                   limit: int | None = None) -> bool:
     """A queue on the way: ``congestion_limit`` robots stand on the path ahead in a narrow place.
 
     A robot that drives on into robots standing in a corridor cannot pass them and closes the
@@ -220,13 +221,15 @@ def path_congested(centres: np.ndarray, standing: np.ndarray, ahead: np.ndarray,
         wall_distance: (K,) distance [m] of each centre from the nearest wall (static map).
         cfg: ``congestion_radius`` [m], ``congestion_limit``, ``crowd_radius`` [m],
             ``holding_arrive_tolerance`` [m] and ``staging_wall_clearance`` [m].
+        limit: the number of robots that make a queue, instead of ``cfg.congestion_limit``.
 
     Returns:
-        True if at least ``congestion_limit`` such robots, each centred within
+        True if at least ``congestion_limit`` (``limit``) such robots, each centred within
         ``congestion_radius`` of that part of the path, are seen standing. Never with
-        ``congestion_limit`` 0.
+        ``congestion_limit`` (``limit``) 0.
     """
-    if cfg.congestion_limit <= 0 or len(centres) < cfg.congestion_limit:
+    limit = cfg.congestion_limit if limit is None else limit
+    if limit <= 0 or len(centres) < limit:
         return False
     centres = np.asarray(centres, dtype=float).reshape(-1, 2)
     ahead = np.asarray(ahead, dtype=float).reshape(-1, 2)
@@ -241,11 +244,11 @@ def path_congested(centres: np.ndarray, standing: np.ndarray, ahead: np.ndarray,
         da = np.hypot(centres[:, None, 0] - avoid[None, :, 0],
                       centres[:, None, 1] - avoid[None, :, 1])
         cand &= da.min(axis=1) > cfg.holding_arrive_tolerance
-    if int(cand.sum()) < cfg.congestion_limit:
+    if int(cand.sum()) < limit:
         return False
     c = centres[cand]
     d = np.hypot(c[:, None, 0] - ahead[None, :, 0], c[:, None, 1] - ahead[None, :, 1])
-    return int((d.min(axis=1) <= cfg.congestion_radius).sum()) >= cfg.congestion_limit
+    return int((d.min(axis=1) <= cfg.congestion_radius).sum()) >= limit
 
 
 def goal_visible(costmap: Costmap, robot_xy, goal_xy, cfg: HoldingConfig) -> bool:
