@@ -64,6 +64,7 @@ from swarm_sim.standstill import StandstillTracker
 MANUAL_PRIORITY_S = 0.5  # [s] wall
 REJOIN_TIMEOUT_S = 60.0  # [s] wall: how long a tick waits for a killed navigator's successor
 READER_GRACE_S = 10.0  # [s] wall: how long the start gate waits for --wait-for-reader to match
+ACK_WAIT_S = 1.0  # [s] wall: how long the simulator waits at exit for its last ticks' acks
 
 
 @dataclass(frozen=True)
@@ -468,6 +469,23 @@ class SimulatorNode(Node):
         written as CDR bytes (100 rclpy Pose objects a tick were a millisecond of the
         simulator's tick, on the lockstep's critical path, while a dashboard watched)."""
         self.poses_pub.publish(self._poses_writer.write(self.t_ns, self.engine.poses))
+
+    def wait_for_acks(self, timeout: float = ACK_WAIT_S) -> bool:
+        """Wait, at most ``timeout`` wall seconds in all, until every reliable reader has
+        acknowledged what this node published: the last ticks reach the recorder before the
+        node's writers are destroyed (a loaded machine once lost a 3 s run's last tick).
+
+        Returns:
+            True if everything was acknowledged in time.
+        """
+        from rclpy.duration import Duration
+
+        deadline = time.monotonic() + timeout
+        for pub in self.publishers:
+            left = deadline - time.monotonic()
+            if left <= 0.0 or not pub.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9))):
+                return False
+        return True
 
     def request_stop(self, signum=None, frame=None) -> None:
         """Ask the run loop to end after the current step (a signal handler: only sets a flag)."""
@@ -878,6 +896,7 @@ def main(args=None) -> int:
             pass
         finally:
             wall_s = time.monotonic() - wall0
+            node.wait_for_acks()
             summary = node.summary_record(wall_s, spawned, world.skipped)
             if settings.summary:
                 summary.write(settings.summary)
