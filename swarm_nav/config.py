@@ -187,7 +187,7 @@ class HoldingConfig:
                                 "robot_index % 5 quarters, then try again", check=">=0")
     starvation_time: float = _p(300.0, "s", "a robot that has reached no goal yet and has held "
                                 "this long for its goal is held back by congestion no more "
-                                "(0 = always held back)", check=">=0")
+                                "(0 = always held back) ...", check=">=0")
     starvation_congestion_limit: int = _p(6, "-", "... but by this many robots standing on "
                                           "its way, as congestion_limit (0 = by none)",
                                           check=">=0")

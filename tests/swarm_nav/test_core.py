@@ -476,12 +476,9 @@ QUEUE_OF_3 = ((-6.7, 4.4), (-6.2, 3.7), (-7.2, 3.4))  # the tests above
 QUEUE_OF_6 = ((-6.3, 5.7), (-7.1, 5.2), (-6.2, 4.8), (-7.0, 4.3), (-6.3, 3.9), (-7.2, 3.5))
 
 
-@pytest.mark.parametrize(("spots", "held_back"), [(QUEUE_OF_3, False), (QUEUE_OF_6, True)])
-def test_a_starving_robot_is_held_back_by_a_long_queue(occ, spots, held_back):
-    """``starvation_congestion_limit`` 6 (the default): a starving robot (the test above) that
-    sees 6 robots standing in the corridor ahead holds back all the same; 3 do not hold it."""
-    cfg = NavigatorConfig()
-    assert cfg.holding.starvation_congestion_limit == 6
+def _starving_robot_before_a_queue(occ, cfg, spots):
+    """A robot that has reached no goal and held 300 s, on its way down the corridor to loader1
+    (the tests above), with robots standing at ``spots``; after 3 s: its core and its pose."""
     core = NavigatorCore(cfg, WAFFLE_FOOTPRINT)
     core.set_map(occ)
     start = np.array([-6.6, 6.6, -math.pi / 2])
@@ -491,8 +488,18 @@ def test_a_starving_robot_is_held_back_by_a_long_queue(occ, spots, held_back):
     me = SimRobot(core, start, log=[])
     queue = [SimRobot(None, np.array([x, y, -math.pi / 2])) for x, y in spots]
     simulate([me, *queue], SLIM_BLOCKAGE_WALLS, 3.0, until_done=False)
+    return core, me.pose
+
+
+@pytest.mark.parametrize(("spots", "held_back"), [(QUEUE_OF_3, False), (QUEUE_OF_6, True)])
+def test_a_starving_robot_is_held_back_by_a_long_queue(occ, spots, held_back):
+    """``starvation_congestion_limit`` 6 (the default): a starving robot (the test above) that
+    sees 6 robots standing in the corridor ahead holds back all the same; 3 do not hold it."""
+    cfg = NavigatorConfig()
+    assert cfg.holding.starvation_congestion_limit == 6
+    core, pose = _starving_robot_before_a_queue(occ, cfg, spots)
     assert (core.status.state == NavState.HOLDING) is held_back
-    assert (me.pose[1] < start[1] - 0.3) is not held_back
+    assert (pose[1] < 6.6 - 0.3) is not held_back  # drove on down the corridor
 
 
 def test_a_starving_robot_keeps_the_congestion_rule_off_when_it_is_off(occ):
@@ -500,15 +507,7 @@ def test_a_starving_robot_keeps_the_congestion_rule_off_when_it_is_off(occ):
     robot: ``starvation_congestion_limit`` does not turn it on for a starving one."""
     cfg = NavigatorConfig()
     cfg = dataclasses.replace(cfg, holding=dataclasses.replace(cfg.holding, congestion_limit=0))
-    core = NavigatorCore(cfg, WAFFLE_FOOTPRINT)
-    core.set_map(occ)
-    start = np.array([-6.6, 6.6, -math.pi / 2])
-    core.step(start, 0.0, 0.0, 0.0)
-    core.set_goal(LOADER1, "g", 0.0)
-    core._reached_goal, core._holding_time = False, 300.0
-    me = SimRobot(core, start, log=[])
-    queue = [SimRobot(None, np.array([x, y, -math.pi / 2])) for x, y in QUEUE_OF_6]
-    simulate([me, *queue], SLIM_BLOCKAGE_WALLS, 3.0, until_done=False)
+    core, _ = _starving_robot_before_a_queue(occ, cfg, QUEUE_OF_6)
     assert core.status.state != NavState.HOLDING
 
 
