@@ -708,8 +708,9 @@ class NavigatorCore:
         300 s alone, 6 had, but the tasks fell from 527 to 484 and the last 10-minute window to
         0.82 of the mean; with taking another free workstation (``swap_range``) too, it is the
         default (README, "Long shifts"). Held back by nothing, the starving robots flooded the
-        corridor on seed 1: from 700 s 8 to 12 of them were in it at once, 31 to 45 robots in
-        all against 17 to 22 before, and it locked up (530 tasks, the last window 146)."""
+        corridor on seed 1: from 700 to 1,200 s 8 to 12 of them were in it at once, 38 to 49
+        robots in all against 16 to 24 before 600 s, and it locked up (530 tasks, the last
+        window 146)."""
         hc = self.cfg.holding
         limit = hc.congestion_limit
         if (hc.starvation_time > 0 and not self._reached_goal
