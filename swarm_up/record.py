@@ -130,7 +130,7 @@ def make_node(recording: rec.McapRecording, robots, selected, tf: rec.TfBuilder 
             name = topic.name
             suffix = name.rsplit("/", 1)[-1]
             feed = None
-            if tf is not None and topic.robot and suffix in ("odom", "ground_truth"):
+            if tf is not None and topic.robot and suffix in rec.TF_SOURCES:
                 feed = tf.on_odom if suffix == "odom" else tf.on_ground_truth
             is_clock = name == "/clock"
             headerless = topic.type in _NO_HEADER

@@ -131,6 +131,8 @@ def select_topics(topics, pattern: str | None) -> tuple[RecordedTopic, ...]:
     return tuple(t for t in topics if rx.search(t.name))
 
 
+TF_SOURCES = ("odom", "ground_truth")
+"""The robot topics (suffixes) the recorder builds ``/tf`` from."""
 SIMULATOR_TOPICS = ("/clock", "/map", "/swarm/events")
 SIMULATOR_ROBOT_TOPICS = ("scan", "odom", "ground_truth")
 """The recorded topics that ``swarm-sim`` publishes (swarm_sim/node.py): swarm-wide names, and
@@ -149,7 +151,7 @@ def recorder_subscriptions(robots, selected) -> tuple[RecordedTopic, ...]:
     wanted = {t.name: t for t in selected if t.name != TF_TOPIC}
     if any(t.name == TF_TOPIC for t in selected):
         for t in recorded_topics(robots):
-            if t.name.rsplit("/", 1)[-1] in ("odom", "ground_truth"):
+            if t.name.rsplit("/", 1)[-1] in TF_SOURCES:
                 wanted.setdefault(t.name, t)
     return tuple(wanted.values())
 
