@@ -243,6 +243,17 @@ class Swarm:
     def states(self, ns: str, goal_id: str) -> set[str]:
         return {s.state for s in self.statuses[ns] if s.goal_id == goal_id}
 
+    def transitions(self, ns: str, goal_id: str) -> list[tuple[float, str, tuple]]:
+        """(time [s], state, true x, y [m] then) at each change of state for the goal."""
+        out: list[tuple[float, str, tuple]] = []
+        for s in self.statuses[ns]:
+            if s.goal_id == goal_id and (not out or out[-1][1] != s.state):
+                tr = self.truth[ns]
+                t_ns = round(s.t * NS_PER_S)
+                near = min(tr, key=lambda t: abs(t - t_ns), default=None)
+                out.append((s.t, s.state, near and tuple(round(v, 2) for v in tr[near][:2])))
+        return out
+
     def pose_at(self, ns: str, t_ns: int) -> tuple[float, float, float]:
         """The true pose at the first tick at or after ``t_ns`` (spins until it arrived)."""
         self.spin_until(lambda: any(t >= t_ns for t in self.truth[ns]), 30,
@@ -340,9 +351,14 @@ def dock_in_turn(sw: Swarm, goal, away, timeout: float, may_skip_holding: int = 
                  ) -> tuple[list[str], Status]:
     """Send every robot to ``goal`` at once; as each docks (checked with :func:`assert_reached`),
     send it on to the next pose of ``away`` to free the workstation, as a commander would.
-    Checks that all docked and that every robot but the first saw the goal taken (or a queue at
-    it) and held, but for at most ``may_skip_holding`` of them: a robot that waits out of sight
-    of the goal, or comes back from there, may find it free and dock without holding.
+    Checks that all docked, that some robot but the first held, and that every robot that came
+    within sight of the goal while another robot stood docked on it (:func:`came_near_taken`)
+    held, but for at most ``may_skip_holding`` of them: a robot that waits out of sight of the
+    goal, or comes back from there, may find it free and dock without holding. A robot that
+    arrives only after the one before has left finds the goal free and need not hold: when it
+    arrives depends on how soon this probe sends the docked robots away, in wall time, while
+    the unpaced simulator runs on (a clean-clone CI run: the fourth of four robots docked
+    without holding).
 
     Returns:
         The robots in the order they docked, and the last docking's result.
@@ -361,9 +377,34 @@ def dock_in_turn(sw: Swarm, goal, away, timeout: float, may_skip_holding: int = 
             sw.send(ns, *away[len(docked) - 1])
     assert sorted(docked) == sw.names
     skipped = [ns for ns in docked[1:] if "HOLDING" not in sw.states(ns, goal_ids[ns])]
-    print(f"docked without holding: {skipped}")
-    assert len(skipped) <= may_skip_holding, [(ns, sw.states(ns, goal_ids[ns])) for ns in skipped]
+    unexplained = [ns for ns in skipped
+                   if came_near_taken(sw, ns, goal, sw.results[(ns, goal_ids[ns])].t)]
+    print(f"docked without holding: {skipped}, of them came near the goal taken: {unexplained}")
+    assert len(skipped) < len(docked) - 1, "no robot held: the goal was never contended"
+    assert len(unexplained) <= may_skip_holding, {
+        "docked at [s]": {ns: sw.results[(ns, goal_ids[ns])].t for ns in docked},
+        "unexplained": {ns: sw.transitions(ns, goal_ids[ns]) for ns in unexplained}}
     return docked, result
+
+
+NEAR_TAKEN = 2.0  # [m] within this of a taken goal a robot judges it (goal_detection_range 2.5)
+
+
+def came_near_taken(sw: Swarm, ns: str, goal, until: float) -> bool:
+    """From ground truth: whether ``ns`` came within ``NEAR_TAKEN`` of ``goal`` before ``until``
+    [s] at a tick when another robot stood docked on it (its centre within ``XY_TOL`` of the
+    goal 1 s before, then and 1 s after: not passing or leaving), so that it saw the goal
+    taken and should have held."""
+    gx, gy = goal[:2]
+    end = round(until * NS_PER_S)
+
+    def docked(other: str, t: int) -> bool:
+        poses = [sw.truth[other].get(t + dt) for dt in (-NS_PER_S, 0, NS_PER_S)]
+        return all(p is not None and math.hypot(p[0] - gx, p[1] - gy) <= XY_TOL for p in poses)
+
+    return any(math.hypot(x - gx, y - gy) <= NEAR_TAKEN
+               and any(docked(other, t) for other in sw.names if other != ns)
+               for t, (x, y, _) in sw.truth[ns].items() if t < end)
 
 
 def docked_at_once(sw: Swarm, goal, ticks) -> list[int]:
