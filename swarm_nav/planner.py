@@ -211,7 +211,29 @@ _GRAPHS_MAX = 2
 # (and all of them when the start's new cost lies beyond): 798 replans recorded at 100 robots
 # cost 15 m median around the robots against 12 m on the static map.
 _REPAIR_BOUND = (1.5, 2.0)
-_TOGO_MAX = 16
+_TOGO_MIN = 16
+_togo_max = _TOGO_MIN
+
+
+def share_cost_to_go(robots: int) -> None:
+    """Size this process's cache of static cost-to-go fields for ``robots`` navigators sharing
+    it: one field per robot, at least 16 (about 1.5 MB each on slim_blockage's 380 x 310 grid).
+
+    A field is a whole-map search from a goal cell (about 18 ms), asked for by every plan and
+    replan toward that goal. The targets are the workstations, their holding spots and each
+    robot's own staging and retreat points; with 16 fields for the 50 robots of a group
+    process (100 robots on slim_blockage, seed 0, 300 s) the staging points pushed the loaders'
+    fields out and 1,988 of 4,118 asks were searches (641 distinct goals); 48 fields would
+    have made 771, 64 fields 699 (the recorded asks replayed through each size). The fields
+    are the same either way; only when they are searched changes.
+
+    Args:
+        robots: the navigators this process runs (>= 1).
+    """
+    global _togo_max
+    _togo_max = max(_TOGO_MIN, int(robots))
+    while len(_TOGO) > _togo_max:
+        _TOGO.popitem(last=False)
 
 
 def lru(cache: OrderedDict, key, make, size: int):
@@ -271,7 +293,7 @@ def _cost_to_go(costmap: Costmap, t: int, cfg: PlannerConfig) -> tuple[np.ndarra
 
     if costmap.shareable:
         key = (costmap.key, t, cfg.cost_penalty, cfg.allow_unknown)
-        return lru(_TOGO, key, make, _TOGO_MAX)
+        return lru(_TOGO, key, make, _togo_max)
     key = ("togo", t, cfg.cost_penalty, cfg.allow_unknown)
     if key not in costmap._cache:
         for k in [k for k in costmap._cache if isinstance(k, tuple) and k[0] == "togo"]:

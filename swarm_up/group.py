@@ -28,6 +28,7 @@ from rclpy.experimental import EventsExecutor
 from swarm_common import cli
 from swarm_common.errors import InputError, run_cli
 from swarm_nav.node import NavigatorNode, spin_forever
+from swarm_nav.planner import share_cost_to_go
 from swarm_up.clock import SharedClock
 
 PROG = "swarm_up.group"
@@ -79,6 +80,7 @@ def _run(argv: list[str]) -> int:
             clock.adopt(node)
         return node
 
+    share_cost_to_go(len(names))
     rclpy.init(args=[PROG])
     executor = EventsExecutor()
     if len(names) > 1 or opts.commanders:

@@ -245,3 +245,42 @@ def test_paths_keep_out_of_other_docks(start):
     d_other = np.hypot(dense[:, None, 0] - LOADERS[None, 1:, 0],
                        dense[:, None, 1] - LOADERS[None, 1:, 1]).min(axis=1)
     assert np.all(d_other[far_from_start] > 0.45)
+
+
+def test_cost_to_go_cache_holds_one_field_per_robot_of_the_process():
+    """``share_cost_to_go(n)``: the process keeps n static cost-to-go fields (at least 16), the
+    least recently used going first; a field searched again gives the same plan."""
+    cm = build_costmap(grid_map(np.zeros((30, 40), dtype=np.int8)), SMALL)
+    start = (0.25, 0.25)
+    goals = [(0.25 + 0.1 * i, 2.55) for i in range(30)]
+
+    def fields() -> int:
+        return sum(1 for k in planner._TOGO if k[0] == cm.key)
+
+    def plan(goal):
+        res = plan_path(cm, start, goal, PCFG)
+        assert res.reason == "", res.reason
+        return res
+
+    first = plan(goals[0])
+    try:
+        planner.share_cost_to_go(1)  # a process of one navigator: the minimum
+        for g in goals:
+            plan(g)
+        assert fields() == 16
+        planner.share_cost_to_go(24)
+        for g in goals:
+            plan(g)
+        assert fields() == 24
+        planner.share_cost_to_go(20)  # shrinking drops the least recently used at once
+        assert fields() == 20
+        kept = set(planner._TOGO)
+        again = plan(goals[0])  # searched again: it had gone, the oldest of the 30
+        assert set(planner._TOGO) != kept and fields() == 20
+        assert again.cost == first.cost and np.array_equal(again.path, first.path)
+        kept = set(planner._TOGO)
+        plan(goals[-1])  # the newest: kept, no search
+        assert set(planner._TOGO) == kept
+    finally:
+        planner.share_cost_to_go(1)
+    assert fields() <= 16
