@@ -203,7 +203,7 @@ def cell_path(costmap: Costmap, start_rc: tuple[int, int], goal_rc: tuple[int, i
 # Process-wide caches of what shareable costmaps derive (robots of one process share a map):
 # key -> search graph (with the slot index of every move, and a scratch copy that an overlay's
 # search patches and restores), and (key, goal cell) -> cost-to-go.  About 22 MB per graph and
-# 1.5 MB per cost-to-go on a 380 x 310 grid.
+# 1.5 MB per cost-to-go on a 381 x 311 grid (slim_blockage).
 _GRAPHS: OrderedDict = OrderedDict()
 _TOGO: OrderedDict = OrderedDict()
 _GRAPHS_MAX = 2
@@ -217,7 +217,7 @@ _togo_max = _TOGO_MIN
 
 def share_cost_to_go(robots: int) -> None:
     """Size this process's cache of static cost-to-go fields for ``robots`` navigators sharing
-    it: one field per robot, at least 16 (about 1.5 MB each on slim_blockage's 380 x 310 grid).
+    it: one field per robot, at least 16 (about 1.5 MB each on slim_blockage's 381 x 311 grid).
 
     A field is a whole-map search from a goal cell (about 18 ms), asked for by every plan and
     replan toward that goal. The targets are the workstations, their holding spots and each

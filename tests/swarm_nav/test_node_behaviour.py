@@ -251,7 +251,8 @@ class Swarm:
                 tr = self.truth[ns]
                 t_ns = round(s.t * NS_PER_S)
                 near = min(tr, key=lambda t: abs(t - t_ns), default=None)
-                out.append((s.t, s.state, near and tuple(round(v, 2) for v in tr[near][:2])))
+                out.append((s.t, s.state, None if near is None
+                            else tuple(round(v, 2) for v in tr[near][:2])))
         return out
 
     def pose_at(self, ns: str, t_ns: int) -> tuple[float, float, float]:
