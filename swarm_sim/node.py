@@ -28,6 +28,7 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseArray, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry
+from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node, NodeNameNonExistentError
@@ -478,8 +479,6 @@ class SimulatorNode(Node):
         Returns:
             True if everything was acknowledged in time.
         """
-        from rclpy.duration import Duration
-
         deadline = time.monotonic() + timeout
         for pub in self.publishers:
             left = deadline - time.monotonic()
