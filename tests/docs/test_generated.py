@@ -1,0 +1,65 @@
+"""The generated reference pages equal what tools/gen_docs.py writes from today's code."""
+
+from __future__ import annotations
+
+import importlib.util
+import re
+from pathlib import Path
+
+import pytest
+import yaml
+
+ROOT = Path(__file__).resolve().parents[2]
+HINT = "out of date: run python tools/gen_docs.py and commit the page"
+
+
+def _load_generator():
+    spec = importlib.util.spec_from_file_location("gen_docs", ROOT / "tools" / "gen_docs.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+gen_docs = _load_generator()
+
+
+def _flatten(d, prefix=""):
+    out = {}
+    for k, v in d.items():
+        if isinstance(v, dict):
+            out.update(_flatten(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
+
+
+def test_parameters_page_is_up_to_date():
+    page = ROOT / "docs" / "reference" / "parameters.md"
+    assert page.read_text() == gen_docs.parameters_page(), f"{page.name} {HINT}"
+
+
+def test_every_template_key_is_on_the_parameters_page():
+    doc = yaml.safe_load((ROOT / "params" / "navigator.yaml").read_text())
+    template = _flatten(doc["navigator"]["ros__parameters"])
+    page = (ROOT / "docs" / "reference" / "parameters.md").read_text()
+    names = set(re.findall(r'<span id="([^"]+)"></span>`\1`', page))
+    missing = sorted(set(template) - names)
+    assert not missing, f"params/navigator.yaml keys missing from parameters.md: {missing}"
+
+
+def test_parameters_page_gives_type_default_and_unit():
+    page = (ROOT / "docs" / "reference" / "parameters.md").read_text()
+    row = next(line for line in page.splitlines() if '<span id="inflation_radius">' in line)
+    assert "| float | `0.55` | m |" in row
+
+
+@pytest.mark.e2e
+def test_commands_page_is_up_to_date():
+    page = ROOT / "docs" / "reference" / "commands.md"
+    assert page.read_text() == gen_docs.commands_page(), f"{page.name} {HINT}"
+
+
+def test_commands_page_lists_every_console_script():
+    page = (ROOT / "docs" / "reference" / "commands.md").read_text()
+    for name in gen_docs.console_scripts():
+        assert f"\n## {name}\n" in page, f"{name} missing from commands.md: {HINT}"
