@@ -84,17 +84,23 @@ def _groups() -> dict[str, str]:
 
 
 def _context_params() -> dict[str, tuple]:
-    """The navigator node's own parameters (name -> (default, unit, description)), if any.
+    """The navigator node's own parameters: name -> (default, unit, description).
 
     These are not algorithm settings: ``swarm-up`` sets them per robot (model, files, the
-    handshake's waits). They live in the node, so a missing table yields none.
+    handshake's waits), and the node declares them beside :func:`flat_defaults`.
+
+    Raises:
+        RuntimeError: the node has no such table (renamed or moved: update this function, so
+            that the page does not silently lose them).
     """
-    try:
-        from swarm_nav import node
-    except ImportError:  # pragma: no cover - rclpy missing
-        return {}
-    table = getattr(node, "_CONTEXT_PARAMS", None) or getattr(node, "CONTEXT_PARAMS", None)
-    return dict(table) if isinstance(table, dict) else {}
+    from swarm_nav import node
+
+    for name in ("CONTEXT_PARAMS", "_CONTEXT_PARAMS"):
+        table = getattr(node, name, None)
+        if isinstance(table, dict):
+            return dict(table)
+    raise RuntimeError("swarm_nav.node declares no CONTEXT_PARAMS table; update "
+                       "tools/gen_docs.py:_context_params to where the node's own parameters are")
 
 
 def _md(text: str) -> str:
