@@ -62,7 +62,7 @@ from swarm_nav.dwa import (
     rotation_is_safe,
 )
 from swarm_nav.holding import HoldingSite
-from swarm_nav.holding_behaviour import HoldingBehaviour, HoldingKind
+from swarm_nav.holding_behaviour import HoldingBehaviour, HoldingDecision, HoldingKind
 from swarm_nav.perception import ObstacleSet, SeenRobot
 from swarm_nav.planner import PlanResult, lru, plan_path
 from swarm_nav.recovery import SEQUENCE, ProgressChecker, Recovery, RecoveryKind
@@ -351,19 +351,8 @@ class NavigatorCore:
         decision = self._holding.step(pose, now, self.costmap, self._obs, self._track,
                                       self._holding_time,
                                       lambda a, b: self._plan(a, b, overlay=False))
-        if decision.kind == HoldingKind.ABORT:  # given up: a robot died on the goal
-            self._end(NavState.ABORTED, now, decision.reason)
-            return self._out(0.0, 0.0)
-        if decision.kind == HoldingKind.NEW_GOAL:
-            self._goal = decision.goal
-            self._start_goal(pose, now, decision.plan)
-        elif decision.kind != HoldingKind.DRIVE or decision.replan:
-            held = decision.kind != HoldingKind.DRIVE
-            self._state = NavState.HOLDING if held else NavState.DRIVING
-            if decision.replan:
-                self._replan(pose, overlay=False)
-                self._progress.reset(pose, now)
-        if self._state in TERMINAL:
+        self._apply(decision, pose, now)
+        if self._state in TERMINAL:  # given up (a robot died on the goal), or no plan
             return self._out(0.0, 0.0)
         if decision.kind == HoldingKind.WAIT:
             self._progress.reset(pose, now)
@@ -408,6 +397,20 @@ class NavigatorCore:
         return self._out(cmd.v, cmd.w)
 
     # ------------------------------------------------------------------ goal and plan
+    def _apply(self, decision: HoldingDecision, pose: np.ndarray, now: float) -> None:
+        """Carry out the holding behaviour's decision of this tick (:class:`HoldingKind`)."""
+        kind = decision.kind
+        if kind == HoldingKind.ABORT:
+            self._end(NavState.ABORTED, now, decision.reason)
+        elif kind == HoldingKind.NEW_GOAL:
+            self._goal = decision.goal
+            self._start_goal(pose, now, decision.plan)
+        elif kind != HoldingKind.DRIVE or decision.replan:
+            self._state = NavState.DRIVING if kind == HoldingKind.DRIVE else NavState.HOLDING
+            if decision.replan:
+                self._replan(pose, overlay=False)
+                self._progress.reset(pose, now)
+
     def _start_goal(self, pose: np.ndarray, now: float, res: PlanResult | None = None) -> None:
         """Plan to the goal (or take ``res``, a plan to it already made) and start driving."""
         if res is None:
