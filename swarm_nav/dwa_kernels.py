@@ -6,8 +6,8 @@ operands in the same order, so the results are the same to the last bit (no ``fa
 then neither reorders nor contracts them).  The transcendental functions (``sin``, ``cos``,
 ``arctan2``) stay in numpy, whose SIMD versions may round differently from the C library's.
 What the loops gain is not arithmetic but the (S, T) temporaries and the per-call overhead of
-some forty numpy calls a tick (half of a DWA call's time: docs/design/navigator.md#compiled-
-kernels).
+some forty numpy calls a tick, half of a DWA call's time
+(docs/design/navigator.md#compiled-kernels).
 
 Compiled on first use and cached beside this file (``cache=True``), so a process after the first
 loads the machine code instead of compiling it (:mod:`swarm_nav.jit` warms them all up).

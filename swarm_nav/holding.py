@@ -186,13 +186,13 @@ def path_congested(centres: np.ndarray, standing: np.ndarray, ahead: np.ndarray,
     """A queue on the way: ``congestion_limit`` robots stand on the path ahead in a narrow place.
 
     A robot that drives on into robots standing in a corridor cannot pass them and closes the
-    way back for those that must leave (why: docs/design/navigator.md#congestion). A robot
-    that sees such a queue ahead holds back in the open
-    (:func:`staging_point`) and tries again later, so the queue can drain. Robots standing in
-    the open (``staging_wall_clearance`` or more from every wall) are passed around by the
-    planner and do not count; nor do robots on a workstation or a holding spot (they are where
-    they should be, off the lane), nor the last ``crowd_radius`` of the path, where
-    :func:`goal_crowded` judges the queue for the goal itself.
+    way back for those that must leave (why: docs/design/navigator.md#congestion). A robot that
+    sees such a queue ahead holds back in the open (:func:`staging_point`) and tries again
+    later, so the queue can drain. Robots standing in the open (``staging_wall_clearance`` or
+    more from every wall) are passed around by the planner and do not count; nor do robots on a
+    workstation or a holding spot (they are where they should be, off the lane), nor the last
+    ``crowd_radius`` of the path, where :func:`goal_crowded` judges the queue for the goal
+    itself.
 
     Args:
         centres: (K, 2) centres x, y [m] of the robots seen, in ``map``.

@@ -275,7 +275,8 @@ def speeds(velocity):
 
 @njit(cache=True, nogil=True)
 def moving_points(points, starts, sizes, velocity, moving):
-    """The points of the moving robots, each robot's twice (``NavigatorCore._moving_points``).
+    """The points of the moving robots, each robot's twice
+    (``swarm_nav.perception.ObstacleSet._moving_points``).
 
     Args:
         points: (P, 2) every robot's points x, y [m] in ``map``, robot after robot.

@@ -207,8 +207,8 @@ _GRAPHS: OrderedDict = OrderedDict()
 _TOGO: OrderedDict = OrderedDict()
 _GRAPHS_MAX = 2
 # A replan's repair searches again the cells of static cost-to-go up to 1.5 x the start's + 2 m
-# (and all of them when the start's new cost lies beyond; why these: docs/design/navigator.md
-# #replanning).
+# (and all of them when the start's new cost lies beyond; why these bounds:
+# docs/design/navigator.md#replanning).
 _REPAIR_BOUND = (1.5, 2.0)
 _TOGO_MIN = 16
 _togo_max = _TOGO_MIN
