@@ -6,9 +6,8 @@ operands in the same order, so the results are the same to the last bit (no ``fa
 then neither reorders nor contracts them).  The transcendental functions (``sin``, ``cos``,
 ``arctan2``) stay in numpy, whose SIMD versions may round differently from the C library's.
 What the loops gain is not arithmetic but the (S, T) temporaries and the per-call overhead of
-some forty numpy calls a tick: in a replay of 28,953 recorded DWA calls of a 100-robot run (420
-rollouts x up to 31 poses each) a call took 0.57 ms with numpy and 0.28 ms with these kernels,
-the same commands.
+some forty numpy calls a tick, half of a DWA call's time
+(docs/design/navigator.md#compiled-kernels).
 
 Compiled on first use and cached beside this file (``cache=True``), so a process after the first
 loads the machine code instead of compiling it (:mod:`swarm_nav.jit` warms them all up).
@@ -367,8 +366,8 @@ def score_rollouts(x, y, aim_end, th_end, vs, ws, rx, ry, carrot_x, carrot_y, ta
 
 # ---------------------------------------------------------------- one DWA tick in three calls
 # dwa.dwa_command calls these three in turn, with numpy's sin, cos and arctan2 between them (their
-# SIMD rounding is not the C library's): the numpy glue of some thirty array expressions a call
-# and the dispatch of six kernels were more than half of a DWA call's time at 100 robots.
+# SIMD rounding is not the C library's): the numpy glue between more, smaller kernels cost more
+# than the kernels (docs/design/navigator.md#compiled-kernels).
 
 
 @njit(cache=True, nogil=True)

@@ -1,4 +1,4 @@
-"""Goal-occupied detection from the robot's own scan, and the holding pattern.
+"""What a holding robot judges from its own scan: is the goal taken, and where to hold.
 
 No communication: a robot judges its goal from the other robots it sees in its own scan
 (:func:`swarm_nav.perception.perceive_robots`: clusters of the points the static map does not
@@ -11,25 +11,18 @@ for each other. A queue is a reason: ``crowd_limit`` robots standing near the go
 to it than we are and not waiting on another workstation or its holding spot
 (:func:`goal_crowded`), and we hold as if it were taken. So is a queue on the
 way there: ``congestion_limit`` robots standing on the path ahead in a narrow place
-(:func:`path_congested`); we hold back at a staging point in the open for ``congestion_wait``
-(:meth:`HoldingPattern.hold_back`), then try again.
+(:func:`path_congested`).
 
-The holding pattern (:class:`HoldingPattern`) is a small state machine::
+Where to hold: a workstation's holding spot (one point) or loop (points driven in order) comes
+from the world's points of interest (:func:`holding_points_for`); a goal that is no workstation
+holds ``holding_distance`` back along its path. A robot whose holding spot is taken too, or that
+holds back from a congested way, waits at a staging point (:func:`staging_point`) well away from
+the busy workstation, the other robots and every dock, so queues do not block the lanes or the
+robot that must leave.
 
-    APPROACH --goal occupied or someone came first--> TO_HOLD
-    TO_HOLD  --holding spot reached--> WAIT          (a loop: on to the next point, stays TO_HOLD)
-    TO_HOLD, WAIT --goal seen free for free_confirm_time--> APPROACH
-    WAIT     --retry period over and the goal out of sight--> APPROACH (go and look)
-    loop     --a loop point reached, retry period over, goal out of sight--> APPROACH
-    APPROACH, TO_HOLD (to the spot) --the way congested--> TO_HOLD (a staging point, held back:
-             neither a free goal nor the retry period ends it before congestion_wait)
-
-It never gives up: a reachable goal is retried until it is free. A robot whose holding spot is
-taken too waits at a staging point (:func:`staging_point`) well away from the busy workstation, the
-other robots and every dock, so queues do not block the lanes or the robot that must leave; and a
-waiting robot that another robot stays close to moves to a staging point to make room. A
-workstation's holding spot (one point) or loop (points driven in order) comes from the world's
-points of interest; a goal that is no workstation holds ``holding_distance`` back along its path.
+These are pure judgements; the holding pattern that acts on them (the state machine, the
+decisions of each tick) is :mod:`swarm_nav.holding_behaviour`. Why each rule exists:
+docs/design/navigator.md.
 """
 
 from __future__ import annotations
@@ -37,7 +30,6 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Sequence
-from enum import StrEnum
 
 import numpy as np
 
@@ -147,20 +139,12 @@ def goal_crowded(robots: Sequence[SeenRobot], robot_xy, goal_xy, cfg: HoldingCon
     """A queue at the goal already: ``crowd_limit`` robots stand near it, all nearer than we are.
 
     A free workstation that robots stand around is no free way in: they wait for it, or are
-    stuck there, and the robot that must leave it needs room. Robots that join such a crowd
-    lock it up (20 robots on slim_blockage: 11 stood about loader5 for the last 400 s of a
-    30-minute shift, one of them boxed in on its way out). A robot that sees the crowd holds
-    instead, as when the goal is taken; the nearest ``crowd_limit`` robots keep trying, so a
-    free goal is always tried by someone.
-
-    A robot standing on *another* workstation or on another workstation's holding spot
-    (``elsewhere``) waits for that one, not in our queue, and does not count. Counted, it kept
-    a free workstation from its own queue: on slim_blockage the holding spot of loader k + 1
-    is 1.10-1.18 m from loader k (within ``crowd_radius``) for k = 1, 2, 3, and for loader3
-    nearer than loader3's own spot (1.115 m against 1.179 m), so whenever a robot waited for
-    loader4 the robot waiting for loader3 held on. At 100 robots, where a spot is rarely
-    empty, 16 robots completed no task in 30 minutes, 15 of them sent first to loader1, 2 or
-    3; 12 with ``elsewhere`` left out (README, "Long shifts").
+    stuck there, and the robot that must leave it needs room; robots that join such a crowd
+    lock it up. A robot that sees the crowd holds instead, as when the goal is taken; the
+    nearest ``crowd_limit`` robots keep trying, so a free goal is always tried by someone. A
+    robot standing on *another* workstation or on another workstation's holding spot
+    (``elsewhere``) waits for that one, not in our queue, and does not count (why:
+    docs/design/navigator.md#queue-rule).
 
     Args:
         robots: the robots seen (:func:`~swarm_nav.perception.perceive_robots`).
@@ -202,15 +186,13 @@ def path_congested(centres: np.ndarray, standing: np.ndarray, ahead: np.ndarray,
     """A queue on the way: ``congestion_limit`` robots stand on the path ahead in a narrow place.
 
     A robot that drives on into robots standing in a corridor cannot pass them and closes the
-    way back for those that must leave: 20 robots on slim_blockage (one 3 m corridor to all six
-    workstations) knotted 12 robots between two workstations at 250 s of a 30-minute shift,
-    robots for four different goals among them, and finished 17 tasks in its last 10 minutes
-    against 77 in its first. A robot that sees such a queue ahead holds back in the open
-    (:func:`staging_point`) and tries again later, so the queue can drain. Robots standing in
-    the open (``staging_wall_clearance`` or more from every wall) are passed around by the
-    planner and do not count; nor do robots on a workstation or a holding spot (they are where
-    they should be, off the lane), nor the last ``crowd_radius`` of the path, where
-    :func:`goal_crowded` judges the queue for the goal itself.
+    way back for those that must leave (why: docs/design/navigator.md#congestion). A robot that
+    sees such a queue ahead holds back in the open (:func:`staging_point`) and tries again
+    later, so the queue can drain. Robots standing in the open (``staging_wall_clearance`` or
+    more from every wall) are passed around by the planner and do not count; nor do robots on a
+    workstation or a holding spot (they are where they should be, off the lane), nor the last
+    ``crowd_radius`` of the path, where :func:`goal_crowded` judges the queue for the goal
+    itself.
 
     Args:
         centres: (K, 2) centres x, y [m] of the robots seen, in ``map``.
@@ -314,148 +296,6 @@ def holding_points_for(goal, sites: Sequence[HoldingSite], path: Path2D | None,
     return np.array([[x, y]]), False
 
 
-class HoldingPhase(StrEnum):
-    """Where the holding pattern is."""
-
-    APPROACH = "approach"  # driving to the goal
-    TO_HOLD = "to_hold"    # driving to a holding spot or along the loop
-    WAIT = "wait"          # standing at the holding spot
-
-
-class HoldingPattern:
-    """The holding-pattern state machine of one goal (pure: time and observations come in).
-
-    Args:
-        points: (K, 2) holding spot (K = 1) or loop points x, y [m] in ``map``.
-        loop: whether the points are a loop driven in order.
-        cfg: the holding settings.
-    """
-
-    def __init__(self, points: np.ndarray, loop: bool, cfg: HoldingConfig):
-        self.points = np.asarray(points, dtype=float).reshape(-1, 2)
-        self.loop = bool(loop) and len(self.points) >= 2
-        self.cfg = cfg
-        self.phase = HoldingPhase.APPROACH
-        self.index = 0
-        self._free_since: float | None = None
-        self._blocked_at = -math.inf
-        self._phase_since = 0.0
-        self._override: np.ndarray | None = None
-        self._held_until = -math.inf
-
-    @property
-    def target(self) -> np.ndarray | None:
-        """(2,) x, y [m] the robot should drive to while holding; ``None`` in APPROACH."""
-        if self.phase == HoldingPhase.APPROACH:
-            return None
-        if self._override is not None:
-            return self._override
-        return self.points[self.index]
-
-    def update(self, now: float, robot_xy, occupied: bool | None, came_first: bool = False
-               ) -> HoldingPhase:
-        """Advance the state machine by one observation.
-
-        Args:
-            now: time [s].
-            robot_xy: (2,) the robot's x, y [m] in ``map``.
-            occupied: whether the goal is seen occupied; ``None`` when it cannot be seen (too far
-                or behind a wall).
-            came_first: whether another robot near the goal came first (we yield).
-
-        Returns:
-            The phase after the update.
-        """
-        robot_xy = np.asarray(robot_xy, dtype=float)
-        seen_blocked = occupied is True or (occupied is not None and came_first)
-        seen_free = occupied is False and not came_first
-        if seen_blocked:
-            self._blocked_at = now
-            self._free_since = None
-        elif seen_free:
-            self._free_since = now if self._free_since is None else self._free_since
-        else:
-            self._free_since = None
-        free_long = (self._free_since is not None
-                     and now - self._free_since >= self.cfg.free_confirm_time)
-        retry_due = now - self._blocked_at >= self.cfg.holding_retry_period
-
-        if self.phase == HoldingPhase.APPROACH:
-            if seen_blocked:
-                self._enter(HoldingPhase.TO_HOLD, now)
-                self.index = self._nearest(robot_xy)
-            return self.phase
-        held = self.held_back(now)
-        if free_long and not held:
-            self._enter(HoldingPhase.APPROACH, now)
-            return self.phase
-        target = self.target
-        arrived = np.hypot(*(robot_xy - target)) <= self.cfg.holding_arrive_tolerance
-        if self.phase == HoldingPhase.TO_HOLD and arrived:
-            if self.loop and not held:
-                if retry_due and occupied is None:
-                    self._enter(HoldingPhase.APPROACH, now)
-                else:
-                    self.advance()
-            else:
-                self.phase, self._phase_since = HoldingPhase.WAIT, now  # where it is
-        elif self.phase == HoldingPhase.WAIT:
-            waited = now - self._phase_since >= self.cfg.holding_retry_period
-            if waited and retry_due and occupied is None and not held:
-                self._enter(HoldingPhase.APPROACH, now)
-        return self.phase
-
-    def advance(self) -> None:
-        """Go on to the next loop point (a loop), or stay (a spot)."""
-        self._override = None
-        if self.loop:
-            self.index = (self.index + 1) % len(self.points)
-
-    def replace_target(self, xy) -> None:
-        """Hold at ``xy`` (2,) [m] instead of the spot (the spot is taken by another robot)."""
-        self._override = np.asarray(xy, dtype=float).reshape(2)
-
-    def hold_back(self, xy, now: float, wait: float) -> None:
-        """Hold at ``xy`` (2,) [m] for at least ``wait`` [s] from ``now`` [s] whatever is seen of
-        the goal: the way to it is congested (:func:`path_congested`), not the goal taken. The
-        robot then retries as from any holding spot."""
-        self._enter(HoldingPhase.TO_HOLD, now)
-        self.replace_target(xy)
-        self._held_until = now + max(0.0, float(wait))
-        self._free_since = None
-
-    def held_back(self, now: float) -> bool:
-        """Whether a :meth:`hold_back` is still running at ``now`` [s]."""
-        return now < self._held_until
-
-    @property
-    def rerouted(self) -> bool:
-        """Whether the robot holds somewhere other than its holding spot or loop (a staging
-        point, or where it stands)."""
-        return self._override is not None
-
-    def relocate(self, xy, now: float) -> None:
-        """Move on to hold at ``xy`` (2,) [m] (from WAIT: make room for another robot)."""
-        if self.phase == HoldingPhase.WAIT:
-            self.phase, self._phase_since = HoldingPhase.TO_HOLD, now
-        self._override = np.asarray(xy, dtype=float).reshape(2)
-
-    @property
-    def phase_since(self) -> float:
-        """Time [s] the current phase began."""
-        return self._phase_since
-
-    def _enter(self, phase: HoldingPhase, now: float) -> None:
-        self.phase = phase
-        self._phase_since = now
-        self._override = None
-        if phase == HoldingPhase.APPROACH:
-            self._free_since = None
-
-    def _nearest(self, xy: np.ndarray) -> int:
-        return int(np.argmin(np.hypot(*(self.points - xy).T)))
-
-
 def staging_point(costmap: Costmap, goal_xy, robot_xy, centres: np.ndarray,
                   avoid: np.ndarray, cfg: HoldingConfig, step: float = 0.25) -> np.ndarray | None:
     """A place to wait out of the way when the goal's holding spot is taken too.
@@ -468,9 +308,7 @@ def staging_point(costmap: Costmap, goal_xy, robot_xy, centres: np.ndarray,
     workstation and holding point, and reachable; the one nearest the robot wins.  Where some
     such place is also ``staging_wall_clearance`` from every wall, only those count: a robot
     waiting in a corridor narrows the lane the others drive through, and a few of them stop its
-    two-way traffic (20 robots on slim_blockage, whose six workstations share one 3 m corridor,
-    all stood in it after 400 s and finished 12 tasks in the run's last 10 minutes against 140
-    in its first).
+    two-way traffic (why: docs/design/navigator.md#staging-points-and-making-room).
 
     Args:
         costmap: the static costmap.

@@ -6,8 +6,9 @@ static map does not explain (farther than ``static_point_tolerance`` from every 
 one robot (:class:`SeenRobot`) whose centre lies a little behind its visible side
 (:func:`cluster_centres`) and whose velocity comes from matching the centres to those of a scan
 about ``velocity_baseline`` earlier (:func:`estimate_velocities`; :class:`RobotTracker` keeps
-that short history). The holding pattern (:mod:`swarm_nav.holding`), the traffic rules
-(:mod:`swarm_nav.traffic`) and the navigator (:mod:`swarm_nav.core`) use what is seen here.
+that short history). :class:`ObstacleSet` keeps what one navigator sees (the scan, the robots in
+it, the walls near the robot, where the robots seen moving will be) for the holding pattern, the
+traffic rules and the navigator (:mod:`swarm_nav.core`).
 
 The loops run compiled (:mod:`swarm_nav.perception_kernels`, numba), with the same results to the
 last bit as the numpy and scipy code they replaced (tests/swarm_nav/test_perception_kernels.py).
@@ -17,14 +18,16 @@ Pure: numpy arrays in ``map`` and dataclasses, no ROS. Tests: tests/swarm_nav/te
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from swarm_common.geometry import Points2D
 from swarm_nav import perception_kernels as kern
-from swarm_nav.config import PerceptionConfig
+from swarm_nav.config import NavigatorConfig, PerceptionConfig
 from swarm_nav.costmap import Costmap
+from swarm_nav.dwa import Footprint, point_gaps
 
 CENTRE_DEPTH = 0.1  # [m] a robot's centre behind its visible side (about half a waffle's width)
 
@@ -293,3 +296,122 @@ class SeenArrays:
 def robot_centres(robots: list[SeenRobot]) -> np.ndarray:
     """(K, 2) the centres x, y [m] of ``robots`` ((0, 2) when there are none)."""
     return np.array([r.centre for r in robots]) if robots else np.zeros((0, 2))
+
+
+_STATIC_MARGIN = 0.5  # [m] the robot moves this far before its static obstacle window is renewed
+_EPS = 1e-6  # [m] ... which is grown by this too (no rounding at its edge can drop a point)
+
+
+class ObstacleSet:
+    """What one navigator sees: the last scan, the robots in it, the static walls near the robot.
+
+    Args:
+        cfg: ``perception``, ``scan_max_age`` [s], ``obstacle_window`` [m], ``prediction_step``
+            and ``prediction_max`` [s], ``holding.moving_speed`` [m/s], ``dwa.footprint_padding``.
+        footprint: the robot's footprint box.
+
+    Attributes:
+        costmap: the static costmap (set with the map), or ``None``.
+        scan: (M, 2) the last scan's end points x, y [m] in ``map``.
+        dynamic: (K, 2) those the static map does not explain (:func:`dynamic_points`).
+        robots: the robots seen in it; ``seen``: the same as :class:`SeenArrays`.
+        time: the scan's time [s] (``-inf`` before the first).
+    """
+
+    def __init__(self, cfg: NavigatorConfig, footprint: Footprint):
+        self.cfg = cfg
+        self.footprint = footprint
+        self.costmap: Costmap | None = None
+        self.scan = np.zeros((0, 2))
+        self.dynamic = np.zeros((0, 2))
+        self.robots: list[SeenRobot] = []
+        self.seen = SeenArrays.of([])
+        self.time = -math.inf
+        self._movers = self._moving_points()
+        self._tracker = RobotTracker(cfg.perception)
+        self._superset = np.zeros((0, 2))  # boundary points near _centre
+        self._centre: np.ndarray | None = None
+        self._source: np.ndarray | None = None  # the boundary array it was taken from
+
+    def update(self, points_map: Points2D, viewer_xy, now: float) -> None:
+        """Take a scan's end points (M, 2) x, y [m] in ``map`` (non-finite rows are dropped),
+        seen from ``viewer_xy`` (2,) [m] at ``now`` [s]."""
+        pts = np.asarray(points_map, dtype=float).reshape(-1, 2)
+        pts = kern.finite_rows(np.ascontiguousarray(pts))
+        self.scan = pts
+        self.time = now
+        if self.costmap is None:
+            self.dynamic = pts
+        else:
+            self.dynamic = dynamic_points(pts, self.costmap,
+                                          self.cfg.perception.static_point_tolerance)
+        self.robots, self.seen = self._tracker.update_arrays(self.dynamic, viewer_xy, now)
+        self._movers = self._moving_points()
+
+    def fresh(self, now: float) -> bool:
+        """Whether the scan is at most ``scan_max_age`` old at ``now`` [s] (only a fresh scan's
+        robots judge the goal and the path ahead)."""
+        return now - self.time <= self.cfg.scan_max_age
+
+    def moving(self) -> np.ndarray:
+        """(K,) whether each robot seen moves faster than ``holding.moving_speed``."""
+        return self.seen.known & (self.seen.speed > self.cfg.holding.moving_speed)
+
+    def obstacles(self, pose: np.ndarray, now: float) -> np.ndarray:
+        """(P, 2) x, y [m] in ``map``: the scan, the walls near ``pose`` (:meth:`static_near`)
+        and where the robots seen moving will be at ``now`` [s] (:meth:`predicted`)."""
+        parts = [self.scan, self.static_near(pose), self.predicted(pose, now)]
+        parts = [p for p in parts if len(p)]
+        return np.vstack(parts) if parts else np.zeros((0, 2))
+
+    def predicted(self, pose: np.ndarray, now: float) -> np.ndarray:
+        """(P, 2) x, y [m] in ``map`` where the points of the robots seen moving will be
+        ``prediction_step`` and twice that after the scan, plus its age at ``now`` [s] (at most
+        ``prediction_max``); none already within ``footprint_padding`` of the robot at ``pose``.
+
+        The DWA relaxes its padding to the current gap when the robot already is that near (so
+        that it can leave a tight spot), and a point that is only a guess must not relax it
+        against the points that are really there (why: docs/design/navigator.md#prediction).
+        """
+        cfg = self.cfg
+        lag = max(0.0, now - self.time)
+        step = cfg.prediction_step
+        taus = [min(tau, cfg.prediction_max) for tau in (lag + step, lag + 2.0 * step)]
+        points, velocity, later = self._movers
+        if not len(points):
+            return np.zeros((0, 2))
+        ahead = points + velocity * np.where(later, taus[1], taus[0])[:, None]
+        # all robots' predictions in one point_gaps call (it is per point)
+        return ahead[point_gaps(pose, ahead, self.footprint) >= cfg.dwa.footprint_padding]
+
+    def _moving_points(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The points of the robots seen moving, each robot's twice (its points for the earlier
+        prediction time, then for the later one): (P, 2) points x, y [m] in ``map``, (P, 2) their
+        robot's velocity [m/s], (P,) whether the point is for the later time."""
+        seen = self.seen
+        return kern.moving_points(seen.points, seen.starts, seen.sizes, seen.velocity,
+                                  self.moving())
+
+    def static_near(self, pose: np.ndarray) -> np.ndarray:
+        """(K, 2) the static map's boundary points within ``obstacle_window`` (per axis) of pose.
+
+        Filtered from a cached superset (the window grown by ``_STATIC_MARGIN``, taken about where
+        the robot stood) that is renewed once the robot has moved ``_STATIC_MARGIN``: the same
+        points in the same order as filtering the whole boundary, without reading all of it
+        every tick.
+        """
+        if self.costmap is None:
+            return np.zeros((0, 2))
+        stat = self.costmap.boundary_points()
+        r = self.cfg.obstacle_window
+        c = self._centre
+        if (self._source is not stat or c is None
+                or abs(pose[0] - c[0]) > _STATIC_MARGIN or abs(pose[1] - c[1]) > _STATIC_MARGIN):
+            grown = r + _STATIC_MARGIN + _EPS
+            m = (np.abs(stat[:, 0] - pose[0]) < grown) & (np.abs(stat[:, 1] - pose[1]) < grown)
+            self._superset = stat[m]
+            self._centre = pose[:2].copy()
+            self._source = stat
+        near = self._superset
+        m = (np.abs(near[:, 0] - pose[0]) < r) & (np.abs(near[:, 1] - pose[1]) < r)
+        return near[m]

@@ -5,10 +5,8 @@ Each kernel does, point by point, the arithmetic that :mod:`swarm_nav.perception
 same order, so the results are the same to the last bit (no ``fastmath``: LLVM then neither
 reorders nor contracts them).  ``hypot`` is the C library's in both numpy and numba.  What the
 loops gain is not arithmetic but the per-call overhead of some forty numpy and scipy calls on
-small arrays (tens to a few hundred points) at every scan of every robot: ``NavigatorCore.on_scan``
-took about 0.50 ms with numpy (0.37 ms of it in ``RobotTracker.update``) and takes about 0.10 ms
-with these kernels (0.07 ms), in a replay of the 14,951 scans of 50 robots of a 100-robot run
-(0 differences in 30,266 navigator ticks; tests/swarm_nav/test_perception_kernels.py holds the
+small arrays (tens to a few hundred points) at every scan of every robot (a fifth of the time:
+docs/design/navigator.md#compiled-kernels; tests/swarm_nav/test_perception_kernels.py holds the
 equivalence).
 
 Single linkage: two points are linked when ``dx * dx + dy * dy <= link * link``, the test of
@@ -277,7 +275,8 @@ def speeds(velocity):
 
 @njit(cache=True, nogil=True)
 def moving_points(points, starts, sizes, velocity, moving):
-    """The points of the moving robots, each robot's twice (``NavigatorCore._moving_points``).
+    """The points of the moving robots, each robot's twice
+    (``swarm_nav.perception.ObstacleSet._moving_points``).
 
     Args:
         points: (P, 2) every robot's points x, y [m] in ``map``, robot after robot.

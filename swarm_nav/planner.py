@@ -12,13 +12,12 @@ Cells of cost 253 (inscribed) and 254 (lethal) are impassable; unknown cells (25
 between two cells (both orthogonal neighbours must be traversable).
 
 The search is Dijkstra from the goal (``scipy.sparse.csgraph``), which returns the optimal path
-(the cost an A* with an admissible heuristic would find).  Measured on the 290 x 360 slim_blockage
-grid: a heapq A* in plain Python needs 75-110 ms for cross-map queries, because the detour around
-the blockage defeats the octile heuristic (~35k expansions), while csgraph's Dijkstra over all
-cells takes ~20-25 ms whatever the query, and its cost-to-go is reused by replans to the same goal.
-A replan around the robots seen (an overlay, searched once) starts from the static map's search to
-the same goal and searches again, compiled, only the cells whose path to the goal used a move the
-overlay made dearer, until the start is settled
+(the cost an A* with an admissible heuristic would find) over all cells whatever the query: an
+A* in plain Python is slower here, since the detour around a blockage defeats the octile
+heuristic, and the cost-to-go is reused by replans to the same goal (measured:
+docs/design/navigator.md#replanning). A replan around the robots seen (an overlay, searched
+once) starts from the static map's search to the same goal and searches again, compiled, only
+the cells whose path to the goal used a move the overlay made dearer, until the start is settled
 (:func:`swarm_nav.planner_kernels.repair_dijkstra`, scipy's whole-map result to the last bit).
 Reachability is decided before any search from the 4-connected components of the traversable
 cells (the connectivity of moves that cut no corner), so an unreachable goal (a closed pocket)
@@ -202,14 +201,14 @@ def cell_path(costmap: Costmap, start_rc: tuple[int, int], goal_rc: tuple[int, i
 
 # Process-wide caches of what shareable costmaps derive (robots of one process share a map):
 # key -> search graph (with the slot index of every move, and a scratch copy that an overlay's
-# search patches and restores), and (key, goal cell) -> cost-to-go.  About 22 MB per graph and
-# 1.5 MB per cost-to-go on a 381 x 311 grid (slim_blockage).
+# search patches and restores), and (key, goal cell) -> cost-to-go (sizes:
+# docs/design/navigator.md#replanning).
 _GRAPHS: OrderedDict = OrderedDict()
 _TOGO: OrderedDict = OrderedDict()
 _GRAPHS_MAX = 2
 # A replan's repair searches again the cells of static cost-to-go up to 1.5 x the start's + 2 m
-# (and all of them when the start's new cost lies beyond): 798 replans recorded at 100 robots
-# cost 15 m median around the robots against 12 m on the static map.
+# (and all of them when the start's new cost lies beyond; why these bounds:
+# docs/design/navigator.md#replanning).
 _REPAIR_BOUND = (1.5, 2.0)
 _TOGO_MIN = 16
 _togo_max = _TOGO_MIN
@@ -217,15 +216,13 @@ _togo_max = _TOGO_MIN
 
 def share_cost_to_go(robots: int) -> None:
     """Size this process's cache of static cost-to-go fields for ``robots`` navigators sharing
-    it: one field per robot, at least 16 (about 1.5 MB each on slim_blockage's 381 x 311 grid).
+    it: one field per robot, at least 16.
 
-    A field is a whole-map search from a goal cell (about 18 ms), asked for by every plan and
-    replan toward that goal. The targets are the workstations, their holding spots and each
-    robot's own staging and retreat points; with 16 fields for the 50 robots of a group
-    process (100 robots on slim_blockage, seed 0, 300 s) the staging points pushed the loaders'
-    fields out and 1,988 of 4,118 asks were searches (641 distinct goals); 48 fields would
-    have made 771, 64 fields 699 (the recorded asks replayed through each size). The fields
-    are the same either way; only when they are searched changes.
+    A field is a whole-map search from a goal cell, asked for by every plan and replan toward
+    that goal. The targets are the workstations, their holding spots and each robot's own
+    staging and retreat points, so fewer fields than robots let the staging points push the
+    workstations' fields out (measured: docs/design/navigator.md#replanning). The fields are the
+    same either way; only when they are searched changes.
 
     Args:
         robots: the navigators this process runs (>= 1).
@@ -258,9 +255,8 @@ def _overlay_cost_to_go(costmap: Costmap, s: int, t: int, cfg: PlannerConfig
     raises costs).  Otherwise the distances and next cells are scipy's whole-map search's for
     ``s`` and every cell on its path, not for the cells settled after ``s``: the result is cached
     per start.  The base's search is repaired below the moves the overlay's patch made dearer
-    (:func:`swarm_nav.planner_kernels.repair_dijkstra`, bounded by :data:`_REPAIR_BOUND`: 4.7 ms
-    median against 12.3-13.4 ms for the search from the goal stopped at the start, over 798
-    replans recorded in a 100-robot run on slim_blockage, every one the same path); an overlay
+    (:func:`swarm_nav.planner_kernels.repair_dijkstra`, bounded by :data:`_REPAIR_BOUND`, a
+    third of the time of the search from the goal stopped at the start); an overlay
     without a patch is searched whole (:func:`swarm_nav.planner_kernels.dijkstra`, stopped at
     the start).
     """
@@ -313,8 +309,8 @@ def _search_graph(costmap: Costmap, cfg: PlannerConfig) -> Iterator[csr_matrix]:
     costs, so its valid moves are a subset of the base's, and a move it forbids keeps its slot
     with an infinite cost (which Dijkstra never relaxes).  The new costs are written into a
     scratch copy of the base's graph kept for the purpose and the base's costs written back
-    after the search: the same graph as a patched copy, without copying 835,000 costs (6.7 MB
-    on slim_blockage) for every replan around robots.
+    after the search: the same graph as a patched copy, without copying the whole graph's costs
+    for every replan around robots.
     """
     if costmap.shareable:
         yield _shared_graph(costmap, cfg)[0]

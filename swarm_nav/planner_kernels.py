@@ -3,8 +3,8 @@ with numba.
 
 ``shortcut_path`` tests a few dozen candidate segments per plan, each cut exactly at the grid lines
 it crosses (:func:`swarm_nav.costmap_kernels.segment_profile`); with numpy that was some twenty
-small array operations per segment: 3.3 ms per cross-map path on slim_blockage, 0.21 ms with
-these kernels.  They do the same IEEE operations in the same order (the weighted length is the
+small array operations per segment (measured: docs/design/navigator.md#compiled-kernels).  They
+do the same IEEE operations in the same order (the weighted length is the
 same BLAS ``dot`` numpy's ``@`` calls), so the paths are the same to the last bit
 (``tests/swarm_nav/test_planner_equivalence.py``); see :mod:`swarm_nav.dwa_kernels` for the
 rules.  Compiled on first use and cached beside this file.

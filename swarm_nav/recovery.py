@@ -158,13 +158,12 @@ def escape_command(pose, obstacles: Points2D, footprint: Footprint, cfg: Recover
 
     Robots that stand body to body (gaps of 5-6 cm, the DWA's padding) find no admissible arc
     along their paths, since every arc of the DWA's horizon closes some gap, and nav2's recoveries
-    do not free them either: four robots in the open hall of slim_blockage stood so for the last
-    1,600 s of a 30-minute shift of 100 robots. A robot of the knot descends the repulsion
-    potential ``U = sum_p exp(-gap_p / s)`` of the obstacle points ``p`` near it (``s`` =
-    ``escape_clearance / 3``; ``gap_p`` the footprint's gap to ``p``), never coming nearer than
-    ``escape_padding`` to any point (nor nearer than it is, if it is already): it slides out of
-    a robot's flank, which the smallest gap alone does not see (two robots side by side keep
-    that gap until they no longer overlap).
+    do not free them either (why: docs/design/navigator.md#knots). A robot of the knot descends
+    the repulsion potential ``U = sum_p exp(-gap_p / s)`` of the obstacle points ``p`` near it
+    (``s`` = ``escape_clearance / 3``; ``gap_p`` the footprint's gap to ``p``), never coming
+    nearer than ``escape_padding`` to any point (nor nearer than it is, if it is already): it
+    slides out of a robot's flank, which the smallest gap alone does not see (two robots side
+    by side keep that gap until they no longer overlap).
 
     The candidates are the 5 x 5 pairs of ``v`` in ``[-1, 1] * escape_speed`` and ``w`` in
     ``[-1, 1] * escape_turn``, rolled out as arcs for ``horizon``; an admissible one (its

@@ -16,7 +16,8 @@ communication:
   going.
 
 Settings: :class:`swarm_nav.config.TrafficConfig`. Pure (numpy, no ROS); the navigator
-(:mod:`swarm_nav.core`) calls these. Tests: tests/swarm_nav/test_traffic.py.
+(:mod:`swarm_nav.core`) calls these. Why: docs/design/navigator.md#keep-right and #yield. Tests:
+tests/swarm_nav/test_traffic.py.
 """
 
 from __future__ import annotations
@@ -266,10 +267,10 @@ class Yield:
     The drive ends at the retreat place (within ``yield_arrive_tolerance``), after half of
     ``yield_timeout``, or when the local planner finds no motion for ``stuck_time``; in the last
     case, if the robot has not got ``_NO_RETREAT`` from ``start``, the yield is over at once (a
-    robot packed in among others that waited where it stood only kept them packed: in a 100-robot
-    shift four robots took turns at it, body to body, for 1,600 s). The wait ends
-    when the path ahead has been clear for ``yield_clear_time`` and the robot waited at least
-    ``yield_min_wait``, or at the latest ``yield_timeout`` after the yield began.
+    robot packed in among others that waited where it stood only kept them packed: why:
+    docs/design/navigator.md#yield). The wait ends when the path ahead has been clear for
+    ``yield_clear_time`` and the robot waited at least ``yield_min_wait``, or at the latest
+    ``yield_timeout`` after the yield began.
 
     Attributes:
         target: (2,) the retreat place x, y [m] in ``map``.

@@ -13,6 +13,7 @@ from swarm_nav.config import NavigatorConfig
 from swarm_nav.core import NavigatorCore, NavState, NavStatus
 from swarm_nav.costmap import add_keepout, build_costmap
 from swarm_nav.holding import holding_sites_from_poi, site_kinds_from_poi, workstation_kind
+from swarm_nav.holding_behaviour import HoldingBehaviour
 from tests.swarm_nav.helpers import (
     SLIM_BLOCKAGE_WALLS,
     WAFFLE_FOOTPRINT,
@@ -253,7 +254,7 @@ def test_a_waiting_robot_makes_room(occ):
     waited = []
 
     def on_tick(t, robots):
-        hp = r.core._holding
+        hp = r.core._holding.pattern
         if hp is not None and hp.phase.value == "wait" and not waited:
             waited.append(t)
             visitor.pose = np.array([r.pose[0] + 0.6, r.pose[1], math.pi])  # comes close
@@ -373,9 +374,9 @@ def test_static_obstacle_window_from_its_cache_equals_filtering_the_whole_bounda
     for _ in range(400):  # a random walk: small steps, and jumps past the cache's margin
         pose[:2] += rng.normal(0.0, 0.35 if rng.random() < 0.9 else 2.0, 2)
         pose[:2] = np.clip(pose[:2], [-8.0, -4.5], [9.0, 9.0])
-        before = core._static_centre
-        got = core._static_near(pose)
-        renewals += core._static_centre is not before
+        before = core._obs._centre
+        got = core._obs.static_near(pose)
+        renewals += core._obs._centre is not before
         m = (np.abs(boundary[:, 0] - pose[0]) < win) & (np.abs(boundary[:, 1] - pose[1]) < win)
         assert np.array_equal(got, boundary[m])  # the same points in the same order
     assert 20 < renewals < 400  # the cache was both reused and renewed
@@ -394,7 +395,7 @@ def test_navigators_of_one_process_share_the_static_costmaps_of_one_map(occ):
     assert a.costmap is b.costmap and a._plan_cm is b._plan_cm
     cfg = NavigatorConfig()
     built = build_costmap(occ, cfg.costmap)
-    planning = add_keepout(built, a._avoid, cfg.holding.workstation_keepout_radius,
+    planning = add_keepout(built, a._holding.avoid, cfg.holding.workstation_keepout_radius,
                            cfg.holding.workstation_keepout_cost)
     np.testing.assert_array_equal(a.costmap.costs, built.costs)
     np.testing.assert_array_equal(a.costmap.obstacle_distance, built.obstacle_distance)
@@ -462,7 +463,7 @@ def test_a_starving_robot_is_held_back_by_congestion_no_more(occ, reached, held,
     start = np.array([-6.6, 6.6, -math.pi / 2])
     core.step(start, 0.0, 0.0, 0.0)
     core.set_goal(LOADER1, "g", 0.0)
-    core._reached_goal, core._holding_time = reached, held
+    core._holding.reached_goal, core._holding_time = reached, held
     me = SimRobot(core, start, log=[])
     queue = [SimRobot(None, np.array([x, y, -math.pi / 2]))
              for x, y in ((-6.7, 4.4), (-6.2, 3.7), (-7.2, 3.4))]
@@ -484,7 +485,7 @@ def _starving_robot_before_a_queue(occ, cfg, spots):
     start = np.array([-6.6, 6.6, -math.pi / 2])
     core.step(start, 0.0, 0.0, 0.0)
     core.set_goal(LOADER1, "g", 0.0)
-    core._reached_goal, core._holding_time = False, 300.0
+    core._holding.reached_goal, core._holding_time = False, 300.0
     me = SimRobot(core, start, log=[])
     queue = [SimRobot(None, np.array([x, y, -math.pi / 2])) for x, y in spots]
     simulate([me, *queue], SLIM_BLOCKAGE_WALLS, 3.0, until_done=False)
@@ -671,7 +672,7 @@ def test_a_robot_waiting_for_the_next_workstation_is_no_queue_for_this_one(occ, 
     free. Robots on another workstation's spot no longer count (``holding.goal_crowded``'s
     ``elsewhere``); counted (``fixed`` False), loader3 stays free and unreached."""
     if not fixed:
-        monkeypatch.setattr(NavigatorCore, "_other_sites", lambda self, goal_xy: None)
+        monkeypatch.setattr(HoldingBehaviour, "_other_sites", lambda self, goal_xy: None)
     poi = poi_for_world(WORLDS / "slim_blockage.world")
     sites = holding_sites_from_poi(poi)
     ws = {w.name: (np.asarray(w.pose, dtype=float), np.asarray(w.holding, dtype=float))

@@ -9,8 +9,6 @@ import pytest
 from swarm_nav.config import CostmapConfig, HoldingConfig
 from swarm_nav.costmap import build_costmap
 from swarm_nav.holding import (
-    HoldingPattern,
-    HoldingPhase,
     goal_crowded,
     goal_occupied,
     goal_site,
@@ -21,6 +19,7 @@ from swarm_nav.holding import (
     someone_came_first,
     staging_point,
 )
+from swarm_nav.holding_behaviour import HoldingPattern, HoldingPhase
 from swarm_nav.perception import SeenRobot
 from tests.swarm_nav.helpers import (
     SLIM_BLOCKAGE_LOOP,
