@@ -1,7 +1,7 @@
 """The coordination contract of ``swarm-up --coordination centralized``, written once.
 
 The commanders (:mod:`swarm_commander.coordinated`), the coordinator
-(:mod:`swarm_coordinator.node`) and the metrics recorder (:mod:`swarm_up.aggregate`) all go
+(:mod:`swarm_coordinator.node`) and the metrics recorder (:mod:`swarm_metrics.aggregate`) all go
 through this module (STYLE.md rule 15). Pure: no ROS import. Standard message types only: every
 message is a ``std_msgs/String`` whose ``data`` is one JSON object (:func:`encode_request`,
 :func:`encode_assignment`, :func:`encode_state`); reservation and task events go onto

@@ -367,7 +367,7 @@ class NavigatorNode(Node):
         that discovered it only after that goal ended would never see the goal.  Likewise a
         recorder matched to ``cmd_vel`` only after the first answer had lost it while
         ``cmd_vel`` was volatile: 1 tick in 2 of about 15 CI runs of
-        ``tests/swarm_up/test_record.py``, the first 8 simulated s of one robot of a 3-robot
+        ``tests/swarm_record/test_recorder.py``, the first 8 simulated s of one robot of a 3-robot
         group run.  This gate counts the writer's matches only; the reader's
         side can lag behind (23 ticks lost once more), which the histories of
         :data:`CMD_VEL_QOS` and :data:`NAV_STATUS_QOS` cover.  The simulator holds the tick

@@ -94,7 +94,7 @@ class SimSettings:
         reader_subscriptions: how many subscriptions of ``wait_for_reader`` to the simulator's
             topics it waits for: those discovered so far are not all of them while discovery
             runs (``swarm-up`` passes the recorder's count,
-            :func:`swarm_up.recording.simulator_readers`) [-].
+            :func:`swarm_record.mcap_format.simulator_readers`) [-].
         gui: open PyBullet's window.
         faults: the ``--faults`` SPEC (inline syntax or YAML path, :mod:`swarm_common.faults`),
             or None.

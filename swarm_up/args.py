@@ -389,7 +389,7 @@ def validate(args: argparse.Namespace) -> RunConfig:
         raise InputError("--coordination: centralized needs --commanders (the coordinator "
                          "assigns the commanders' tasks)")
     if args.dashboard is not None:
-        from swarm_up.dashboard import check_port
+        from swarm_viz.server import check_port
 
         check_port(args.dashboard)
     if args.metrics is not None:
@@ -489,7 +489,7 @@ def check_record(record: Path | None, topics: str | None, robots: tuple[str, ...
             matching no topic; a recording path that does not end in ``.mcap``, is a
             directory or lies in a missing directory.
     """
-    from swarm_up.recording import recorded_topics, select_topics
+    from swarm_record.mcap_format import recorded_topics, select_topics
 
     if record is None:
         if topics is not None:

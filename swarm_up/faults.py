@@ -48,7 +48,7 @@ from swarm_common.faults import (
 
 # the metrics' reader's QoS, transient local: a kill announced before this reader matched the
 # simulator's writer is still delivered
-from swarm_up.metrics import EVENTS_QOS
+from swarm_metrics.listener import EVENTS_QOS
 
 GROUP_RESTART_DELAY_S = 0.5  # [s] wall: a group recreates a killed navigator this much later
 # Transient local on both sides (the simulator's reader too): an acknowledgement published
@@ -99,7 +99,7 @@ class ProcessFaults:
         say: prints one status line.
         serving: returns the epochs of the coordinators that have announced themselves
             serving (their ``coordinator`` event on ``/swarm/events``, sent with their first
-            answers; :attr:`swarm_up.aggregate.RunRecorder.coordinator_serving`). Given, a
+            answers; :attr:`swarm_metrics.aggregate.RunRecorder.coordinator_serving`). Given, a
             restarted coordinator's end of outage is acknowledged only once a new epoch is
             among them (:meth:`poll`), so the simulator holds that tick through the
             coordinator's start-up; None: acknowledged as soon as the process is started.

@@ -200,7 +200,7 @@ def _recorded_robot_topics(cfg: RunConfig, ns: str) -> frozenset[str]:
     (``cmd_vel``, ``nav_status``, ...); empty without ``--record``."""
     if cfg.record_path is None:
         return frozenset()
-    from swarm_up.recording import recorded_topics, select_topics
+    from swarm_record.mcap_format import recorded_topics, select_topics
 
     return frozenset(t.name.rsplit("/", 1)[-1]
                      for t in select_topics(recorded_topics((ns,)), cfg.record_topics)
