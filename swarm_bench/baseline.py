@@ -1,6 +1,6 @@
-"""The bare messaging floor of ``swarm-bench --floor`` (SPEC §6, issue 8).
+"""The messaging baseline of ``swarm-bench --baseline`` (SPEC §6, issue 8).
 
-How fast can the swarm's ROS traffic alone go?  The floor relays the same messages as a
+How fast can the swarm's ROS traffic alone go?  The baseline relays the same messages as a
 ``swarm-up --commanders --rtf 0`` run, lockstep and unpaced, with nothing else to do, in the same
 process layout; its real-time factor is the ceiling that the messaging sets, and
 ``swarm-bench`` reports every size's RTF as a percentage of it.
@@ -32,12 +32,12 @@ process layout; its real-time factor is the ceiling that the messaging sets, and
 - commander (one node ``/<ns>/commander`` per robot, ``use_sim_time``): subscribes
   ``nav_status`` (depth 10), has the ``navigator/cancel`` client and the runner's 10 Hz wall-clock
   poll timer, and publishes the next ``goal_pose`` (stamped with the status's ``stamp``) when a
-  goal ended.  A floor goal "succeeds" ``goal_period_s`` simulated seconds after it was taken
+  goal ended.  A baseline goal "succeeds" ``goal_period_s`` simulated seconds after it was taken
   (default 180 s: about the 20 tasks per robot-hour that 20 robots reach on slim_blockage).
 - orchestrator listener: a process with the metrics node's subscriptions (every ``nav_status``,
   ``/swarm/events``, ``/clock`` best effort).  In ``swarm-up`` it is a thread of the
   orchestrator; here it is a process of its own with an ``EventsExecutor`` (the bench process
-  stays out of ROS), so the floor carries its traffic but not the cost of ``swarm-up``'s
+  stays out of ROS), so the baseline carries its traffic but not the cost of ``swarm-up``'s
   ``SingleThreadedExecutor``.
 - process layout: one simulator process, one listener, and the robots' nodes as ``swarm-up``
   lays them out: ``per-robot`` is one navigator process and one commander process per robot,
@@ -51,20 +51,20 @@ replanning (one plan per goal), the navigators' parameter declarations, ``/swarm
 than the spawns (collisions, late ticks), the commander's route logic, and ``swarm-up``'s
 supervision and resource sampling.
 
-**Figures** (the ``sim`` process's summary; ``run_floor`` adds the layout and CPU): ``ticks``
+**Figures** (the ``sim`` process's summary; ``run_baseline`` adds the layout and CPU): ``ticks``
 (control ticks stepped, the silent tick 0 included, so a complete run has ``duration * 10``),
 ``sim_time_s``, ``wall_time_s`` (from the start gate's opening to the end, as the simulator's
 summary), ``rtf`` = sim / wall, ``robot_ticks_per_s`` = robots x ticks / wall, ``late_ticks``,
 ``cpu_s`` and ``cpu_per_robot`` = cpu_s / (robots x simulated seconds) [CPU s per robot per
-simulated s, as :mod:`swarm_bench.bench`'s]: the CPU time of every floor process while it relayed
-traffic (the simulator from the gate's opening to the end; each other process from its first
-tick, status or clock message until it was stopped, printed by itself as ``floor: cpu_s X``;
-None if a process had to be killed).
+simulated s, as :mod:`swarm_bench.bench`'s]: the CPU time of every baseline process while it
+relayed traffic (the simulator from the gate's opening to the end; each other process from its
+first tick, status or clock message until it was stopped, printed by itself as ``baseline:
+cpu_s X``; None if a process had to be killed).
 
 Usage: ``python -m swarm_bench.baseline run --swarm-size 20 --duration 60
-[--processes per-robot|K]`` runs the floor once and prints its figures as JSON;
-``swarm-bench --floor`` calls :func:`run_floor`.  The roles ``sim``, ``group`` and
-``listener`` are the processes it starts.
+[--processes per-robot|K]`` runs the baseline once and prints its figures as JSON;
+``swarm-bench --baseline`` calls :func:`run_baseline`.  The processes it starts are
+``python -m swarm_bench.baseline_nodes {sim,group,listener} --config ...``.
 """
 
 from __future__ import annotations
@@ -93,15 +93,16 @@ from swarm_up.args import (
 )
 
 PROG = "swarm_bench.baseline"
+NODES_PROG = "swarm_bench.baseline_nodes"  # the module every baseline process runs
 DEFAULT_GOAL_PERIOD_S = 180.0  # [s] simulated
 STOP_WAIT_S = 5.0  # [s] wall: SIGINT, then SIGKILL after this long
 PROGRESS_RE = re.compile(r"t = ([\d.]+)(?: / [\d.]+)? s simulated, RTF ([\d.]+)")
-CPU_RE = re.compile(r"^floor: cpu_s ([\d.]+)$", re.MULTILINE)
+CPU_RE = re.compile(r"^baseline: cpu_s ([\d.]+)$", re.MULTILINE)
 
 
 @dataclass(frozen=True)
-class FloorConfig:
-    """What every floor process agrees on (written once as JSON, read by each process).
+class BaselineConfig:
+    """What every baseline process agrees on (written once as JSON, read by each process).
 
     Attributes:
         robots: namespaces without ``/``.
@@ -119,7 +120,7 @@ class FloorConfig:
         range_min: shortest valid range [m].
         range_max: longest valid range [m].
         lidar_frame: the lidar's link name (``frame_id`` ``<ns>/<link>``).
-        goal_period_s: simulated time a floor goal takes [s].
+        goal_period_s: simulated time a baseline goal takes [s].
         plan_poses: poses of the plan published per goal [-].
         command_timeout_s: wall time the simulator waits for a tick's answers [s].
         goal_wait_timeout_s: wall time an answer waits for a commander's next goal [s].
@@ -151,7 +152,7 @@ class FloorConfig:
         return json.dumps(asdict(self), indent=2) + "\n"
 
     @classmethod
-    def decode(cls, text: str) -> FloorConfig:
+    def decode(cls, text: str) -> BaselineConfig:
         """Read :meth:`encode`'s text.
 
         Raises:
@@ -162,23 +163,24 @@ class FloorConfig:
             data["robots"] = tuple(data["robots"])
             return cls(**data)
         except (ValueError, KeyError, TypeError) as exc:
-            raise InputError(f"--config: not a floor config ({exc})") from None
+            raise InputError(f"--config: not a baseline config ({exc})") from None
 
 
 @dataclass(frozen=True)
-class FloorProcess:
-    """One floor process: its name (log file stem) and its arguments after ``-m PROG``."""
+class BaselineProcess:
+    """One baseline process: its name (log file stem) and its arguments after
+    ``-m`` :data:`NODES_PROG`."""
 
     name: str
     args: tuple[str, ...]
 
 
-def floor_layout(cfg: FloorConfig, config_path: Path,
-                 processes: str | int) -> list[FloorProcess]:
-    """The floor's processes in start order: listener, robots' processes, simulator.
+def baseline_layout(cfg: BaselineConfig, config_path: Path,
+                    processes: str | int) -> list[BaselineProcess]:
+    """The baseline's processes in start order: listener, robots' processes, simulator.
 
     Args:
-        cfg: the floor's settings.
+        cfg: the baseline's settings.
         config_path: where ``cfg`` is written (every process reads it).
         processes: ``"per-robot"`` or the number of group processes.
 
@@ -187,29 +189,29 @@ def floor_layout(cfg: FloorConfig, config_path: Path,
         process per robot, K gives K groups holding both.
     """
     conf = ("--config", str(config_path))
-    out = [FloorProcess("listener", ("listener", *conf))]
+    out = [BaselineProcess("listener", ("listener", *conf))]
     if processes == PER_ROBOT:
         for ns in cfg.robots:
-            out.append(FloorProcess(f"nav_{ns}", ("group", *conf, "--namespaces", ns,
-                                                  "--navigators")))
+            out.append(BaselineProcess(f"nav_{ns}", ("group", *conf, "--namespaces", ns,
+                                                     "--navigators")))
         if cfg.commanders:
             for ns in cfg.robots:
-                out.append(FloorProcess(f"cmd_{ns}", ("group", *conf, "--namespaces", ns,
-                                                      "--commanders")))
+                out.append(BaselineProcess(f"cmd_{ns}", ("group", *conf, "--namespaces", ns,
+                                                         "--commanders")))
     else:
         for g, group in enumerate(split_groups(cfg.robots, int(processes)), start=1):
             roles = ("--navigators", "--commanders") if cfg.commanders else ("--navigators",)
-            out.append(FloorProcess(f"group_{g}", ("group", *conf, "--namespaces",
-                                                   ",".join(group), *roles)))
-    out.append(FloorProcess("sim", ("sim", *conf)))
+            out.append(BaselineProcess(f"group_{g}", ("group", *conf, "--namespaces",
+                                                      ",".join(group), *roles)))
+    out.append(BaselineProcess("sim", ("sim", *conf)))
     return out
 
 
 def make_config(n: int, duration_s: float, run_dir: Path, *, world: str = "slim_blockage",
                 robot: str = "turtlebot3_waffle", prefix: str = "Srobot",
                 commanders: bool = True,
-                goal_period_s: float = DEFAULT_GOAL_PERIOD_S) -> FloorConfig:
-    """A floor config for ``n`` robots, with the lidar of ``robot`` and the map of ``world``.
+                goal_period_s: float = DEFAULT_GOAL_PERIOD_S) -> BaselineConfig:
+    """A baseline config for ``n`` robots, with the lidar of ``robot`` and the map of ``world``.
 
     Args:
         n: robots.
@@ -219,7 +221,7 @@ def make_config(n: int, duration_s: float, run_dir: Path, *, world: str = "slim_
         robot: a robot name or path (its lidar: beams, angles, ranges, rate).
         prefix: namespace prefix.
         commanders: with commanders.
-        goal_period_s: simulated time a floor goal takes [s].
+        goal_period_s: simulated time a baseline goal takes [s].
 
     Raises:
         InputError: unknown world or robot.
@@ -238,10 +240,10 @@ def make_config(n: int, duration_s: float, run_dir: Path, *, world: str = "slim_
         map_yaml, _ = save_map(rasterize_world(load_world(world_path)), run_dir / "map")
     lidar = load_robot(robot).lidar
     control_rate = 10.0
-    return FloorConfig(
+    return BaselineConfig(
         robots=tuple(f"{prefix}{i}" for i in range(1, n + 1)),
         duration_s=float(duration_s),
-        summary_path=str(run_dir / "floor_summary.json"),
+        summary_path=str(run_dir / "baseline_summary.json"),
         map_yaml=str(map_yaml),
         commanders=commanders,
         control_rate_hz=control_rate,
@@ -273,18 +275,18 @@ def _stop(procs: dict[str, subprocess.Popen], names: list[str]) -> dict[str, int
     return codes
 
 
-def run_floor(cfg: FloorConfig, processes: str | int, run_dir: Path, *,
-              env: dict | None = None,
-              should_stop: Callable[[], bool] = lambda: False,
-              on_progress: Callable[[float, float | None], None] | None = None) -> dict:
-    """Run the floor once: start its processes, wait for the simulator's end, stop the rest.
+def run_baseline(cfg: BaselineConfig, processes: str | int, run_dir: Path, *,
+                 env: dict | None = None,
+                 should_stop: Callable[[], bool] = lambda: False,
+                 on_progress: Callable[[float, float | None], None] | None = None) -> dict:
+    """Run the baseline once: start its processes, wait for the simulator's end, stop the rest.
 
     Args:
-        cfg: the floor's settings (``summary_path`` is written by the ``sim`` process).
+        cfg: the baseline's settings (``summary_path`` is written by the ``sim`` process).
         processes: ``"per-robot"`` or the number of group processes.
         run_dir: the config file and ``logs/<process>.log`` go here.
         env: the processes' environment (default: this one's).
-        should_stop: polled; True stops the floor early (SIGINT to every process).
+        should_stop: polled; True stops the baseline early (SIGINT to every process).
         on_progress: called with (simulated s, RTF so far) as the simulator reports it.
 
     Returns:
@@ -296,12 +298,12 @@ def run_floor(cfg: FloorConfig, processes: str | int, run_dir: Path, *,
 
     logs = run_dir / "logs"
     logs.mkdir(parents=True, exist_ok=True)
-    config_path = run_dir / "floor_config.json"
+    config_path = run_dir / "baseline_config.json"
     config_path.write_text(cfg.encode())
     Path(cfg.summary_path).unlink(missing_ok=True)
     env = dict(os.environ if env is None else env, PYTHONUNBUFFERED="1",
                RCUTILS_COLORIZED_OUTPUT="0")
-    layout = floor_layout(cfg, config_path, processes)
+    layout = baseline_layout(cfg, config_path, processes)
     shm_before = shm.snapshot()
     procs: dict[str, subprocess.Popen] = {}
     interrupted = False
@@ -309,7 +311,7 @@ def run_floor(cfg: FloorConfig, processes: str | int, run_dir: Path, *,
         for p in layout:
             with open(logs / f"{p.name}.log", "wb") as log:
                 procs[p.name] = subprocess.Popen(
-                    [sys.executable, "-m", PROG, *p.args], stdout=log,
+                    [sys.executable, "-m", NODES_PROG, *p.args], stdout=log,
                     stderr=subprocess.STDOUT, env=env, start_new_session=True)
         sim = procs["sim"]
         sim_log, pos, partial = logs / "sim.log", 0, ""
@@ -362,11 +364,12 @@ def run_floor(cfg: FloorConfig, processes: str | int, run_dir: Path, *,
 
 # ----------------------------------------------------------------------------------- commands
 def build_parser() -> argparse.ArgumentParser:
-    """``python -m swarm_bench.baseline {run,sim,group,listener}``."""
+    """``python -m swarm_bench.baseline run ...`` (the processes it starts are
+    :mod:`swarm_bench.baseline_nodes`')."""
     p = cli.ArgumentParser(prog=f"python -m {PROG}", allow_abbrev=False,
-                description="The bare messaging floor of swarm-bench (see the module's doc).")
+                description="The messaging baseline of swarm-bench (see the module's doc).")
     sub = p.add_subparsers(dest="role", required=True)
-    run = sub.add_parser("run", help="run the floor once and print its figures as JSON")
+    run = sub.add_parser("run", help="run the baseline once and print its figures as JSON")
     run.add_argument("--swarm-size", type=cli.positive_int, default=5, metavar="N")
     run.add_argument("--duration", type=cli.positive_float, default=10.0, metavar="SEC",
                      help="simulated seconds (default: %(default)s)")
@@ -378,22 +381,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--goal-period", type=cli.positive_float, default=DEFAULT_GOAL_PERIOD_S,
                      metavar="SEC", help="simulated seconds a goal takes (default: %(default)s)")
     run.add_argument("--run-dir", type=Path, default=None, metavar="DIR",
-                     help="config and logs (default: runs/floor-<timestamp>)")
-    for role in ("sim", "listener", "group"):
-        r = sub.add_parser(role)
-        r.add_argument("--config", type=Path, required=True)
-    group = sub.choices["group"]
-    group.add_argument("--namespaces", required=True)
-    group.add_argument("--navigators", action="store_true")
-    group.add_argument("--commanders", action="store_true")
+                     help="config and logs (default: runs/baseline-<timestamp>)")
     return p
-
-
-def _read_config(path: Path) -> FloorConfig:
-    try:
-        return FloorConfig.decode(path.read_text())
-    except OSError as exc:
-        raise InputError(f"--config: cannot read '{path}' ({exc.strerror})") from None
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -401,25 +390,15 @@ def main(argv: list[str] | None = None) -> int:
 
     def body() -> int:
         args = build_parser().parse_args(argv)
-        if args.role == "run":
-            run_dir = args.run_dir or default_run_dir(prefix="floor-")
-            run_dir.mkdir(parents=True, exist_ok=True)
-            cfg = make_config(args.swarm_size, args.duration, run_dir.resolve(),
-                              world=args.world, robot=args.robot, commanders=args.commanders,
-                              goal_period_s=args.goal_period)
-            processes = args.processes or default_processes(args.swarm_size)
-            result = run_floor(cfg, processes, run_dir.resolve())
-            print(json.dumps(result, indent=2))
-            return 0 if result["exit_code"] == 0 else 1
-        cfg = _read_config(args.config)
-        from swarm_bench import baseline_nodes
-
-        if args.role == "sim":
-            return baseline_nodes.run_sim(cfg)
-        if args.role == "listener":
-            return baseline_nodes.run_listener(cfg)
-        names = [n for n in args.namespaces.split(",") if n]
-        return baseline_nodes.run_group(cfg, names, args.navigators, args.commanders)
+        run_dir = args.run_dir or default_run_dir(prefix="baseline-")
+        run_dir.mkdir(parents=True, exist_ok=True)
+        cfg = make_config(args.swarm_size, args.duration, run_dir.resolve(),
+                          world=args.world, robot=args.robot, commanders=args.commanders,
+                          goal_period_s=args.goal_period)
+        processes = args.processes or default_processes(args.swarm_size)
+        result = run_baseline(cfg, processes, run_dir.resolve())
+        print(json.dumps(result, indent=2))
+        return 0 if result["exit_code"] == 0 else 1
 
     return run_cli(PROG, body)
 

@@ -1,15 +1,16 @@
 """The ROS processes of the messaging baseline (:mod:`swarm_bench.baseline` says what it mirrors).
 
-Three roles, each one process started by :func:`swarm_bench.baseline.run_floor`:
+Three roles, each one process (``python -m swarm_bench.baseline_nodes ROLE --config PATH``)
+started by :func:`swarm_bench.baseline.run_baseline`:
 
-- :class:`FloorSimNode` (``sim``): the simulator's lockstep loop of ``swarm_sim/node.py`` with the
-  physics, the ray casting and the collision checks taken out: every control tick ``/clock``,
+- :class:`BaselineSimNode` (``sim``): the simulator's lockstep loop of ``swarm_sim/node.py`` with
+  the physics, the ray casting and the collision checks taken out: every control tick ``/clock``,
   every robot's ``odom`` and ``ground_truth`` and, on lidar ticks, a ``scan`` with fixed ranges;
   then it waits for every active robot's ``cmd_vel`` stamped with that tick, and steps time.
-- :class:`FloorNavigatorNode` and :class:`FloorCommanderNode` (``group``): a navigator's and a
-  commander's topics, types, QoS and rates (``swarm_nav/node.py``,
+- :class:`BaselineNavigatorNode` and :class:`BaselineCommanderNode` (``group``): a navigator's
+  and a commander's topics, types, QoS and rates (``swarm_nav/node.py``,
   ``swarm_commander/robot_navigator.py``), answering each tick at once instead of navigating.
-- :class:`FloorListenerNode` (``listener``): the subscriptions of ``swarm-up``'s metrics node.
+- :class:`BaselineListenerNode` (``listener``): the subscriptions of ``swarm-up``'s metrics node.
 
 Every process loops on ``spin_once`` of an ``EventsExecutor``, as the real nodes do
 (docs/ARCHITECTURE.md "Executors").
@@ -49,8 +50,9 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 from std_srvs.srv import Trigger
 
-from swarm_bench.baseline import FloorConfig
+from swarm_bench.baseline import BaselineConfig
 from swarm_commander.robot_navigator import NAV_STATUS_QOS as COMMANDER_STATUS_QOS
+from swarm_common import cli
 from swarm_common.cdr import (
     LaserScanWriter,
     OdometryWriter,
@@ -61,6 +63,7 @@ from swarm_common.cdr import (
     scan_ranges,
     twist_stamped,
 )
+from swarm_common.errors import InputError, run_cli
 from swarm_common.nav_status import TERMINAL
 from swarm_common.stamps import NS_PER_S
 from swarm_metrics.listener import CLOCK_QOS as LISTENER_CLOCK_QOS
@@ -70,7 +73,7 @@ from swarm_up.clock import SharedClock
 
 STATUS_PERIOD_NS = NS_PER_S // 2  # nav_status at 2 Hz simulated and on every change (as nav)
 GOAL_WAIT_POLL_S = 0.05  # [s] wall, as swarm_nav.node
-PROGRESS_EVERY_S = 5.0  # [s] wall between the floor simulator's progress lines
+PROGRESS_EVERY_S = 5.0  # [s] wall between the baseline simulator's progress lines
 
 # The publishers' side, as swarm_nav.node and swarm_sim.node declare them.
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
@@ -99,9 +102,9 @@ class _Cpu:
 
     @classmethod
     def line(cls) -> str:
-        """``floor: cpu_s X`` (0 if the traffic never began), parsed by ``run_floor``."""
+        """``baseline: cpu_s X`` (0 if the traffic never began), parsed by ``run_baseline``."""
         used = 0.0 if cls.start_s is None else time.process_time() - cls.start_s
-        return f"floor: cpu_s {used:.3f}"
+        return f"baseline: cpu_s {used:.3f}"
 
 
 def _time_msg(t_ns: int) -> Time:
@@ -122,15 +125,15 @@ def _sim_time() -> list[Parameter]:
 
 
 # ------------------------------------------------------------------------------------ simulator
-class FloorSimNode(Node):
+class BaselineSimNode(Node):
     """The simulator's lockstep loop without physics, ray casting or collision checks.
 
     Args:
-        cfg: the floor's settings.
+        cfg: the baseline's settings.
     """
 
-    def __init__(self, cfg: FloorConfig):
-        super().__init__("swarm_sim_floor")
+    def __init__(self, cfg: BaselineConfig):
+        super().__init__("swarm_sim_baseline")
         # State.
         self.cfg = cfg
         self.n = len(cfg.robots)
@@ -253,7 +256,7 @@ class FloorSimNode(Node):
         until_ready = time.monotonic() + self.cfg.ready_timeout_s
         while rclpy.ok() and not self.stop_requested and int(self.active.sum()) < self.n:
             if time.monotonic() > until_ready:
-                print(f"floor: only {int(self.active.sum())}/{self.n} robots answered within "
+                print(f"baseline: only {int(self.active.sum())}/{self.n} robots answered within "
                       f"{self.cfg.ready_timeout_s:g} s", file=sys.stderr, flush=True)
                 return False
             self.publish_tick()
@@ -276,7 +279,7 @@ class FloorSimNode(Node):
         wall0 = time.monotonic()
         cpu0 = time.process_time()
         last_line = wall0
-        print(f"floor: all {self.n} robots answering; running {self.cfg.duration_s:g} "
+        print(f"baseline: all {self.n} robots answering; running {self.cfg.duration_s:g} "
               "simulated s", flush=True)
         while rclpy.ok() and not self.stop_requested and self.t_ns < end_ns:
             self.publish_tick()
@@ -288,7 +291,7 @@ class FloorSimNode(Node):
             if now - last_line >= PROGRESS_EVERY_S:
                 last_line = now
                 sim_s = self.t_ns / NS_PER_S
-                print(f"floor: t = {sim_s:.0f} / {self.cfg.duration_s:g} s simulated, "
+                print(f"baseline: t = {sim_s:.0f} / {self.cfg.duration_s:g} s simulated, "
                       f"RTF {sim_s / (now - wall0):.2f}", flush=True)
         self.cpu_s = time.process_time() - cpu0
         return time.monotonic() - wall0, True
@@ -298,7 +301,7 @@ class FloorSimNode(Node):
         self.stop_requested = True
 
     def summary(self, wall_s: float, started: bool) -> dict:
-        """The floor's figures (see :mod:`swarm_bench.baseline`)."""
+        """The baseline's figures (see :mod:`swarm_bench.baseline`)."""
         sim_s = self.t_ns / NS_PER_S
         return {
             "robots": self.n,
@@ -314,14 +317,14 @@ class FloorSimNode(Node):
         }
 
 
-def run_sim(cfg: FloorConfig) -> int:
+def run_sim(cfg: BaselineConfig) -> int:
     """The ``sim`` process: run the loop and write ``cfg.summary_path``.
 
     Returns:
         0 when the run reached its duration, 130 when stopped, 1 when the gate never opened.
     """
-    rclpy.init(args=["floor_sim"], signal_handler_options=SignalHandlerOptions.NO)
-    node = FloorSimNode(cfg)
+    rclpy.init(args=["baseline_sim"], signal_handler_options=SignalHandlerOptions.NO)
+    node = BaselineSimNode(cfg)
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, node.request_stop)
     executor = EventsExecutor()
@@ -334,7 +337,7 @@ def run_sim(cfg: FloorConfig) -> int:
     finally:
         summary = node.summary(wall_s, started)
         Path(cfg.summary_path).write_text(json.dumps(summary, indent=2) + "\n")
-        print(f"floor: simulated {summary['sim_time_s']:.1f} s in {wall_s:.1f} s wall "
+        print(f"baseline: simulated {summary['sim_time_s']:.1f} s in {wall_s:.1f} s wall "
               f"(RTF {summary['rtf']}), late ticks {summary['late_ticks']}", flush=True)
         executor.shutdown()
         node.destroy_node()
@@ -345,7 +348,7 @@ def run_sim(cfg: FloorConfig) -> int:
 
 
 # ------------------------------------------------------------------------------------ navigator
-class FloorNavigatorNode(Node):
+class BaselineNavigatorNode(Node):
     """A navigator's traffic: answers every tick at once, with a stand-in goal lifecycle.
 
     A goal becomes ``DRIVING`` at the first tick after its stamp (one ``plan`` of
@@ -356,10 +359,10 @@ class FloorNavigatorNode(Node):
 
     Args:
         ns: the robot's namespace without ``/``.
-        cfg: the floor's settings.
+        cfg: the baseline's settings.
     """
 
-    def __init__(self, ns: str, cfg: FloorConfig):
+    def __init__(self, ns: str, cfg: BaselineConfig):
         super().__init__("navigator", namespace=f"/{ns}", parameter_overrides=_sim_time())
         # State.
         self.ns = ns
@@ -517,7 +520,7 @@ class FloorNavigatorNode(Node):
 
 
 # ------------------------------------------------------------------------------------ commander
-class FloorCommanderNode(Node):
+class BaselineCommanderNode(Node):
     """A commander's traffic: a next goal in answer to each ended goal, stamped as the real one.
 
     Args:
@@ -558,14 +561,14 @@ class FloorCommanderNode(Node):
 
 
 # ------------------------------------------------------------------------------------- listener
-class FloorListenerNode(Node):
+class BaselineListenerNode(Node):
     """The subscriptions of ``swarm-up``'s metrics node, with callbacks that only unpack.
 
     Args:
-        cfg: the floor's settings.
+        cfg: the baseline's settings.
     """
 
-    def __init__(self, cfg: FloorConfig):
+    def __init__(self, cfg: BaselineConfig):
         super().__init__("swarm_up_metrics")
         self.statuses = 0
         for ns in cfg.robots:
@@ -600,8 +603,8 @@ def _spin(nodes: list[Node]) -> None:
     finally:
         executor.shutdown()
         for node in nodes:
-            if isinstance(node, FloorNavigatorNode):
-                print(f"floor: {node.ns} took {node.goals_taken} goals, "
+            if isinstance(node, BaselineNavigatorNode):
+                print(f"baseline: {node.ns} took {node.goals_taken} goals, "
                       f"{node.goal_wait_timeouts} goal-wait timeouts", flush=True)
         print(_Cpu.line(), flush=True)
         for node in nodes:
@@ -609,20 +612,20 @@ def _spin(nodes: list[Node]) -> None:
         rclpy.try_shutdown()
 
 
-def run_group(cfg: FloorConfig, namespaces: list[str], navigators: bool,
+def run_group(cfg: BaselineConfig, namespaces: list[str], navigators: bool,
               commanders: bool) -> int:
-    """The ``group`` process: floor navigators and/or commanders of ``namespaces``.
+    """The ``group`` process: baseline navigators and/or commanders of ``namespaces``.
 
     Returns:
         0 (stopped by SIGINT/SIGTERM).
     """
-    rclpy.init(args=["floor_group"])  # rclpy's own SIGINT/SIGTERM handlers end the spin
+    rclpy.init(args=["baseline_group"])  # rclpy's own SIGINT/SIGTERM handlers end the spin
     nodes: list[Node] = []
     for ns in namespaces:
         if navigators:
-            nodes.append(FloorNavigatorNode(ns, cfg))
+            nodes.append(BaselineNavigatorNode(ns, cfg))
         if commanders:
-            nodes.append(FloorCommanderNode(ns))
+            nodes.append(BaselineCommanderNode(ns))
     if len(nodes) > 1:  # a group process: one /clock subscription, as swarm_up.group
         clock = SharedClock(f"/{namespaces[0]}")
         for node in nodes:
@@ -632,12 +635,58 @@ def run_group(cfg: FloorConfig, namespaces: list[str], navigators: bool,
     return 0
 
 
-def run_listener(cfg: FloorConfig) -> int:
+def run_listener(cfg: BaselineConfig) -> int:
     """The ``listener`` process: the metrics node's subscriptions.
 
     Returns:
         0 (stopped by SIGINT/SIGTERM).
     """
-    rclpy.init(args=["floor_listener"])
-    _spin([FloorListenerNode(cfg)])
+    rclpy.init(args=["baseline_listener"])
+    _spin([BaselineListenerNode(cfg)])
     return 0
+
+
+# ------------------------------------------------------------------------------------- command
+PROG = "swarm_bench.baseline_nodes"
+
+
+def build_parser():
+    """``python -m swarm_bench.baseline_nodes {sim,group,listener} --config PATH ...``."""
+    p = cli.ArgumentParser(prog=f"python -m {PROG}", allow_abbrev=False,
+                           description="One process of the messaging baseline (started by "
+                           "swarm_bench.baseline.run_baseline).")
+    sub = p.add_subparsers(dest="role", required=True)
+    for role in ("sim", "listener", "group"):
+        sub.add_parser(role).add_argument("--config", type=Path, required=True)
+    group = sub.choices["group"]
+    group.add_argument("--namespaces", required=True)
+    group.add_argument("--navigators", action="store_true")
+    group.add_argument("--commanders", action="store_true")
+    return p
+
+
+def _read_config(path: Path) -> BaselineConfig:
+    try:
+        return BaselineConfig.decode(path.read_text())
+    except OSError as exc:
+        raise InputError(f"--config: cannot read '{path}' ({exc.strerror})") from None
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``python -m swarm_bench.baseline_nodes``."""
+
+    def body() -> int:
+        args = build_parser().parse_args(argv)
+        cfg = _read_config(args.config)
+        if args.role == "sim":
+            return run_sim(cfg)
+        if args.role == "listener":
+            return run_listener(cfg)
+        names = [n for n in args.namespaces.split(",") if n]
+        return run_group(cfg, names, args.navigators, args.commanders)
+
+    return run_cli(PROG, body)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,4 +1,5 @@
-"""``swarm-bench``: sizes x runs of ``swarm-up`` -> table, JSON, plot, and the floor (SPEC §2, §6).
+"""``swarm-bench``: sizes x runs of ``swarm-up`` -> table, JSON, plot, and the messaging baseline
+(SPEC §2, §6).
 
 For every size N and run r it starts, from this Python's ``bin/``::
 
@@ -7,7 +8,7 @@ For every size N and run r it starts, from this Python's ``bin/``::
              [--coordination MODE] [--processes per-robot|K]
 
 with this environment (``ROS_DOMAIN_ID`` ...), follows its progress lines, reads its metrics at
-the end, and, with ``--floor``, then runs the bare messaging floor
+the end, and, with ``--baseline``, then runs the messaging baseline
 (:mod:`swarm_bench.baseline`) for N robots in the process layout that run reported.  After
 every finished run the JSON is written again, so an interrupted bench keeps the rows it finished.
 
@@ -18,9 +19,9 @@ The JSON (``--output``): ``command`` (the bench's argv), ``started``/``finished`
 ``run``, ``seed``, ``command`` (swarm-up's argv), ``exit_code``, ``log``, ``error`` (the last
 error line when the exit code is not 0), ``cpu_s``, ``cpu_source``, ``cpu_per_robot``,
 ``rss_mb_per_robot`` and ``metrics`` (swarm-up's ``--metrics`` file as it wrote it, None if it
-wrote none).  A floor record: ``kind`` ``"floor"``, ``size``, ``command`` (the equivalent
-``python -m swarm_bench.baseline run``), ``exit_code`` and ``floor`` (its figures,
-:func:`swarm_bench.baseline.run_floor`).
+wrote none).  A baseline record: ``kind`` ``"baseline"``, ``size``, ``command`` (the equivalent
+``python -m swarm_bench.baseline run``), ``exit_code`` and ``baseline`` (its figures,
+:func:`swarm_bench.baseline.run_baseline`).
 
 Figures the bench adds to swarm-up's:
 
@@ -35,16 +36,16 @@ Figures the bench adds to swarm-up's:
   spawning included: ``cpu_source`` ``"swarm-up"``.
 - ``rss_mb_per_robot`` [MB]: swarm-up's ``peak_rss_mb_per_robot`` (the peak of the summed RSS of
   the navigator, commander and group processes, divided by N; the simulator's is apart).
-- floor records: the floor's ``rtf``, ``robot_ticks_per_s``, ``ticks``, ``late_ticks``,
-  ``cpu_per_robot`` (the same definition over the floor's processes), its layout.
+- baseline records: the baseline's ``rtf``, ``robot_ticks_per_s``, ``ticks``, ``late_ticks``,
+  ``cpu_per_robot`` (the same definition over the baseline's processes), its layout.
 - ``summary[i]`` per size: mean/min/max RTF over the runs that ended with exit 0, mean
   robot-ticks/s and throughput, mean goals and collisions per run, the smallest separation, and
-  ``rtf_pct_of_floor`` = 100 x mean RTF / floor RTF.
+  ``rtf_pct_of_baseline`` = 100 x mean RTF / baseline RTF.
 
-Exit codes: 0 every run ended well, 1 a swarm-up or floor run failed (recorded with its exit code;
-the bench goes on), 2 bad flags (one line naming the flag), 130 interrupted (Ctrl-C or SIGTERM:
-the current swarm-up gets SIGINT and is waited for; the finished rows are still written, shown
-and plotted; the interrupted run is left out).
+Exit codes: 0 every run ended well, 1 a swarm-up or baseline run failed (recorded with its exit
+code; the bench goes on), 2 bad flags (one line naming the flag), 130 interrupted (Ctrl-C or
+SIGTERM: the current swarm-up gets SIGINT and is waited for; the finished rows are still
+written, shown and plotted; the interrupted run is left out).
 """
 
 from __future__ import annotations
@@ -96,8 +97,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = cli.ArgumentParser(
         prog=PROG, allow_abbrev=False,
         description="Benchmark the swarm: run swarm-up unpaced with commanders for every size "
-        "(and run), then print a table and write JSON and a PNG plot; --floor also measures "
-        "the bare messaging floor of every size.",
+        "(and run), then print a table and write JSON and a PNG plot; --baseline also measures "
+        "the messaging baseline of every size.",
         epilog="Exit codes: 0 success, 1 a run failed (the bench goes on), 2 bad input, "
         "130 interrupted (the finished rows are kept).")
     p.add_argument("--sizes", type=_sizes, default=(5, 20, 50, 100), metavar="N,N,...",
@@ -118,8 +119,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="JSON results (default: %(default)s)")
     p.add_argument("--plot", type=Path, default=Path("bench.png"), metavar="PATH.png",
                    help="PNG plot (default: %(default)s)")
-    p.add_argument("--floor", action="store_true",
-                   help="also measure the bare messaging floor of every size")
+    p.add_argument("--baseline", "--floor", dest="baseline", action="store_true",
+                   help="also measure the messaging baseline of every size")
     p.add_argument("--run-dir", type=Path, default=None, metavar="DIR",
                    help="logs and run directories (default: runs/bench-<timestamp>/)")
     p.add_argument("--swarm-up", type=Path, default=None, metavar="PATH",
@@ -142,7 +143,7 @@ class BenchConfig:
         processes: ``per-robot``, K, or None (swarm-up's default).
         output: JSON path.
         plot: PNG path.
-        floor: measure the floor.
+        baseline: measure the baseline.
         run_dir: absolute directory of the logs and runs.
         swarm_up: the ``swarm-up`` executable measured (absolute).
         extra_args: more ``swarm-up`` flags for every run (``swarm-experiment``'s
@@ -158,7 +159,7 @@ class BenchConfig:
     processes: str | int | None
     output: Path
     plot: Path
-    floor: bool
+    baseline: bool
     run_dir: Path
     swarm_up: Path
     extra_args: tuple[str, ...] = ()
@@ -199,7 +200,7 @@ def validate(args: argparse.Namespace) -> BenchConfig:
     return BenchConfig(
         sizes=args.sizes, duration_s=args.duration, runs=args.runs, world=world,
         seed=args.seed, coordination=args.coordination, processes=args.processes,
-        output=output, plot=plot, floor=args.floor, run_dir=run_dir.expanduser().resolve(),
+        output=output, plot=plot, baseline=args.baseline, run_dir=run_dir.expanduser().resolve(),
         swarm_up=swarm_up_path(args.swarm_up))
 
 
@@ -436,32 +437,32 @@ def run_swarm_up(cfg: BenchConfig, n: int, r: int, stop: StopFlag, view: BenchVi
     return record
 
 
-def run_floor_size(cfg: BenchConfig, base, n: int, processes: str | int, stop: StopFlag,
-                   view: BenchView) -> dict:
-    """The floor for ``n`` robots in ``processes`` layout.
+def run_baseline_size(cfg: BenchConfig, base, n: int, processes: str | int, stop: StopFlag,
+                      view: BenchView) -> dict:
+    """The baseline for ``n`` robots in ``processes`` layout.
 
     Returns:
-        The floor record (see the module doc).
+        The baseline record (see the module doc).
     """
-    from swarm_bench.baseline import PROG as FLOOR_PROG
-    from swarm_bench.baseline import run_floor
+    from swarm_bench.baseline import PROG as BASELINE_PROG
+    from swarm_bench.baseline import run_baseline
 
-    run_dir = cfg.run_dir / f"floor-n{n}"
+    run_dir = cfg.run_dir / f"baseline-n{n}"
     run_dir.mkdir(parents=True, exist_ok=True)
-    fcfg = replace(base, robots=tuple(f"Srobot{i}" for i in range(1, n + 1)),
-                   summary_path=str(run_dir / "floor_summary.json"))
-    view.start(f"floor, size {n}", cfg.duration_s)
-    figures = run_floor(fcfg, processes, run_dir, should_stop=lambda: bool(stop),
-                        on_progress=view.update)
-    command = [sys.executable, "-m", FLOOR_PROG, "run", "--swarm-size", str(n), "--duration",
+    bcfg = replace(base, robots=tuple(f"Srobot{i}" for i in range(1, n + 1)),
+                   summary_path=str(run_dir / "baseline_summary.json"))
+    view.start(f"baseline, size {n}", cfg.duration_s)
+    figures = run_baseline(bcfg, processes, run_dir, should_stop=lambda: bool(stop),
+                           on_progress=view.update)
+    command = [sys.executable, "-m", BASELINE_PROG, "run", "--swarm-size", str(n), "--duration",
                f"{cfg.duration_s:g}", "--processes", str(processes), "--world", cfg.world]
     ok = figures["exit_code"] == EXIT_OK and not figures["interrupted"]
-    view.finish(f"floor, size {n}: RTF {_fmt(figures.get('rtf'))}, "
+    view.finish(f"baseline, size {n}: RTF {_fmt(figures.get('rtf'))}, "
                 f"{_fmt(figures.get('robot_ticks_per_s'), 0)} robot-ticks/s" if ok else
-                f"floor, size {n}: ended with code {figures['exit_code']}; logs: "
+                f"baseline, size {n}: ended with code {figures['exit_code']}; logs: "
                 f"{figures['logs']}", figures.get("sim_time_s"), figures.get("rtf"))
-    return {"kind": "floor", "size": n, "command": command, "exit_code": figures["exit_code"],
-            "interrupted": bool(stop), "floor": figures}
+    return {"kind": "baseline", "size": n, "command": command, "exit_code": figures["exit_code"],
+            "interrupted": bool(stop), "baseline": figures}
 
 
 # ---------------------------------------------------------------------------------------- report
@@ -483,8 +484,8 @@ def summarize(sizes: tuple[int, ...], records: list[dict]) -> list[dict]:
     out = []
     for n in sizes:
         runs = [r for r in records if r["kind"] == "swarm" and r["size"] == n]
-        floors = [r for r in records if r["kind"] == "floor" and r["size"] == n]
-        if not runs and not floors:
+        baselines = [r for r in records if r["kind"] == "baseline" and r["size"] == n]
+        if not runs and not baselines:
             continue
         ok = [r for r in runs if r["exit_code"] == EXIT_OK and r["metrics"]]
 
@@ -496,8 +497,9 @@ def summarize(sizes: tuple[int, ...], records: list[dict]) -> list[dict]:
                     if v is not None]
 
         rtf = values("rtf")
-        floor = floors[-1]["floor"] if floors else None
-        floor_rtf = _num(floor, "rtf") if floors and floors[-1]["exit_code"] == EXIT_OK else None
+        baseline = baselines[-1]["baseline"] if baselines else None
+        baseline_ok = bool(baselines) and baselines[-1]["exit_code"] == EXIT_OK
+        baseline_rtf = _num(baseline, "rtf") if baseline_ok else None
         seps = values("min_separation_m")
         entry = {
             "size": n,
@@ -518,11 +520,12 @@ def summarize(sizes: tuple[int, ...], records: list[dict]) -> list[dict]:
             "rss_mb_per_robot_mean": _mean([r["rss_mb_per_robot"] for r in ok
                                             if r["rss_mb_per_robot"] is not None]),
             "processes": ok[0]["metrics"].get("processes") if ok else None,
-            "floor_rtf": floor_rtf,
-            "floor_robot_ticks_per_s": _num(floor, "robot_ticks_per_s") if floor_rtf else None,
-            "floor_cpu_per_robot": _num(floor, "cpu_per_robot") if floor_rtf else None,
-            "rtf_pct_of_floor": (100.0 * _mean(rtf) / floor_rtf
-                                 if rtf and floor_rtf else None),
+            "baseline_rtf": baseline_rtf,
+            "baseline_robot_ticks_per_s": (_num(baseline, "robot_ticks_per_s")
+                                           if baseline_rtf else None),
+            "baseline_cpu_per_robot": _num(baseline, "cpu_per_robot") if baseline_rtf else None,
+            "rtf_pct_of_baseline": (100.0 * _mean(rtf) / baseline_rtf
+                                 if rtf and baseline_rtf else None),
         }
         out.append(entry)
     return out
@@ -539,7 +542,7 @@ def _fmt(value, digits: int = 2, scale: float = 1.0) -> str:
         return str(value)
 
 
-def print_table(summary: list[dict], with_floor: bool, title: str) -> None:
+def print_table(summary: list[dict], with_baseline: bool, title: str) -> None:
     """The bench table (rich; plain text when not a terminal)."""
     from rich import box
     from rich.console import Console
@@ -550,8 +553,8 @@ def print_table(summary: list[dict], with_floor: bool, title: str) -> None:
     heads = ["size", "runs", "RTF", "robot-\nticks/s", "tasks/h", "goals\nok/abort",
              "collisions\nrobot/wall", "min sep\n[m]", "CPU/robot\n[ms/sim s]",
              "RSS/robot\n[MB]"]
-    if with_floor:
-        heads += ["floor\nRTF", "% of\nfloor"]
+    if with_baseline:
+        heads += ["baseline\nRTF", "% of\nbaseline"]
     for h in heads:
         table.add_column(escape(h), justify="right", overflow="fold")
     for s in summary:
@@ -566,8 +569,8 @@ def print_table(summary: list[dict], with_floor: bool, title: str) -> None:
                f"{_fmt(s['collisions_robot_wall_mean'], d)}",
                _fmt(s["min_separation_m"], 3), _fmt(s["cpu_per_robot_mean"], 1, 1000.0),
                _fmt(s["rss_mb_per_robot_mean"], 1)]
-        if with_floor:
-            row += [_fmt(s["floor_rtf"]), _fmt(s["rtf_pct_of_floor"], 0)]
+        if with_baseline:
+            row += [_fmt(s["baseline_rtf"]), _fmt(s["rtf_pct_of_baseline"], 0)]
         table.add_row(*row)
     # Off a terminal rich would fold the table into 80 columns: give it room instead.
     Console(width=None if sys.stdout.isatty() else 160).print(table)
@@ -582,11 +585,11 @@ def write_plot(path: Path, summary: list[dict], title: str) -> None:
 
     rows = sorted(summary, key=lambda s: s["size"])
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.5), constrained_layout=True)
-    panels = (("rtf_mean", "real-time factor", "floor_rtf"),
+    panels = (("rtf_mean", "real-time factor", "baseline_rtf"),
               ("robot_ticks_per_s_mean", "robot-ticks per wall second",
-               "floor_robot_ticks_per_s"),
+               "baseline_robot_ticks_per_s"),
               ("throughput_per_hour_mean", "throughput [tasks per simulated hour]", None))
-    for ax, (key, label, floor_key) in zip(axes, panels, strict=True):
+    for ax, (key, label, baseline_key) in zip(axes, panels, strict=True):
         pts = [(s["size"], s[key]) for s in rows if s[key] is not None]
         if pts:
             xs, ys = zip(*pts, strict=True)
@@ -596,11 +599,11 @@ def write_plot(path: Path, summary: list[dict], title: str) -> None:
                 ax.errorbar(xs, ys, yerr=[lo, hi], marker="o", capsize=3, label="swarm-up")
             else:
                 ax.plot(xs, ys, marker="o", label="swarm-up")
-        if floor_key is not None:
-            fpts = [(s["size"], s[floor_key]) for s in rows if s[floor_key] is not None]
+        if baseline_key is not None:
+            fpts = [(s["size"], s[baseline_key]) for s in rows if s[baseline_key] is not None]
             if fpts:
                 fx, fy = zip(*fpts, strict=True)
-                ax.plot(fx, fy, marker="s", linestyle="--", label="messaging floor")
+                ax.plot(fx, fy, marker="s", linestyle="--", label="messaging baseline")
         if key == "rtf_mean":
             ax.axhline(1.0, color="grey", linewidth=0.8)
         ax.set_xticks([s["size"] for s in rows])
@@ -624,15 +627,15 @@ def _write_json(path: Path, doc: dict) -> None:
 def bench(cfg: BenchConfig, argv: list[str]) -> int:
     """Run the whole bench; returns the exit code (0, 1 or 130)."""
     cfg.run_dir.mkdir(parents=True, exist_ok=True)
-    base_floor = None
-    if cfg.floor:
+    base_baseline = None
+    if cfg.baseline:
         from swarm_bench.baseline import make_config
 
         quiet = logging.getLogger("swarm_common")
         level = quiet.level
         quiet.setLevel(logging.ERROR)  # the robot's missing meshes: swarm-up warns about them
         try:
-            base_floor = make_config(1, cfg.duration_s, cfg.run_dir, world=cfg.world)
+            base_baseline = make_config(1, cfg.duration_s, cfg.run_dir, world=cfg.world)
         finally:
             quiet.setLevel(level)
     doc = {
@@ -656,7 +659,7 @@ def bench(cfg: BenchConfig, argv: list[str]) -> int:
     old = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
     view = BenchView(tty=sys.stdout.isatty())
     view.say(f"{len(cfg.sizes)} sizes x {cfg.runs} runs of {cfg.duration_s:g} simulated s"
-             f"{' and the floor' if cfg.floor else ''}; logs in {cfg.run_dir}")
+             f"{' and the baseline' if cfg.baseline else ''}; logs in {cfg.run_dir}")
     failed = False
     try:
         for n in cfg.sizes:
@@ -672,14 +675,14 @@ def bench(cfg: BenchConfig, argv: list[str]) -> int:
                 doc["records"].append(rec)
                 doc["summary"] = summarize(cfg.sizes, doc["records"])
                 _write_json(cfg.output, doc)
-            if cfg.floor and not stop:
+            if cfg.baseline and not stop:
                 layout = cfg.processes
                 if layout is None:
                     reported = [r["metrics"].get("processes") for r in runs if r["metrics"]]
                     layout = next((p for p in reported if p == PER_ROBOT
                                    or (isinstance(p, int) and p > 0)), None)
                     layout = layout if layout is not None else default_processes(n)
-                rec = run_floor_size(cfg, base_floor, n, layout, stop, view)
+                rec = run_baseline_size(cfg, base_baseline, n, layout, stop, view)
                 if not rec["interrupted"]:
                     failed |= rec["exit_code"] != EXIT_OK
                     doc["records"].append(rec)
@@ -697,7 +700,7 @@ def bench(cfg: BenchConfig, argv: list[str]) -> int:
     doc["machine"]["load_average_end"] = [round(x, 2) for x in os.getloadavg()]
     doc["summary"] = summarize(cfg.sizes, doc["records"])
     _write_json(cfg.output, doc)
-    print_table(doc["summary"], cfg.floor, title)
+    print_table(doc["summary"], cfg.baseline, title)
     write_plot(cfg.plot, doc["summary"], title)
     print(f"{PROG}: results: {cfg.output}", flush=True)
     print(f"{PROG}: plot: {cfg.plot}", flush=True)

@@ -698,7 +698,7 @@ def experiment(cfg: ExperimentConfig, argv: list[str]) -> int:
             bcfg = BenchConfig(sizes=(cell.size,), duration_s=cfg.duration_s, runs=cfg.runs,
                                world=cfg.world, seed=cfg.seed, coordination=cell.mode,
                                processes=cfg.processes, output=out / "experiment.json",
-                               plot=out / "unused.png", floor=False,
+                               plot=out / "unused.png", baseline=False,
                                run_dir=out / "runs" / cell.label, swarm_up=cfg.swarm_up,
                                extra_args=("--faults", cell.fault) if cell.fault else ())
             bcfg.run_dir.mkdir(parents=True, exist_ok=True)

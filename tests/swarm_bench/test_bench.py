@@ -43,10 +43,10 @@ def _swarm(n: int, r: int, rtf: float, **metrics) -> dict:
             "cpu_per_robot": 0.01 * (r + 1), "rss_mb_per_robot": 100.0}
 
 
-def test_summary_means_extremes_and_share_of_floor():
+def test_summary_means_extremes_and_share_of_baseline():
     records = [_swarm(5, 0, 2.0), _swarm(5, 1, 4.0),
-               {"kind": "floor", "size": 5, "exit_code": 0,
-                "floor": {"rtf": 12.0, "robot_ticks_per_s": 600.0, "cpu_per_robot": 0.002}},
+               {"kind": "baseline", "size": 5, "exit_code": 0,
+                "baseline": {"rtf": 12.0, "robot_ticks_per_s": 600.0, "cpu_per_robot": 0.002}},
                _swarm(20, 0, 1.0) | {"exit_code": 1}]
     s5, s20 = summarize((5, 20, 50), records)
     assert (s5["size"], s5["runs"], s5["runs_ok"]) == (5, 2, 2)
@@ -55,15 +55,16 @@ def test_summary_means_extremes_and_share_of_floor():
     assert s5["collisions_robot_robot_mean"] == 0.5
     assert s5["min_separation_m"] == pytest.approx(0.3)
     assert s5["cpu_per_robot_mean"] == pytest.approx(0.015)
-    assert s5["floor_rtf"] == 12.0
-    assert s5["rtf_pct_of_floor"] == pytest.approx(25.0)
+    assert s5["baseline_rtf"] == 12.0
+    assert s5["rtf_pct_of_baseline"] == pytest.approx(25.0)
     # A failed run is counted but not averaged; a size without records is left out.
-    assert (s20["runs"], s20["runs_ok"], s20["rtf_mean"], s20["floor_rtf"]) == (1, 0, None, None)
+    assert (s20["runs"], s20["runs_ok"], s20["rtf_mean"], s20["baseline_rtf"]) == (
+        1, 0, None, None)
 
 
 def test_plot_is_a_png_with_or_without_rows(tmp_path):
     records = [_swarm(2, 0, 3.0), _swarm(3, 0, 2.5),
-               {"kind": "floor", "size": 3, "exit_code": 0, "floor": {"rtf": 9.0}}]
+               {"kind": "baseline", "size": 3, "exit_code": 0, "baseline": {"rtf": 9.0}}]
     for name, summary in (("full.png", summarize((2, 3), records)), ("empty.png", [])):
         write_plot(tmp_path / name, summary, "test")
         assert (tmp_path / name).read_bytes()[:8] == PNG_MAGIC
@@ -73,7 +74,7 @@ def test_defaults_are_the_issues():
     args = build_parser().parse_args([])
     assert args.sizes == (5, 20, 50, 100)
     assert (args.duration, args.runs, args.world, args.seed) == (300.0, 1, "slim_blockage", 0)
-    assert (args.coordination, args.processes, args.floor) == ("decentralized", None, False)
+    assert (args.coordination, args.processes, args.baseline) == ("decentralized", None, False)
 
 
 # ------------------------------------------------------------------------------------ bad flags
@@ -174,9 +175,9 @@ class Bench:
 
 
 @pytest.mark.e2e
-def test_small_sweep_with_floor_writes_table_json_and_plot(tmp_path):
+def test_small_sweep_with_baseline_writes_table_json_and_plot(tmp_path):
     duration = 5
-    with Bench(["--sizes", "2,3", "--duration", str(duration), "--floor"], tmp_path) as bench:
+    with Bench(["--sizes", "2,3", "--duration", str(duration), "--baseline"], tmp_path) as bench:
         code = bench.wait(600.0)
         assert code == 0, bench.output()
         assert not bench.alive(), [p.pid for p in bench.alive()]
@@ -200,17 +201,17 @@ def test_small_sweep_with_floor_writes_table_json_and_plot(tmp_path):
         assert "--commanders" in rec["command"] and rec["command"][:1] == [
             str(Path(sys.executable).parent / "swarm-up")]
         assert rec["command"][rec["command"].index("--rtf") + 1] == "0"
-    floors = [r for r in doc["records"] if r["kind"] == "floor"]
-    assert [r["size"] for r in floors] == [2, 3]
-    for rec in floors:
-        f = rec["floor"]
+    baselines = [r for r in doc["records"] if r["kind"] == "baseline"]
+    assert [r["size"] for r in baselines] == [2, 3]
+    for rec in baselines:
+        f = rec["baseline"]
         assert rec["exit_code"] == 0
         assert f["ticks"] == duration * 10 and f["late_ticks"] == 0 and f["rtf"] > 0
         assert f["processes"] == default_processes(rec["size"])  # what swarm-up chose
     assert [s["size"] for s in doc["summary"]] == [2, 3]
     for s in doc["summary"]:
-        assert s["rtf_mean"] > 0 and s["floor_rtf"] > 0
-        assert s["rtf_pct_of_floor"] == pytest.approx(100 * s["rtf_mean"] / s["floor_rtf"])
+        assert s["rtf_mean"] > 0 and s["baseline_rtf"] > 0
+        assert s["rtf_pct_of_baseline"] == pytest.approx(100 * s["rtf_mean"] / s["baseline_rtf"])
     assert bench.png.read_bytes()[:8] == PNG_MAGIC
     table = bench.stdout.read_text()
     assert "% of" in table and "ticks/s" in table and "CPU/robot" in table

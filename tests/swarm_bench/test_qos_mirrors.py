@@ -40,7 +40,7 @@ def test_the_recorder_asks_for_what_the_navigator_offers(topic):
 
 @pytest.mark.parametrize("topic, mirror", [("cmd_vel", baseline_nodes.CMD_VEL_QOS),
                                            ("nav_status", baseline_nodes.NAV_STATUS_QOS)])
-def test_the_messaging_floor_offers_what_the_navigator_offers(topic, mirror):
+def test_the_messaging_baseline_offers_what_the_navigator_offers(topic, mirror):
     assert _as_rosbag2(mirror) == _as_rosbag2(PROFILES[topic])
 
 
