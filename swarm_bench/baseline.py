@@ -84,13 +84,8 @@ from pathlib import Path
 
 from swarm_common import cli
 from swarm_common.errors import InputError, run_cli
-from swarm_up.args import (
-    PER_ROBOT,
-    default_processes,
-    default_run_dir,
-    processes_arg,
-    split_groups,
-)
+from swarm_up.args import default_processes, default_run_dir, processes_arg, split_groups
+from swarm_up.run_config import PER_ROBOT
 
 PROG = "swarm_bench.baseline"
 NODES_PROG = "swarm_bench.baseline_nodes"  # the module every baseline process runs

@@ -67,7 +67,8 @@ from pathlib import Path
 
 from swarm_common import cli
 from swarm_common.errors import EXIT_OK, EXIT_RUNTIME, InputError, run_cli
-from swarm_up.args import PER_ROBOT, default_processes, default_run_dir, processes_arg
+from swarm_up.args import default_processes, default_run_dir, processes_arg
+from swarm_up.run_config import PER_ROBOT
 from swarm_up.supervisor import LogTail, StopFlag
 
 PROG = "swarm-bench"

@@ -13,7 +13,6 @@ import logging
 import os
 import re
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 from swarm_common import cli, paths
@@ -24,9 +23,9 @@ from swarm_common.poi import load_poi, poi_for_world
 from swarm_common.robot_model import load_robot
 from swarm_common.spawn import spawn_poses
 from swarm_up import PROG
+from swarm_up.run_config import PER_ROBOT, RunConfig
 from swarm_up.rundir import check_nav_template, load_nav_template
 
-PER_ROBOT = "per-robot"
 # Default layout: one process per robot (and one per commander) up to this many robots, else one
 # group process per core.  Each rclpy process is a DDS participant of ~75 MB whose start costs ~1 s
 # of CPU; 20 robots with commanders as 41 processes took minutes to come up on 2 cores.  Groups are
@@ -147,74 +146,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 # ------------------------------------------------------------------------------------- validation
-@dataclass(frozen=True)
-class RunConfig:
-    """Everything a run needs, validated.
-
-    Attributes:
-        robots: namespaces without ``/`` (``Srobot1`` ...).
-        name_prefix: their common prefix (``Srobot``).
-        world_path: the world file.
-        world_name: its stem, for reports.
-        robot: ``--robot`` as the simulator gets it: the robot's name or absolute path, or a
-            mix ``NAME:COUNT,...`` in the order given (a fleet file's entries so; paths
-            absolute).
-        map_path: map YAML (None: rasterise or let the simulator do it).
-        poi_path: points-of-interest YAML beside the world (None: there is none).
-        seed: seed.
-        rtf: real-time factor (0 = as fast as possible).
-        duration: simulated seconds, or None (until Ctrl-C) [s].
-        commanders: start commanders.
-        coordination: ``decentralized`` | ``centralized`` (with commanders).
-        metrics_path: ``--metrics`` file or None.
-        groups: None for one process per robot, else the robots of every group process.
-        gui: open the PyBullet window.
-        run_dir: absolute run directory.
-        ready_timeout: [s] wall.
-        nav_template: navigator parameter template.
-        faults: the ``--faults`` schedule (:func:`swarm_common.faults.parse_faults`); empty:
-            none.
-        record_path: ``--record`` MCAP file (None: no recording).
-        record_topics: ``--record-topics`` regular expression (None: every topic).
-        dashboard_port: serve the dashboard on this port of 127.0.0.1 (None: no dashboard).
-        markers: publish ``/swarm/markers`` (also on with the dashboard).
-        fleet: the model of every robot (name or absolute path), index-aligned with
-            ``robots`` (:func:`swarm_common.fleet.fleet_models`); empty: every robot is
-            ``robot``.
-    """
-
-    robots: tuple[str, ...]
-    name_prefix: str
-    world_path: Path
-    world_name: str
-    robot: str
-    map_path: Path | None
-    poi_path: Path | None
-    seed: int
-    rtf: float
-    duration: float | None
-    commanders: bool
-    coordination: str
-    metrics_path: Path | None
-    groups: tuple[tuple[str, ...], ...] | None
-    gui: bool
-    run_dir: Path
-    ready_timeout: float
-    nav_template: Path
-    faults: tuple = ()
-    record_path: Path | None = None
-    record_topics: str | None = None
-    dashboard_port: int | None = None
-    markers: bool = False
-    fleet: tuple[str, ...] = ()
-
-    @property
-    def models(self) -> tuple[str, ...]:
-        """The model (name or absolute path) of every robot, index-aligned with ``robots``."""
-        return self.fleet if self.fleet else (self.robot,) * len(self.robots)
-
-
-
 def _prefix(flag: str, exc: InputError) -> InputError:
     msg = str(exc)
     return InputError(msg if msg.startswith(flag) else f"{flag}: {msg}")

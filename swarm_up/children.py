@@ -8,10 +8,8 @@ import os
 import shutil
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING
 
-if TYPE_CHECKING:
-    from swarm_up.args import RunConfig
+from swarm_up.run_config import RunConfig
 
 
 def command(script: str, module: str, func: str = "main") -> list[str]:

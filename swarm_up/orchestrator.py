@@ -27,9 +27,9 @@ from swarm_common.faults import KILL_NAV
 from swarm_common.fleet import describe_fleet
 from swarm_metrics.summary import print_summary
 from swarm_up import PROG
-from swarm_up.args import PER_ROBOT, RunConfig
 from swarm_up.children import child_specs
 from swarm_up.output import ProgressView, say, warn
+from swarm_up.run_config import PER_ROBOT, RunConfig
 from swarm_up.rundir import RunError, load_nav_template, prepare_map, write_params_files
 from swarm_up.supervisor import LogTail, ResourceSampler, StopFlag, Supervisor
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import yaml
 
@@ -13,9 +12,7 @@ from swarm_common.errors import InputError
 from swarm_common.map_io import save_map
 from swarm_common.rasterize import rasterize_world
 from swarm_common.world import load_world
-
-if TYPE_CHECKING:
-    from swarm_up.args import RunConfig
+from swarm_up.run_config import RunConfig
 
 # [s] wall: the navigators' goal_wait_timeout with --commanders; below the simulator's
 # command_timeout (3 s), so a commander slower than this is a goal-wait timeout, not a late tick.

@@ -11,7 +11,8 @@ import pytest
 
 from swarm_bench.baseline import BaselineConfig, baseline_layout, make_config, run_baseline
 from swarm_common.errors import InputError
-from swarm_up.args import PER_ROBOT, default_processes, split_groups
+from swarm_up.args import default_processes, split_groups
+from swarm_up.run_config import PER_ROBOT
 
 
 def _cfg(n: int, commanders: bool = True) -> BaselineConfig:
