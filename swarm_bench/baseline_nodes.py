@@ -39,20 +39,13 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import (
-    DurabilityPolicy,
-    QoSProfile,
-    ReliabilityPolicy,
-    qos_profile_sensor_data,
-)
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 from std_srvs.srv import Trigger
 
 from swarm_bench.baseline import BaselineConfig
-from swarm_commander.robot_navigator import NAV_STATUS_QOS as COMMANDER_STATUS_QOS
-from swarm_common import cli
+from swarm_common import cli, topics
 from swarm_common.cdr import (
     LaserScanWriter,
     OdometryWriter,
@@ -66,28 +59,12 @@ from swarm_common.cdr import (
 from swarm_common.errors import InputError, run_cli
 from swarm_common.nav_status import TERMINAL
 from swarm_common.stamps import NS_PER_S
-from swarm_metrics.listener import CLOCK_QOS as LISTENER_CLOCK_QOS
-from swarm_metrics.listener import EVENTS_QOS as LISTENER_EVENTS_QOS
-from swarm_metrics.listener import STATUS_QOS as LISTENER_STATUS_QOS
+from swarm_ros.qos import publisher, subscription
 from swarm_up.clock import SharedClock
 
 STATUS_PERIOD_NS = NS_PER_S // 2  # nav_status at 2 Hz simulated and on every change (as nav)
 GOAL_WAIT_POLL_S = 0.05  # [s] wall, as swarm_nav.node
 PROGRESS_EVERY_S = 5.0  # [s] wall between the baseline simulator's progress lines
-
-# The publishers' side, as swarm_nav.node and swarm_sim.node declare them.
-RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
-CMD_VEL_QOS = QoSProfile(depth=300, reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
-NAV_STATUS_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
-                            durability=DurabilityPolicy.TRANSIENT_LOCAL)
-EVENTS_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
-                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
-# The subscribers' side is imported from the real nodes: the commander's NAV_STATUS_QOS and the
-# metrics node's STATUS_QOS / EVENTS_QOS / CLOCK_QOS.
-
 
 class _Cpu:
     """This process's CPU time since its traffic began (its first tick, status or clock)."""
@@ -149,19 +126,17 @@ class BaselineSimNode(Node):
         # A fixed scan: the real one is cast per tick; here the same ranges every time.
         self._ranges = np.full(cfg.beams, 0.5 * (cfg.range_min + cfg.range_max), np.float32)
         # Publishers and subscribers (names, types and QoS of swarm_sim.node).
-        self.clock_pub = self.create_publisher(Clock, "/clock", RELIABLE)
-        self.map_pub = self.create_publisher(OccupancyGrid, "/map", LATCHED)
-        self.events_pub = self.create_publisher(DiagnosticArray, "/swarm/events", EVENTS_QOS)
+        self.clock_pub = publisher(self, Clock, topics.CLOCK)
+        self.map_pub = publisher(self, OccupancyGrid, topics.MAP)
+        self.events_pub = publisher(self, DiagnosticArray, topics.EVENTS)
         self.odom_pubs, self.truth_pubs, self.scan_pubs = [], [], []
         for i, ns in enumerate(cfg.robots):
-            self.odom_pubs.append(self.create_publisher(Odometry, f"/{ns}/odom", RELIABLE))
-            self.truth_pubs.append(self.create_publisher(Odometry, f"/{ns}/ground_truth",
-                                                         RELIABLE))
-            self.scan_pubs.append(self.create_publisher(LaserScan, f"/{ns}/scan",
-                                                        qos_profile_sensor_data))
-            self.create_subscription(TwistStamped, f"/{ns}/cmd_vel",
-                                     lambda buf, i=i: self._on_cmd_vel(i, buf), RELIABLE,
-                                     raw=True)  # read raw, as the simulator does
+            self.odom_pubs.append(publisher(self, Odometry, topics.ODOM, ns))
+            self.truth_pubs.append(publisher(self, Odometry, topics.GROUND_TRUTH, ns))
+            self.scan_pubs.append(publisher(self, LaserScan, topics.SCAN, ns))
+            subscription(self, TwistStamped, topics.CMD_VEL,
+                         lambda buf, i=i: self._on_cmd_vel(i, buf), ns,
+                         topics.CMD_VEL_READER_QOS, raw=True)  # read raw, as the simulator does
         # Written as CDR bytes, as the simulator does (swarm_common.cdr).
         self._odom_writers = [OdometryWriter(f"{ns}/odom", f"{ns}/base_footprint")
                               for ns in cfg.robots]
@@ -393,16 +368,15 @@ class BaselineNavigatorNode(Node):
         self._last_status_ns = -STATUS_PERIOD_NS
         self._now_ns = 0
         # Publishers, subscribers, service (swarm_nav.node's).
-        self.cmd_pub = self.create_publisher(TwistStamped, "cmd_vel", CMD_VEL_QOS)
-        self.plan_pub = self.create_publisher(PathMsg, "plan", LATCHED)
-        self.status_pub = self.create_publisher(DiagnosticStatus, "nav_status", NAV_STATUS_QOS)
-        self.create_subscription(OccupancyGrid, "/map", self._on_map, LATCHED)
+        self.cmd_pub = publisher(self, TwistStamped, topics.CMD_VEL)
+        self.plan_pub = publisher(self, PathMsg, topics.PLAN)
+        self.status_pub = publisher(self, DiagnosticStatus, topics.NAV_STATUS)
+        subscription(self, OccupancyGrid, topics.MAP, self._on_map)
         # Raw, read with swarm_common.cdr, as the real navigator does.
-        self.create_subscription(LaserScan, "scan", self._on_scan, qos_profile_sensor_data,
-                                 raw=True)
-        self.create_subscription(Odometry, "odom", self._on_odom, RELIABLE, raw=True)
-        self.create_subscription(PoseStamped, "goal_pose", self._on_goal_pose, RELIABLE)
-        self.create_service(Trigger, "navigator/cancel", self._on_cancel)
+        subscription(self, LaserScan, topics.SCAN, self._on_scan, raw=True)
+        subscription(self, Odometry, topics.ODOM, self._on_odom, raw=True)
+        subscription(self, PoseStamped, topics.GOAL_POSE, self._on_goal_pose)
+        self.create_service(Trigger, topics.CANCEL_SERVICE, self._on_cancel)
 
     def _on_map(self, msg: OccupancyGrid) -> None:
         np.asarray(msg.data, dtype=np.int8)  # the conversion the real navigator makes
@@ -532,10 +506,10 @@ class BaselineCommanderNode(Node):
         self._sent: str | None = None
         self._goals = 0
         # Publishers, subscribers, client and the runner's poll timer (swarm_commander's).
-        self._goal_pub = self.create_publisher(PoseStamped, "goal_pose", 10)
-        self.create_subscription(DiagnosticStatus, "nav_status", self._on_nav_status,
-                                 COMMANDER_STATUS_QOS)
-        self._cancel_client = self.create_client(Trigger, "navigator/cancel")
+        self._goal_pub = publisher(self, PoseStamped, topics.GOAL_POSE)
+        subscription(self, DiagnosticStatus, topics.NAV_STATUS, self._on_nav_status,
+                     qos=topics.NAV_STATUS_COMMANDER_READER_QOS)
+        self._cancel_client = self.create_client(Trigger, topics.CANCEL_SERVICE)
         self.create_timer(0.1, self._on_timer, clock=RclpyClock(clock_type=ClockType.STEADY_TIME))
 
     def _on_timer(self) -> None:
@@ -572,11 +546,11 @@ class BaselineListenerNode(Node):
         super().__init__("swarm_up_metrics")
         self.statuses = 0
         for ns in cfg.robots:
-            self.create_subscription(DiagnosticStatus, f"/{ns}/nav_status", self._on_status,
-                                     LISTENER_STATUS_QOS)
-        self.create_subscription(DiagnosticArray, "/swarm/events", self._on_events,
-                                 LISTENER_EVENTS_QOS)
-        self.create_subscription(Clock, "/clock", self._on_clock, LISTENER_CLOCK_QOS)
+            subscription(self, DiagnosticStatus, topics.NAV_STATUS, self._on_status, ns,
+                         topics.NAV_STATUS_METRICS_READER_QOS)
+        subscription(self, DiagnosticArray, topics.EVENTS, self._on_events)
+        subscription(self, Clock, topics.CLOCK, self._on_clock,
+                     qos=topics.CLOCK_METRICS_READER_QOS)
 
     def _on_status(self, msg: DiagnosticStatus) -> None:
         {kv.key: kv.value for kv in msg.values}  # noqa: B018 - the unpacking the real one does

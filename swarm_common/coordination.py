@@ -15,7 +15,8 @@ Topics (as ``ros2 topic list`` shows them)::
     /swarm/coordinator/state       coordinator -> robots  std_msgs/String  reliable, latched
 
 Writers of requests and assignments keep their last 10 messages (transient local) for readers
-that match late (the metrics node); the coordinator and the commanders read them volatile.
+that match late (the metrics node); the coordinator and the commanders read them volatile (names
+and QoS: :mod:`swarm_common.topics`).
 
 Resources are named ``workstation:<name>`` and ``spot:<id>`` (:func:`workstation_resource`,
 :func:`spot_resource`). Stamps are simulated times in integer nanoseconds inside, and the
@@ -30,10 +31,6 @@ from dataclasses import dataclass, field
 
 from swarm_common.stamps import format_stamp_ns, parse_stamp
 
-REQUEST_TOPIC = "/swarm/coordinator/request"
-STATE_TOPIC = "/swarm/coordinator/state"
-ASSIGNMENT_TOPIC = "coordinator/assignment"  # relative: /<ns>/coordinator/assignment
-EVENTS_TOPIC = "/swarm/events"
 COORDINATOR_NODE = "swarm_coordinator"  # the coordinator's node name
 METRICS_NODE = "swarm_up_metrics"  # swarm-up's node that records /swarm/events for the metrics
 
@@ -47,11 +44,6 @@ EVENT_COORDINATOR = "coordinator"
 
 class ContractError(ValueError):
     """A message that does not follow the contract (the reader drops it and warns)."""
-
-
-def assignment_topic(ns: str) -> str:
-    """The absolute assignment topic of robot ``ns`` (``/Srobot3/coordinator/assignment``)."""
-    return f"/{ns.strip('/')}/{ASSIGNMENT_TOPIC}"
 
 
 def workstation_resource(name: str) -> str:

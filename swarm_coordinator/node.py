@@ -38,21 +38,16 @@ from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.utilities import remove_ros_args
 from std_msgs.msg import String
 
-from swarm_common import cli
+from swarm_common import cli, topics
 from swarm_common.coordination import (
     COORDINATOR_NODE,
     EVENT_COORDINATOR,
-    EVENTS_TOPIC,
     METRICS_NODE,
-    REQUEST_TOPIC,
-    STATE_TOPIC,
     ContractError,
     CoordinatorEvent,
-    assignment_topic,
     decode_request,
     encode_assignment,
     encode_state,
@@ -60,20 +55,10 @@ from swarm_common.coordination import (
 from swarm_common.errors import InputError, run_cli
 from swarm_common.stamps import NS_PER_S
 from swarm_coordinator.core import CoordinatorConfig, CoordinatorCore
+from swarm_ros.qos import publisher, subscription
 
 PROG = "swarm-coordinator"
 NODE_NAME = COORDINATOR_NODE
-REQUEST_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-# Transient local writer (a late-matching metrics reader still counts the first answers); the
-# commanders read volatile, so a restarted commander gets no stale assignment.
-ASSIGNMENT_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
-                            durability=DurabilityPolicy.TRANSIENT_LOCAL)
-STATE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
-# Transient local, as the simulator's writer of /swarm/events: the metrics' reader is transient
-# local (it matches no volatile writer) and gets from the history what it missed while matching.
-EVENTS_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
-                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
 SYNC_POLL_S = 0.05  # [s] wall
 METRICS_MATCH_GRACE_S = 2.0  # [s] wall: discovery matches a reader well within this
 # [s] wall: the writer may match a reader before that reader has matched the writer; a volatile
@@ -110,12 +95,13 @@ class CoordinatorNode(Node):
         self._warned = 0.0
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         # publishers, subscribers
-        self._assign_pubs = {ns: self.create_publisher(String, assignment_topic(ns),
-                                                       ASSIGNMENT_QOS)
+        self._assign_pubs = {ns: publisher(self, String, topics.ASSIGNMENT, ns)
                              for ns in core.robots}
-        self._events_pub = self.create_publisher(DiagnosticArray, EVENTS_TOPIC, EVENTS_QOS)
-        self._state_pub = self.create_publisher(String, STATE_TOPIC, STATE_QOS)
-        self.create_subscription(String, REQUEST_TOPIC, self._on_request, REQUEST_QOS)
+        self._events_pub = publisher(self, DiagnosticArray, topics.EVENTS,
+                                     qos=topics.EVENTS_COORDINATOR_WRITER_QOS)
+        self._state_pub = publisher(self, String, topics.COORDINATOR_STATE)
+        subscription(self, String, topics.COORDINATOR_REQUEST, self._on_request,
+                     qos=topics.COORDINATOR_REQUEST_READER_QOS)
         # timers
         self._sync_timer = self.create_timer(SYNC_POLL_S, self._on_sync_poll, clock=self._steady)
         self._state_pub.publish(String(data=encode_state(core.epoch, len(core.robots))))
@@ -159,8 +145,8 @@ class CoordinatorNode(Node):
                 self.get_logger().warning(f"sync: no word from {len(missing)} robot(s) "
                                           f"({', '.join(missing[:5])}); going on without them")
             if not watched:
-                self.get_logger().warning(f"sync: the metrics' reader of {EVENTS_TOPIC} is "
-                                          "not matched; this start and the first answers may "
+                self.get_logger().warning(f"sync: the metrics' reader of {topics.EVENTS.name} "
+                                          "is not matched; this start and the first answers may "
                                           "go unrecorded")
             self._syncing = False
             self.destroy_timer(self._sync_timer)
@@ -181,7 +167,7 @@ class CoordinatorNode(Node):
         The writer's side of a match comes first; the readers' side is given
         :data:`METRICS_SETTLE_S` more.
         """
-        readers = self.get_subscriptions_info_by_topic(EVENTS_TOPIC)
+        readers = self.get_subscriptions_info_by_topic(topics.EVENTS.name)
         if not any(r.node_name == METRICS_NODE for r in readers):
             return False
         now = time.monotonic()

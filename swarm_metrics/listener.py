@@ -1,10 +1,9 @@
 """The orchestrator's metrics node: listens to the swarm and feeds a :class:`RunRecorder`.
 
-It subscribes to ``/<ns>/nav_status`` of every robot (``diagnostic_msgs/DiagnosticStatus``,
-reliable + transient local, depth 1), ``/swarm/events`` (``diagnostic_msgs/DiagnosticArray``,
-reliable, depth 100) and ``/clock``, converts each message to plain values and hands them to the
-pure recorder (``swarm_metrics.aggregate``). For the communication load it also takes, serialized
-(``raw``: only their size and sender are read), the coordinator's topics
+It subscribes to ``/<ns>/nav_status`` of every robot, ``/swarm/events`` and ``/clock`` (names,
+types and QoS: :mod:`swarm_common.topics`), converts each message to plain values and hands
+them to the pure recorder (``swarm_metrics.aggregate``). For the communication load it also
+takes, serialized (``raw``: only their size and sender are read), the coordinator's topics
 (:mod:`swarm_common.coordination`) and the latched ``/map``.  It spins in a background thread
 with its own executor and context, so the orchestrator's main thread keeps supervising.
 
@@ -29,50 +28,18 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from nav_msgs.msg import OccupancyGrid
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
+from swarm_common import topics
 from swarm_common.coordination import (
     METRICS_NODE,
-    REQUEST_TOPIC,
-    STATE_TOPIC,
     ContractError,
-    assignment_topic,
     decode_state,
 )
 from swarm_metrics.aggregate import RunRecorder
-
-STATUS_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    # The navigators keep 100 for late readers (NAV_STATUS_QOS); the reader keeps 100 per robot, 50
-    # simulated seconds of statuses at 2 Hz, so a listener thread that falls behind under load
-    # still sees every SUCCEEDED before the next goal's status
-    # (tests/swarm_metrics/test_listener.py).
-    depth=100,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
-# Transient local, as every writer of /swarm/events is: a writer can match this reader before
-# the reader has matched the writer, and a volatile reader drops what the writer sent in between
-# (a fault's start lost so, once in 8 runs of tests/test_e2e_faults.py); a transient-local reader
-# asks for the writer's history from its first sample when it matches.
-EVENTS_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=1000, reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
-CLOCK_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.BEST_EFFORT
-)
-# Transient local, as the coordination writers are: requests and answers published before
-# this reader matched are delivered from the writers' history (depth 10) when it matches.
-COMM_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
-                      reliability=ReliabilityPolicy.RELIABLE,
-                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
-LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                         reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+from swarm_ros.qos import subscription
 
 
 def cdr_string(raw: bytes) -> str:
@@ -105,31 +72,29 @@ class MetricsNode(Node):
         self._status_hooks = status_hooks
         # subscriptions
         self._subs = [
-            self.create_subscription(
-                DiagnosticStatus,
-                f"/{ns}/nav_status",
-                lambda msg, ns=ns: self._on_nav_status(ns, msg),
-                STATUS_QOS,
-            )
+            subscription(self, DiagnosticStatus, topics.NAV_STATUS,
+                         lambda msg, ns=ns: self._on_nav_status(ns, msg), ns,
+                         topics.NAV_STATUS_METRICS_READER_QOS)
             for ns in recorder.robots
         ]
-        self._subs.append(
-            self.create_subscription(DiagnosticArray, "/swarm/events", self._on_events, EVENTS_QOS)
-        )
-        self._subs.append(self.create_subscription(Clock, "/clock", self._on_clock, CLOCK_QOS))
-        # communication load: the coordinator's topics and the map, serialized
-        self._subs.append(self.create_subscription(String, REQUEST_TOPIC, self._on_request,
-                                                   COMM_QOS, raw=True))
         self._subs += [
-            self.create_subscription(String, assignment_topic(ns),
-                                     lambda raw, ns=ns: self._on_comm("assignment", ns, raw),
-                                     COMM_QOS, raw=True)
+            subscription(self, DiagnosticArray, topics.EVENTS, self._on_events),
+            subscription(self, Clock, topics.CLOCK, self._on_clock,
+                         qos=topics.CLOCK_METRICS_READER_QOS),
+            # communication load: the coordinator's topics and the map, serialized
+            subscription(self, String, topics.COORDINATOR_REQUEST, self._on_request,
+                         qos=topics.COMM_METRICS_READER_QOS, raw=True),
+        ]
+        self._subs += [
+            subscription(self, String, topics.ASSIGNMENT,
+                         lambda raw, ns=ns: self._on_comm("assignment", ns, raw), ns,
+                         topics.COMM_METRICS_READER_QOS, raw=True)
             for ns in recorder.robots
         ]
-        self._subs.append(self.create_subscription(String, STATE_TOPIC, self._on_state,
-                                                   LATCHED_QOS, raw=True))
-        self._subs.append(self.create_subscription(OccupancyGrid, "/map", self._on_map,
-                                                   LATCHED_QOS, raw=True))
+        self._subs += [
+            subscription(self, String, topics.COORDINATOR_STATE, self._on_state, raw=True),
+            subscription(self, OccupancyGrid, topics.MAP, self._on_map, raw=True),
+        ]
 
     def _on_nav_status(self, ns: str, msg: DiagnosticStatus) -> None:
         values = {kv.key: kv.value for kv in msg.values}

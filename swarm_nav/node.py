@@ -28,10 +28,10 @@ from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import LaserScan
 from std_srvs.srv import Trigger
 
+from swarm_common import topics
 from swarm_common.cdr import (
     PathWriter,
     TwistStampedWriter,
@@ -48,6 +48,7 @@ from swarm_nav import jit
 from swarm_nav.config import NavigatorConfig, flat_defaults
 from swarm_nav.core import NavigatorCore
 from swarm_nav.holding import holding_sites_from_poi, site_kinds_from_poi
+from swarm_ros.qos import publisher, subscription
 
 STATUS_PERIOD_NS = NS_PER_S // 2  # nav_status at 2 Hz simulated, and on every change of state
 # Parameters that describe the robot and its world rather than an algorithm.
@@ -75,23 +76,6 @@ _CONTEXT_PARAMS = {
 }
 GOAL_WAIT_POLL_S = 0.05  # [s] wall: how often a waiting tick checks its commander is still there
 COMMANDER_WAIT_S = 60.0  # [s] wall: how long the first answer waits for a commander to connect
-CMD_VEL_HISTORY = 300  # [messages] kept for late-joining readers: 30 s simulated at 10 Hz
-CMD_VEL_QOS = QoSProfile(depth=CMD_VEL_HISTORY, reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
-"""``cmd_vel``'s publisher: reliable and transient-local, like ``/rosout``, so that a reader that
-asks for transient-local (swarm-up's recorder) gets the commands sent before it matched.  A
-writer matches a reader before the reader matches the writer; what the writer sends in between,
-a volatile reader drops (23 ticks of one robot in one CI run, the navigator's start gate passed on
-the writer's side).  Volatile readers (the simulator) are unaffected."""
-NAV_STATUS_HISTORY = 100  # [messages] kept for late-joining readers: 50 s simulated at 2 Hz
-NAV_STATUS_QOS = QoSProfile(depth=NAV_STATUS_HISTORY, reliability=ReliabilityPolicy.RELIABLE,
-                            durability=DurabilityPolicy.TRANSIENT_LOCAL)
-"""``nav_status``'s publisher: reliable and transient-local with a history, for the reason
-:data:`CMD_VEL_QOS` has one: a reader whose side matched late (the start gate counts the
-writer's side) still gets every status, not the last alone, and so every goal, even one that
-ended, or whose navigator was killed, before the reader matched."""
-
-
 def stamp_ns(stamp) -> int:
     """``builtin_interfaces/Time`` -> integer nanoseconds."""
     return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
@@ -191,20 +175,16 @@ class NavigatorNode(Node):
         self._now_ns = 0
         self._warned: dict[str, float] = {}
         # Publishers, subscribers, service.
-        reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        self.cmd_pub = self.create_publisher(TwistStamped, "cmd_vel", CMD_VEL_QOS)
-        self.plan_pub = self.create_publisher(Path, "plan", latched)
-        self.status_pub = self.create_publisher(DiagnosticStatus, "nav_status", NAV_STATUS_QOS)
-        self.create_subscription(OccupancyGrid, "/map", self._on_map, latched)
+        self.cmd_pub = publisher(self, TwistStamped, topics.CMD_VEL)
+        self.plan_pub = publisher(self, Path, topics.PLAN)
+        self.status_pub = publisher(self, DiagnosticStatus, topics.NAV_STATUS)
+        subscription(self, OccupancyGrid, topics.MAP, self._on_map)
         # Odometry and scans come every tick: read raw with swarm_common.cdr, no message objects
         # (rclpy built 15 of them per odometry message, 10 % of a group process's CPU).
-        self.create_subscription(LaserScan, "scan", self._on_scan, qos_profile_sensor_data,
-                                 raw=True)
-        self.create_subscription(Odometry, "odom", self._on_odom, reliable, raw=True)
-        self.create_subscription(PoseStamped, "goal_pose", self._on_goal_pose, reliable)
-        self.create_service(Trigger, "navigator/cancel", self._on_cancel)
+        subscription(self, LaserScan, topics.SCAN, self._on_scan, raw=True)
+        subscription(self, Odometry, topics.ODOM, self._on_odom, raw=True)
+        subscription(self, PoseStamped, topics.GOAL_POSE, self._on_goal_pose)
+        self.create_service(Trigger, topics.CANCEL_SERVICE, self._on_cancel)
         map_yaml = self.get_parameter("map_yaml_path").value
         if map_yaml:
             from swarm_common.map_io import load_map
@@ -367,11 +347,12 @@ class NavigatorNode(Node):
         that discovered it only after that goal ended would never see the goal.  Likewise a
         recorder matched to ``cmd_vel`` only after the first answer had lost it while
         ``cmd_vel`` was volatile: 1 tick in 2 of about 15 CI runs of
-        ``tests/swarm_record/test_recorder.py``, the first 8 simulated s of one robot of a 3-robot
-        group run.  This gate counts the writer's matches only; the reader's
-        side can lag behind (23 ticks lost once more), which the histories of
-        :data:`CMD_VEL_QOS` and :data:`NAV_STATUS_QOS` cover.  The simulator holds the tick
-        until the navigator answers, so the wait costs wall time, not reproducibility.
+        ``tests/swarm_record/test_recorder.py``, the first 8 simulated s of one robot of a
+        3-robot group run.  This gate counts the writer's matches only; the reader's side can lag
+        behind (23 ticks lost once more), which the histories of
+        :data:`swarm_common.topics.CMD_VEL` and :data:`~swarm_common.topics.NAV_STATUS` cover.
+        The simulator holds the tick until the navigator answers, so the wait costs wall time,
+        not reproducibility.
         """
         waiting = []
         if (self.get_parameter("wait_for_commander").value

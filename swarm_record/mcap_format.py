@@ -31,6 +31,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+from swarm_common import topics
 from swarm_common.stamps import NS_PER_S
 
 PROFILE = "ros2"
@@ -45,23 +46,7 @@ TF_TOPIC = "/tf"
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 DEFINITION_RULE = "=" * 80
 
-# QoS of the swarm's publishers (swarm_sim/node.py, swarm_nav/node.py), in rosbag2's names.
-_RELIABLE = {"history": "keep_last", "depth": 10, "reliability": "reliable",
-             "durability": "volatile"}
-_LATCHED = {"history": "keep_last", "depth": 1, "reliability": "reliable",
-            "durability": "transient_local"}
-# swarm_nav.node.CMD_VEL_QOS: a history for late readers
-_CMD_VEL = {"history": "keep_last", "depth": 300, "reliability": "reliable",
-            "durability": "transient_local"}
-# swarm_nav.node.NAV_STATUS_QOS: likewise
-_NAV_STATUS = {"history": "keep_last", "depth": 100, "reliability": "reliable",
-               "durability": "transient_local"}
-_SENSOR = {"history": "keep_last", "depth": 5, "reliability": "best_effort",
-           "durability": "volatile"}
-_EVENTS = {"history": "keep_last", "depth": 1000, "reliability": "reliable",
-           "durability": "transient_local"}
-_TF = {"history": "keep_last", "depth": 100, "reliability": "reliable",
-       "durability": "volatile"}  # tf2_ros's TransformBroadcaster
+_TF_QOS = topics.Qos(100)  # tf2_ros's TransformBroadcaster (reliable, volatile, depth 100)
 
 
 @dataclass(frozen=True)
@@ -83,18 +68,9 @@ class RecordedTopic:
     robot: str = ""
 
 
-ROBOT_TOPICS = (  # (suffix, type, qos) of every robot's recorded topics
-    ("scan", "sensor_msgs/msg/LaserScan", _SENSOR),
-    ("odom", "nav_msgs/msg/Odometry", _RELIABLE),
-    ("ground_truth", "nav_msgs/msg/Odometry", _RELIABLE),
-    ("cmd_vel", "geometry_msgs/msg/TwistStamped", _CMD_VEL),
-    ("plan", "nav_msgs/msg/Path", _LATCHED),
-    ("nav_status", "diagnostic_msgs/msg/DiagnosticStatus", _NAV_STATUS),
-)
-
-
 def recorded_topics(robots: tuple[str, ...] | list[str]) -> tuple[RecordedTopic, ...]:
-    """Every topic a recording of these robots may hold, swarm-wide ones first.
+    """Every topic a recording of these robots may hold, swarm-wide ones first, each with the QoS
+    its writers offer (:mod:`swarm_common.topics`).
 
     Args:
         robots: namespaces without ``/``.
@@ -103,15 +79,12 @@ def recorded_topics(robots: tuple[str, ...] | list[str]) -> tuple[RecordedTopic,
         ``/clock``, ``/map``, ``/swarm/events``, ``/tf``, then each robot's ``scan``, ``odom``,
         ``ground_truth``, ``cmd_vel``, ``plan``, ``nav_status``.
     """
-    out = [
-        RecordedTopic("/clock", "rosgraph_msgs/msg/Clock", _RELIABLE),
-        RecordedTopic("/map", "nav_msgs/msg/OccupancyGrid", _LATCHED),
-        RecordedTopic("/swarm/events", "diagnostic_msgs/msg/DiagnosticArray", _EVENTS),
-        RecordedTopic(TF_TOPIC, TF_TYPE, _TF),
-    ]
+    out = [RecordedTopic(t.name, t.type, t.qos.as_dict())
+           for t in (topics.CLOCK, topics.MAP, topics.EVENTS)]
+    out.append(RecordedTopic(TF_TOPIC, TF_TYPE, _TF_QOS.as_dict()))
     for ns in robots:
-        out += [RecordedTopic(f"/{ns}/{suffix}", type_, qos, ns)
-                for suffix, type_, qos in ROBOT_TOPICS]
+        out += [RecordedTopic(topics.robot_topic(ns, t), t.type, t.qos.as_dict(), ns)
+                for t in topics.ROBOT_TOPICS]
     return tuple(out)
 
 
@@ -131,10 +104,10 @@ def select_topics(topics, pattern: str | None) -> tuple[RecordedTopic, ...]:
     return tuple(t for t in topics if rx.search(t.name))
 
 
-TF_SOURCES = ("odom", "ground_truth")
+TF_SOURCES = (topics.ODOM.name, topics.GROUND_TRUTH.name)
 """The robot topics (suffixes) the recorder builds ``/tf`` from."""
-SIMULATOR_TOPICS = ("/clock", "/map", "/swarm/events")
-SIMULATOR_ROBOT_TOPICS = ("scan", "odom", "ground_truth")
+SIMULATOR_TOPICS = (topics.CLOCK.name, topics.MAP.name, topics.EVENTS.name)
+SIMULATOR_ROBOT_TOPICS = (topics.SCAN.name, topics.ODOM.name, topics.GROUND_TRUTH.name)
 """The recorded topics that ``swarm-sim`` publishes (swarm_sim/node.py): swarm-wide names, and
 each robot's suffixes."""
 

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from swarm_common import cli
+from swarm_common import cli, topics
 from swarm_common.errors import InputError, run_cli
 from swarm_common.nav_status import NavState, decode
 from swarm_record import mcap_format as rec
@@ -169,11 +169,11 @@ def read_run(path: Path) -> RunTrace:
             topic = channel.topic
             last_t = max(last_t, message.log_time)
             parts = topic.strip("/").split("/")
-            if len(parts) == 2 and parts[1] in ("ground_truth", "odom"):
+            if len(parts) == 2 and parts[1] in (topics.GROUND_TRUTH.name, topics.ODOM.name):
                 stamp, pose = rec.odometry_pose(message.data)
                 (truth if parts[1] == "ground_truth" else odom).setdefault(parts[0], []).append(
                     (stamp / 1e9, pose[0], pose[1]))
-            elif len(parts) == 2 and parts[1] == "nav_status":
+            elif len(parts) == 2 and parts[1] == topics.NAV_STATUS.name:
                 msg = decoded(schema, channel, message)
                 status = decode({kv.key: kv.value for kv in msg.values}, msg.message)
                 ns = parts[0]
@@ -183,7 +183,7 @@ def read_run(path: Path) -> RunTrace:
                 if status.state == NavState.HOLDING and last_state.get(ns) != NavState.HOLDING:
                     holding_t.setdefault(ns, []).append(t)
                 last_state[ns] = status.state
-            elif topic == "/swarm/events":
+            elif topic == topics.EVENTS.name:
                 for status in decoded(schema, channel, message).status:
                     if status.name == "collision":
                         values = {kv.key: kv.value for kv in status.values}
@@ -191,7 +191,7 @@ def read_run(path: Path) -> RunTrace:
                             collisions.append((float(values["x"]), float(values["y"])))
                         except (KeyError, ValueError):
                             continue
-            elif topic == "/map" and trace.grid is None:
+            elif topic == topics.MAP.name and trace.grid is None:
                 msg = decoded(schema, channel, message)
                 info = msg.info
                 trace.grid = np.frombuffer(bytes(np.asarray(msg.data, dtype=np.int8)),

@@ -26,8 +26,9 @@ import signal
 import sys
 import time
 
-from swarm_common import cli
+from swarm_common import cli, topics
 from swarm_common.errors import run_cli
+from swarm_common.topics import Qos
 from swarm_record import mcap_format as rec
 
 PROG = "swarm-up-record"
@@ -38,16 +39,6 @@ READY_LINE = "recorder ready"
 """Printed (with the number of subscriptions) once every subscription exists; ``swarm-up``
 starts the simulator after it."""
 
-_TYPES = {
-    "rosgraph_msgs/msg/Clock": ("rosgraph_msgs.msg", "Clock"),
-    "nav_msgs/msg/OccupancyGrid": ("nav_msgs.msg", "OccupancyGrid"),
-    "diagnostic_msgs/msg/DiagnosticArray": ("diagnostic_msgs.msg", "DiagnosticArray"),
-    "diagnostic_msgs/msg/DiagnosticStatus": ("diagnostic_msgs.msg", "DiagnosticStatus"),
-    "sensor_msgs/msg/LaserScan": ("sensor_msgs.msg", "LaserScan"),
-    "nav_msgs/msg/Odometry": ("nav_msgs.msg", "Odometry"),
-    "geometry_msgs/msg/TwistStamped": ("geometry_msgs.msg", "TwistStamped"),
-    "nav_msgs/msg/Path": ("nav_msgs.msg", "Path"),
-}
 _NO_HEADER = {"diagnostic_msgs/msg/DiagnosticStatus"}  # log time = the latest /clock
 
 
@@ -85,16 +76,10 @@ def _qos_dict(profile) -> dict:
     }
 
 
-def _subscription_qos(offered: dict):
-    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-
-    return QoSProfile(
-        history=HistoryPolicy.KEEP_LAST, depth=QUEUE_DEPTH,
-        reliability=(ReliabilityPolicy.RELIABLE if offered["reliability"] == "reliable"
-                     else ReliabilityPolicy.BEST_EFFORT),
-        durability=(DurabilityPolicy.TRANSIENT_LOCAL
-                    if offered["durability"] == "transient_local"
-                    else DurabilityPolicy.VOLATILE))
+def _subscription_qos(offered: dict) -> Qos:
+    """The recorder's reader of a topic whose writers offer ``offered`` (rosbag2's names): the
+    same reliability and durability, and a queue of :data:`QUEUE_DEPTH`."""
+    return Qos(QUEUE_DEPTH, offered["reliability"], offered["durability"])
 
 
 def make_node(recording: rec.McapRecording, robots, selected, tf: rec.TfBuilder | None):
@@ -106,9 +91,9 @@ def make_node(recording: rec.McapRecording, robots, selected, tf: rec.TfBuilder 
         selected: the :class:`~swarm_record.mcap_format.RecordedTopic` to write.
         tf: builds ``/tf`` when it is selected, else None.
     """
-    import importlib
-
     from rclpy.node import Node
+
+    from swarm_ros.qos import message_class, profile
 
     class RecorderNode(Node):
         def __init__(self):
@@ -120,19 +105,18 @@ def make_node(recording: rec.McapRecording, robots, selected, tf: rec.TfBuilder 
             # subscriptions
             self.subs = []
             for t in rec.recorder_subscriptions(robots, selected):
-                module, cls = _TYPES[t.type]
-                msg_type = getattr(importlib.import_module(module), cls)
                 self.subs.append(self.create_subscription(
-                    msg_type, t.name, self._callback(t, t.name in {s.name for s in selected}),
-                    _subscription_qos(t.qos), raw=True))
+                    message_class(t.type), t.name,
+                    self._callback(t, t.name in {s.name for s in selected}),
+                    profile(_subscription_qos(t.qos)), raw=True))
 
         def _callback(self, topic: rec.RecordedTopic, write: bool):
             name = topic.name
             suffix = name.rsplit("/", 1)[-1]
             feed = None
             if tf is not None and topic.robot and suffix in rec.TF_SOURCES:
-                feed = tf.on_odom if suffix == "odom" else tf.on_ground_truth
-            is_clock = name == "/clock"
+                feed = tf.on_odom if suffix == topics.ODOM.name else tf.on_ground_truth
+            is_clock = name == topics.CLOCK.name
             headerless = topic.type in _NO_HEADER
             ns = topic.robot
 

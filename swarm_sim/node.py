@@ -33,17 +33,15 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node, NodeNameNonExistentError
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 
-from swarm_common import cli
+from swarm_common import cli, topics
 from swarm_common.cdr import LaserScanWriter, OdometryWriter, PoseArrayWriter, twist_stamped
 from swarm_common.errors import InputError, run_cli
 from swarm_common.faults import (
     ACK_NAME,
-    ACKS_TOPIC,
     END,
     EVENT_NAME,
     KILL_COORDINATOR,
@@ -54,10 +52,10 @@ from swarm_common.faults import (
     FaultEvent,
     parse_faults,
 )
-from swarm_common.fleet_poses import POSES_DEPTH, POSES_TOPIC
 from swarm_common.sim_summary import CollisionCounts, RobotSummary, SimSummary
 from swarm_common.stamps import NS_PER_S
 from swarm_common.world import describe_skipped
+from swarm_ros.qos import publisher, subscription
 from swarm_sim.standstill import StandstillTracker
 
 # A manual (zero-stamp) command outranks the navigator's answers for this long after it arrived,
@@ -209,34 +207,22 @@ class SimulatorNode(Node):
         self.fault_log: list[dict] = []  # every fault transition applied, in order
         self._last_cmd = np.zeros((self.n, 2))
         # Publishers and subscribers.
-        reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        events_qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
-                                durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        self.clock_pub = self.create_publisher(Clock, "/clock", reliable)
-        self.map_pub = self.create_publisher(OccupancyGrid, "/map", latched)
-        self.events_pub = self.create_publisher(DiagnosticArray, "/swarm/events", events_qos)
-        self.poses_pub = self.create_publisher(
-            PoseArray, POSES_TOPIC,
-            QoSProfile(depth=POSES_DEPTH, reliability=ReliabilityPolicy.RELIABLE))
+        self.clock_pub = publisher(self, Clock, topics.CLOCK)
+        self.map_pub = publisher(self, OccupancyGrid, topics.MAP)
+        self.events_pub = publisher(self, DiagnosticArray, topics.EVENTS)
+        self.poses_pub = publisher(self, PoseArray, topics.POSES)
         self.odom_pubs, self.truth_pubs, self.scan_pubs = [], [], []
         for i, ns in enumerate(namespaces):
-            self.odom_pubs.append(self.create_publisher(Odometry, f"/{ns}/odom", reliable))
-            self.truth_pubs.append(
-                self.create_publisher(Odometry, f"/{ns}/ground_truth", reliable))
-            self.scan_pubs.append(
-                self.create_publisher(LaserScan, f"/{ns}/scan", qos_profile_sensor_data))
-            self.create_subscription(
-                TwistStamped, f"/{ns}/cmd_vel", lambda buf, i=i: self._on_cmd_vel(i, buf),
-                reliable, raw=True)  # read with swarm_common.cdr: no message objects
+            self.odom_pubs.append(publisher(self, Odometry, topics.ODOM, ns))
+            self.truth_pubs.append(publisher(self, Odometry, topics.GROUND_TRUTH, ns))
+            self.scan_pubs.append(publisher(self, LaserScan, topics.SCAN, ns))
+            subscription(self, TwistStamped, topics.CMD_VEL,
+                         lambda buf, i=i: self._on_cmd_vel(i, buf), ns,
+                         topics.CMD_VEL_READER_QOS, raw=True)  # read with swarm_common.cdr
         if self.faults is not None:
             # transient local (as swarm-up's writers): an acknowledgement sent before this
             # reader matched its writer comes from the writer's history, not lost
-            self.create_subscription(DiagnosticStatus, ACKS_TOPIC, self._on_fault_ack,
-                                     QoSProfile(depth=100,
-                                                reliability=ReliabilityPolicy.RELIABLE,
-                                                durability=DurabilityPolicy.TRANSIENT_LOCAL))
+            subscription(self, DiagnosticStatus, topics.FAULT_ACKS, self._on_fault_ack)
         # Odometry, ground truth and scans are published as CDR bytes (swarm_common.cdr): 100
         # robots' messages a tick, each a struct.pack instead of rclpy's conversion.
         self._odom_writers = [OdometryWriter(f"{ns}/odom", f"{ns}/base_footprint")
@@ -466,7 +452,7 @@ class SimulatorNode(Node):
             self._publish_poses()
 
     def _publish_poses(self) -> None:
-        """``/swarm/poses`` (:mod:`swarm_common.fleet_poses`): every robot's pose in ``map``,
+        """``/swarm/poses`` (:data:`swarm_common.topics.POSES`): every robot's pose in ``map``,
         written as CDR bytes (100 rclpy Pose objects a tick were a millisecond of the
         simulator's tick, on the lockstep's critical path, while a dashboard watched)."""
         self.poses_pub.publish(self._poses_writer.write(self.t_ns, self.engine.poses))

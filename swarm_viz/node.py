@@ -6,7 +6,7 @@ It runs in ``swarm-up``'s own process, in the metrics listener's context and thr
 ``nav_status`` stream the recorder already receives is handed over by a hook instead of a second
 set of subscriptions.  Costs, per robot:
 
-- ``/swarm/poses`` (:mod:`swarm_common.fleet_poses`): every robot's pose in one message a tick,
+- ``/swarm/poses`` (:data:`swarm_common.topics.POSES`): every robot's pose in one message a tick,
   which the simulator publishes only while someone listens; best effort, depth 1.  Reading the
   ``N`` robots' ``odom`` instead made the simulator write, and this process wake up, ``N`` more
   times a tick;
@@ -35,27 +35,13 @@ import numpy as np
 from geometry_msgs.msg import PoseArray
 from nav_msgs.msg import Path
 from rclpy.node import Node
-from rclpy.qos import (
-    DurabilityPolicy,
-    HistoryPolicy,
-    QoSProfile,
-    ReliabilityPolicy,
-    qos_profile_sensor_data,
-)
 from sensor_msgs.msg import LaserScan
 
+from swarm_common import topics
 from swarm_common.cdr import path_points, pose_array, scan_ranges
-from swarm_common.fleet_poses import POSES_DEPTH, POSES_TOPIC
 from swarm_common.nav_status import decode
+from swarm_ros.qos import publisher, subscription
 from swarm_viz.fleet_view import FleetState, ScanSample, ViewConfig, workstation_states
-
-POSES_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=POSES_DEPTH,
-                       reliability=ReliabilityPolicy.BEST_EFFORT)
-PLAN_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                      reliability=ReliabilityPolicy.RELIABLE,
-                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
-MARKERS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                         reliability=ReliabilityPolicy.RELIABLE)
 
 
 class FleetNode(Node):
@@ -102,7 +88,7 @@ class FleetNode(Node):
         if markers:
             from visualization_msgs.msg import MarkerArray
 
-            self.markers_pub = self.create_publisher(MarkerArray, "/swarm/markers", MARKERS_QOS)
+            self.markers_pub = publisher(self, MarkerArray, topics.MARKERS)
         self.create_timer(1.0 / cfg.markers_hz, self._on_timer)
 
     # -- demand --------------------------------------------------------------------------------
@@ -127,11 +113,11 @@ class FleetNode(Node):
             self._wanted_until = now + self.cfg.idle_grace_s
         if now < self._wanted_until and not self._input_subs:
             self.input_activations += 1
-            self._input_subs.append(self.create_subscription(
-                PoseArray, POSES_TOPIC, self._on_poses, POSES_QOS, raw=True))
+            self._input_subs.append(subscription(self, PoseArray, topics.POSES, self._on_poses,
+                                                 qos=topics.POSES_READER_QOS, raw=True))
             for i, ns in enumerate(self.fleet.robots):
-                self._input_subs.append(self.create_subscription(
-                    Path, f"/{ns}/plan", lambda buf, i=i: self._on_plan(i, buf), PLAN_QOS,
+                self._input_subs.append(subscription(
+                    self, Path, topics.PLAN, lambda buf, i=i: self._on_plan(i, buf), ns,
                     raw=True))
         elif now >= self._wanted_until and self._input_subs:
             for sub in self._input_subs:
@@ -188,9 +174,9 @@ class FleetNode(Node):
                     self.fleet.drop_scan(i)
         for i in sorted(wanted - self._scan_subs.keys()):
             ns = self.fleet.robots[i]
-            self._scan_subs[i] = self.create_subscription(
-                LaserScan, f"/{ns}/scan", lambda buf, i=i: self._on_scan(i, buf),
-                qos_profile_sensor_data, raw=True)
+            self._scan_subs[i] = subscription(
+                self, LaserScan, topics.SCAN, lambda buf, i=i: self._on_scan(i, buf), ns,
+                raw=True)
 
     @property
     def watched(self) -> frozenset[int]:

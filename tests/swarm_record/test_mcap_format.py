@@ -18,6 +18,7 @@ from mcap.reader import make_reader
 from mcap.stream_reader import StreamReader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
+from swarm_common import topics
 from swarm_record import mcap_format as rec
 
 JAZZY = get_typestore(Stores.ROS2_JAZZY)
@@ -218,7 +219,7 @@ def _write(path, n, chunk_size):
     out = rec.McapRecording(path, chunk_size=chunk_size)
     out.add_metadata(rec.META_NAME, {"robots": "Srobot1"})
     out.add_channel("/Srobot1/odom", "nav_msgs/msg/Odometry",
-                    rec.qos_yaml([rec.ROBOT_TOPICS[1][2]]))
+                    rec.qos_yaml([topics.ODOM.qos.as_dict()]))
     for i in range(n):
         out.write("/Srobot1/odom", (i + 1) * 100_000_000,
                   _odometry((i + 1) * 100_000_000, "Srobot1/odom", "Srobot1/base_footprint",

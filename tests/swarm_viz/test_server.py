@@ -33,9 +33,10 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 from visualization_msgs.msg import Marker, MarkerArray
 
-from swarm_common.fleet_poses import POSES_DEPTH, POSES_TOPIC
+from swarm_common import topics
 from swarm_common.nav_status import NavState, NavStatusRecord, encode
 from swarm_metrics.listener import MetricsListener
+from swarm_ros.qos import publisher
 from swarm_up.args import build_parser, validate
 from swarm_viz.fleet_view import ViewConfig
 from swarm_viz.server import LiveView
@@ -84,8 +85,7 @@ class FakeSwarm:
         n = self.node
         self.clock = n.create_publisher(Clock, "/clock", RELIABLE)
         self.events = n.create_publisher(DiagnosticArray, "/swarm/events", EVENTS)
-        self.poses = n.create_publisher(PoseArray, POSES_TOPIC, QoSProfile(
-            depth=POSES_DEPTH, reliability=ReliabilityPolicy.RELIABLE))  # as the simulator's
+        self.poses = publisher(n, PoseArray, topics.POSES)  # as the simulator's
         self.plan = {ns: n.create_publisher(Path, f"/{ns}/plan", LATCHED) for ns in POSES}
         self.status = {ns: n.create_publisher(DiagnosticStatus, f"/{ns}/nav_status", LATCHED)
                        for ns in POSES}
