@@ -32,7 +32,7 @@ from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
-from swarm_common import topics
+from swarm_common import cdr, topics
 from swarm_common.coordination import (
     METRICS_NODE,
     ContractError,
@@ -42,14 +42,13 @@ from swarm_metrics.aggregate import RunRecorder
 from swarm_ros.qos import subscription
 
 
-def cdr_string(raw: bytes) -> str:
-    """The text of a serialized ``std_msgs/String`` (CDR: 4-byte header, uint32 length with
-    the NUL, the bytes); ``""`` if malformed."""
-    if len(raw) < 8:
+def _text(raw: bytes) -> str:
+    """The text of a serialized ``std_msgs/String`` (:func:`swarm_common.cdr.string_data`);
+    ``""`` if malformed."""
+    try:
+        return cdr.string_data(raw)
+    except ValueError:
         return ""
-    order = "little" if raw[1] & 1 else "big"
-    n = int.from_bytes(raw[4:8], order)
-    return raw[8:8 + max(0, n - 1)].decode("utf-8", errors="replace")
 
 
 class MetricsNode(Node):
@@ -110,7 +109,7 @@ class MetricsNode(Node):
                 self._recorder.on_event(status.name, {kv.key: kv.value for kv in status.values})
 
     def _on_request(self, raw: bytes) -> None:
-        text = cdr_string(raw)
+        text = _text(raw)
         try:
             robot = str(json.loads(text).get("robot", ""))
         except (ValueError, AttributeError):
@@ -120,14 +119,14 @@ class MetricsNode(Node):
                 self._recorder.on_comm("request", robot.strip("/"), len(raw), key=text)
 
     def _on_comm(self, topic: str, robot: str, raw: bytes) -> None:
-        key = cdr_string(raw) if topic == "assignment" else None
+        key = _text(raw) if topic == "assignment" else None
         with self._lock:
             self._recorder.on_comm(topic, robot, len(raw), key=key)
 
     def _on_state(self, raw: bytes) -> None:
         self._on_comm("state", "", raw)
         try:
-            epoch = decode_state(cdr_string(raw))
+            epoch = decode_state(_text(raw))
         except ContractError:
             return  # counted as communication; the coordinator's "up" event counts the start
         with self._lock:

@@ -11,13 +11,14 @@ with SIGKILL leaves every chunk it finished readable.
 
 This module holds the contract of a recording (:func:`recorded_topics`: the topics, types and
 QoS of a run; :data:`META_NAME`: the run's description in an MCAP metadata record) and the pure
-parts of the recorder (:class:`McapRecording`, :class:`TfBuilder`, the CDR helpers).
+parts of the recorder (:class:`McapRecording`, :class:`TfBuilder`; the CDR bytes through
+:mod:`swarm_common.cdr`).
 :mod:`swarm_record.recorder` is its ROS shell; ``swarm-plot`` (:mod:`swarm_record.plot`) reads it.
 
 ``/tf`` is not published by the swarm (SPEC §3: ``ground_truth`` is "tf-like"): the recorder
 builds ``tf2_msgs/msg/TFMessage`` from each robot's ``ground_truth`` and ``odom`` of one tick
 (``map`` -> ``<ns>/odom`` -> ``<ns>/base_footprint`` -> ``<ns>/base_scan``) and writes its CDR
-bytes itself (:func:`tf_message_cdr`), since no ``tf2_msgs`` wheel exists.
+bytes itself (:func:`swarm_common.cdr.tf_message`), since no ``tf2_msgs`` wheel exists.
 """
 
 from __future__ import annotations
@@ -26,12 +27,13 @@ import json
 import math
 import os
 import re
-import struct
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
-from swarm_common import topics
+from swarm_common import cdr, topics
+from swarm_common.geometry import quaternion_to_yaw
 from swarm_common.stamps import NS_PER_S
 
 PROFILE = "ros2"
@@ -285,47 +287,10 @@ def message_definition(type_name: str, share_dirs=None) -> str:
     return "\n".join(parts) + "\n"
 
 
-# ------------------------------------------------------------------------------------------ CDR
-_CDR_LE = b"\x00\x01\x00\x00"  # encapsulation: plain CDR, little endian
-_POSE = struct.Struct("<7d")
-_STAMP = struct.Struct("<iI")
-
-
-def _align(offset: int, n: int) -> int:
-    return offset + (-offset % n)
-
-
-def header_stamp_ns(data: bytes) -> int:
-    """The ``header.stamp`` of a CDR message whose first field is a header (or a ``Time``,
-    as ``rosgraph_msgs/Clock``) [ns]."""
-    sec, nsec = _STAMP.unpack_from(data, 4)
-    return sec * NS_PER_S + nsec
-
-
-def odometry_pose(data: bytes) -> tuple[int, tuple[float, ...]]:
-    """Read ``header.stamp`` and ``pose.pose`` of a CDR ``nav_msgs/msg/Odometry``.
-
-    Args:
-        data: the serialized message (4-byte encapsulation header, then the payload).
-
-    Returns:
-        ``(stamp [ns], (x, y, z [m], qx, qy, qz, qw))``.
-
-    Raises:
-        struct.error: the message is too short.
-    """
-    stamp = header_stamp_ns(data)
-    off = 8  # payload offset: after stamp
-    (n,) = struct.unpack_from("<I", data, 4 + off)
-    off = _align(off + 4 + n, 4)  # child_frame_id
-    (n,) = struct.unpack_from("<I", data, 4 + off)
-    off = _align(off + 4 + n, 8)
-    return stamp, _POSE.unpack_from(data, 4 + off)
-
-
-@dataclass(frozen=True)
-class Transform:
-    """One ``geometry_msgs/TransformStamped``: ``child`` in ``parent``.
+# ----------------------------------------------------------------------------------------- /tf
+class Transform(NamedTuple):
+    """One ``geometry_msgs/TransformStamped``: ``child`` in ``parent`` (the tuple that
+    :func:`swarm_common.cdr.tf_message` serializes).
 
     Attributes:
         stamp_ns: [ns] simulated time.
@@ -338,32 +303,6 @@ class Transform:
     child: str
     translation: tuple[float, float, float]
     rotation: tuple[float, float, float, float]
-
-
-def tf_message_cdr(transforms: list[Transform]) -> bytes:
-    """Serialize a ``tf2_msgs/msg/TFMessage`` to CDR (little endian, as rmw_fastrtps does).
-
-    Layout (OMG CDR 1.0, alignment relative to the payload): ``uint32`` count, then per
-    transform ``int32 sec, uint32 nanosec``, ``frame_id`` and ``child_frame_id`` as
-    ``uint32`` length (with the NUL) + bytes, padding to 8, seven ``float64``.
-    """
-    out = bytearray(_CDR_LE)
-    out += struct.pack("<I", len(transforms))
-    for tf in transforms:
-        out += b"\x00" * (-(len(out) - 4) % 4)
-        out += _STAMP.pack(tf.stamp_ns // NS_PER_S, tf.stamp_ns % NS_PER_S)
-        for text in (tf.parent, tf.child):
-            raw = text.encode() + b"\x00"
-            out += b"\x00" * (-(len(out) - 4) % 4)
-            out += struct.pack("<I", len(raw)) + raw
-        out += b"\x00" * (-(len(out) - 4) % 8)
-        out += _POSE.pack(*tf.translation, *tf.rotation)
-    return bytes(out)
-
-
-def _yaw(q) -> float:
-    qx, qy, qz, qw = q
-    return math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
 
 
 class TfBuilder:
@@ -402,7 +341,7 @@ class TfBuilder:
         return self._add(ns, 1, data)
 
     def _add(self, ns: str, which: int, data: bytes) -> bytes | None:
-        stamp, pose = odometry_pose(data)
+        stamp, pose = cdr.odometry_pose(data)
         if stamp <= self._done[ns]:
             return None
         pending = self._pending[ns]
@@ -413,11 +352,11 @@ class TfBuilder:
         self._done[ns] = stamp
         for old in [s for s in pending if s <= stamp]:
             del pending[old]
-        return tf_message_cdr(self.transforms(ns, stamp, pair[0], pair[1]))
+        return cdr.tf_message(self.transforms(ns, stamp, pair[0], pair[1]))
 
     def transforms(self, ns: str, stamp: int, odom, truth) -> list[Transform]:
         """The three transforms of robot ``ns`` at ``stamp`` from its odom and true poses."""
-        yo, yt = _yaw(odom[3:]), _yaw(truth[3:])
+        yo, yt = quaternion_to_yaw(*odom[3:]), quaternion_to_yaw(*truth[3:])
         th = yt - yo
         c, s = math.cos(th), math.sin(th)
         tx = truth[0] - (c * odom[0] - s * odom[1])

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from swarm_common import cli, topics
+from swarm_common import cdr, cli, topics
 from swarm_common.errors import InputError, run_cli
 from swarm_common.nav_status import NavState, decode
 from swarm_record import mcap_format as rec
@@ -170,7 +170,7 @@ def read_run(path: Path) -> RunTrace:
             last_t = max(last_t, message.log_time)
             parts = topic.strip("/").split("/")
             if len(parts) == 2 and parts[1] in (topics.GROUND_TRUTH.name, topics.ODOM.name):
-                stamp, pose = rec.odometry_pose(message.data)
+                stamp, pose = cdr.odometry_pose(message.data)
                 (truth if parts[1] == "ground_truth" else odom).setdefault(parts[0], []).append(
                     (stamp / 1e9, pose[0], pose[1]))
             elif len(parts) == 2 and parts[1] == topics.NAV_STATUS.name:

@@ -26,7 +26,7 @@ import signal
 import sys
 import time
 
-from swarm_common import cli, topics
+from swarm_common import cdr, cli, topics
 from swarm_common.errors import run_cli
 from swarm_common.topics import Qos
 from swarm_record import mcap_format as rec
@@ -40,6 +40,14 @@ READY_LINE = "recorder ready"
 starts the simulator after it."""
 
 _NO_HEADER = {"diagnostic_msgs/msg/DiagnosticStatus"}  # log time = the latest /clock
+
+
+def _stamp(data: bytes) -> int:
+    """A message's header stamp [ns], 0 if it cannot be read."""
+    try:
+        return cdr.header_stamp(data)
+    except ValueError:
+        return 0
 
 
 def build_parser():
@@ -124,7 +132,7 @@ def make_node(recording: rec.McapRecording, robots, selected, tf: rec.TfBuilder 
                 if headerless:
                     t_ns = self.clock_ns
                 else:
-                    t_ns = rec.header_stamp_ns(data) or self.clock_ns
+                    t_ns = _stamp(data) or self.clock_ns
                     if is_clock and t_ns > self.clock_ns:
                         self.clock_ns = t_ns
                 if write:

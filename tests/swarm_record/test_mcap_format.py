@@ -18,7 +18,7 @@ from mcap.reader import make_reader
 from mcap.stream_reader import StreamReader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-from swarm_common import topics
+from swarm_common import cdr, topics
 from swarm_record import mcap_format as rec
 
 JAZZY = get_typestore(Stores.ROS2_JAZZY)
@@ -127,11 +127,11 @@ def _odometry(stamp_ns, frame, child, pose):
     ("o", "b"), ("", "")])
 def test_odometry_pose_reads_rosbags_cdr(frame, child):
     data = _odometry(12_300_000_000, frame, child, (1.25, -3.5, 2.0))
-    stamp, pose = rec.odometry_pose(data)
+    stamp, pose = cdr.odometry_pose(data)
     assert stamp == 12_300_000_000
     assert pose[:3] == (1.25, -3.5, 0.0)
     assert pose[5] == pytest.approx(math.sin(1.0)) and pose[6] == pytest.approx(math.cos(1.0))
-    assert rec.header_stamp_ns(data) == 12_300_000_000
+    assert cdr.header_stamp(data) == 12_300_000_000
 
 
 def test_odometry_pose_reads_rclpy_cdr():
@@ -143,7 +143,7 @@ def test_odometry_pose_reads_rclpy_cdr():
     msg.header.frame_id, msg.child_frame_id = "Srobot3/odom", "Srobot3/base_footprint"
     msg.pose.pose.position.x, msg.pose.pose.position.y = -0.5, 4.0
     msg.pose.pose.orientation.w = 1.0
-    stamp, pose = rec.odometry_pose(serialize_message(msg))
+    stamp, pose = cdr.odometry_pose(serialize_message(msg))
     assert stamp == 7_000_000_100 and pose == (-0.5, 4.0, 0.0, 0.0, 0.0, 0.0, 1.0)
 
 
@@ -154,7 +154,7 @@ def test_tf_message_cdr_decodes_with_rosbags_tf2_msgs():
                          (0.5, -0.25, 0.0), (0.0, 0.0, 0.6, 0.8)),
            rec.Transform(5_000_000_001, "Srobot1/base_footprint", "Srobot1/base_scan",
                          (-0.064, 0.0, 0.122), (0.0, 0.0, 0.0, 1.0))]
-    msg = JAZZY.deserialize_cdr(rec.tf_message_cdr(tfs), "tf2_msgs/msg/TFMessage")
+    msg = JAZZY.deserialize_cdr(cdr.tf_message(tfs), "tf2_msgs/msg/TFMessage")
     assert len(msg.transforms) == 3
     for got, want in zip(msg.transforms, tfs, strict=True):
         assert got.header.stamp.sec == 5 and got.header.stamp.nanosec == 1
@@ -162,7 +162,7 @@ def test_tf_message_cdr_decodes_with_rosbags_tf2_msgs():
         t, r = got.transform.translation, got.transform.rotation
         assert (t.x, t.y, t.z) == want.translation
         assert (r.x, r.y, r.z, r.w) == want.rotation
-    empty = JAZZY.deserialize_cdr(rec.tf_message_cdr([]), "tf2_msgs/msg/TFMessage")
+    empty = JAZZY.deserialize_cdr(cdr.tf_message([]), "tf2_msgs/msg/TFMessage")
     assert len(empty.transforms) == 0
 
 
