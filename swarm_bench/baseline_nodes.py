@@ -59,11 +59,12 @@ from swarm_common.cdr import (
 from swarm_common.errors import InputError, run_cli
 from swarm_common.nav_status import TERMINAL
 from swarm_common.stamps import NS_PER_S
+from swarm_nav.goal_wait import POLL_S as GOAL_WAIT_POLL_S
+from swarm_nav.goal_wait import GoalWait
 from swarm_ros.qos import publisher, subscription
 from swarm_up.clock import SharedClock
 
 STATUS_PERIOD_NS = NS_PER_S // 2  # nav_status at 2 Hz simulated and on every change (as nav)
-GOAL_WAIT_POLL_S = 0.05  # [s] wall, as swarm_nav.node
 PROGRESS_EVERY_S = 5.0  # [s] wall between the baseline simulator's progress lines
 
 class _Cpu:
@@ -353,16 +354,13 @@ class BaselineNavigatorNode(Node):
         self.goal_start_ns = 0
         self.path_version = 0
         self.goals_taken = 0
-        self.goal_wait_timeouts = 0
+        self.goal_wait = GoalWait(cfg.goal_wait_timeout_s)  # the real navigator's handshake
         self._published_path = 0
         self._scan_stamp = -1
         self._ranges = None
         self._pending: Odometry | None = None
         self._goals: list[tuple[int, str]] = []  # (stamp, id) awaiting a tick
-        self._terminal_ns: int | None = None
-        self._goal_wait_over: int | None = None
         self._goal_timer = None
-        self._goal_wait_started = 0.0
         self._goal_topic = f"/{ns}/goal_pose"
         self._last_status: tuple | None = None
         self._last_status_ns = -STATUS_PERIOD_NS
@@ -410,7 +408,7 @@ class BaselineNavigatorNode(Node):
             return
         if self._awaits_goal(t):
             if self._goal_timer is None and self.answered:
-                self._goal_wait_started = time.monotonic()
+                self.goal_wait.begin(time.monotonic())
                 self._goal_timer = self.create_timer(
                     GOAL_WAIT_POLL_S, lambda: self._on_goal_wait_poll(t),
                     clock=RclpyClock(clock_type=ClockType.STEADY_TIME))
@@ -420,22 +418,20 @@ class BaselineNavigatorNode(Node):
         self._tick(odom)
 
     def _awaits_goal(self, t: int) -> bool:
-        if not self.cfg.commanders or any(stamp < t for stamp, _ in self._goals):
+        if not self.cfg.commanders:
             return False
         if not self.answered:  # the start gate waits for the commander to connect
-            return self.count_publishers(self._goal_topic) == 0
-        return (self._terminal_ns is not None and t == self._terminal_ns + self.tick_ns
-                and self._goal_wait_over != t and self.count_publishers(self._goal_topic) > 0)
+            return (not any(stamp < t for stamp, _ in self._goals)
+                    and not self._commander_connected())
+        return self.goal_wait.needed(t, bool(self._goals), self._commander_connected)
+
+    def _commander_connected(self) -> bool:
+        return self.count_publishers(self._goal_topic) > 0
 
     def _on_goal_wait_poll(self, t: int) -> None:
-        if (time.monotonic() - self._goal_wait_started < self.cfg.goal_wait_timeout_s
-                and self.count_publishers(self._goal_topic) > 0):
-            return
-        if self.count_publishers(self._goal_topic) > 0:
-            self.goal_wait_timeouts += 1
-        self._cancel_goal_timer()
-        self._goal_wait_over = t
-        self._release()
+        if self.goal_wait.poll(t, time.monotonic(), self._commander_connected()):
+            self._cancel_goal_timer()
+            self._release()
 
     def _cancel_goal_timer(self) -> None:
         if self._goal_timer is not None:
@@ -458,11 +454,7 @@ class BaselineNavigatorNode(Node):
         elif self.state == "DRIVING" and t - self.goal_start_ns >= self.goal_period_ns:
             self.state = "SUCCEEDED"
         self.cmd_pub.publish(self._cmd_writer.write(t, 0.0, 0.0))  # bytes, as swarm_nav.node
-        if self.state in TERMINAL:
-            if self._terminal_ns is None:
-                self._terminal_ns = t
-        else:
-            self._terminal_ns = None
+        self.goal_wait.answered(t, self.state in TERMINAL)
         if self.has_map:
             self._publish_status()
             self._publish_plan()
@@ -478,7 +470,7 @@ class BaselineNavigatorNode(Node):
               "goal_yaw": "0.0000", "distance_remaining_m": "1.000",
               "navigation_time_s": f"{(self._now_ns - self.goal_start_ns) / NS_PER_S:.3f}",
               "recoveries": "0", "holding_time_s": "0.000",
-              "goal_wait_timeouts": str(self.goal_wait_timeouts), "reason": ""}
+              "goal_wait_timeouts": str(self.goal_wait.timeouts), "reason": ""}
         self.status_pub.publish(diagnostic_status(  # bytes, as swarm_nav.node
             0, f"{self.ns}/navigator", self.state, self.ns, kv))
 
@@ -579,7 +571,7 @@ def _spin(nodes: list[Node]) -> None:
         for node in nodes:
             if isinstance(node, BaselineNavigatorNode):
                 print(f"baseline: {node.ns} took {node.goals_taken} goals, "
-                      f"{node.goal_wait_timeouts} goal-wait timeouts", flush=True)
+                      f"{node.goal_wait.timeouts} goal-wait timeouts", flush=True)
         print(_Cpu.line(), flush=True)
         for node in nodes:
             node.destroy_node()

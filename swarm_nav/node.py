@@ -47,6 +47,8 @@ from swarm_common.stamps import NS_PER_S, format_stamp
 from swarm_nav import jit
 from swarm_nav.config import NavigatorConfig, flat_defaults
 from swarm_nav.core import NavigatorCore
+from swarm_nav.goal_wait import POLL_S as GOAL_WAIT_POLL_S
+from swarm_nav.goal_wait import GoalWait
 from swarm_nav.holding import holding_sites_from_poi, site_kinds_from_poi
 from swarm_ros.qos import publisher, subscription
 
@@ -74,7 +76,6 @@ _CONTEXT_PARAMS = {
                           "irreproducible and is counted (nav_status goal_wait_timeouts); "
                           "swarm-up --commanders sets 2.5"),
 }
-GOAL_WAIT_POLL_S = 0.05  # [s] wall: how often a waiting tick checks its commander is still there
 COMMANDER_WAIT_S = 60.0  # [s] wall: how long the first answer waits for a commander to connect
 def stamp_ns(stamp) -> int:
     """``builtin_interfaces/Time`` -> integer nanoseconds."""
@@ -155,17 +156,12 @@ class NavigatorNode(Node):
         self._lidar_every = max(1, round(1.0 / (self.lidar.rate_hz * self.cfg.control_period)))
         self._pending: Odometry | None = None
         self._goals: list[tuple[int, np.ndarray, str]] = []  # (stamp, pose, id) awaiting a tick
-        self._terminal_ns: int | None = None  # tick at which the current terminal state began
-        self._goal_wait_over: int | None = None  # tick whose wait for a goal ended without one
-        self._no_next_goal: int | None = None  # end tick of the goal after which none will come
         self._goal_timer = None
-        self._goal_wait_started = 0.0  # [s] monotonic, when the current wait began
-        self._goal_wait_timeout = float(self.get_parameter("goal_wait_timeout").value)
-        if not (math.isfinite(self._goal_wait_timeout) and self._goal_wait_timeout >= 0.0):
+        goal_wait_timeout = float(self.get_parameter("goal_wait_timeout").value)
+        if not (math.isfinite(goal_wait_timeout) and goal_wait_timeout >= 0.0):
             raise InputError(f"parameter goal_wait_timeout: must be a finite number >= 0 "
-                             f"[s], got {self._goal_wait_timeout}")
-        self.goal_wait_timeouts = 0
-        """Ticks answered without the commander's goal because the wait timed out."""
+                             f"[s], got {goal_wait_timeout}")
+        self.goal_wait = GoalWait(goal_wait_timeout)
         self._answered = False
         self._started = time.monotonic()
         self._goal_topic = f"{self.get_namespace().rstrip('/')}/goal_pose"
@@ -312,7 +308,7 @@ class NavigatorNode(Node):
             return
         if self._awaits_goal(t):
             if self._goal_timer is None and self._answered:
-                self._goal_wait_started = time.monotonic()
+                self.goal_wait.begin(time.monotonic())
                 self._goal_timer = self.create_timer(
                     GOAL_WAIT_POLL_S, lambda: self._on_goal_wait_poll(t),
                     clock=Clock(clock_type=ClockType.STEADY_TIME))
@@ -324,17 +320,10 @@ class NavigatorNode(Node):
     def _awaits_goal(self, t: int) -> bool:
         if not self._answered:  # even with a goal there: a restarted navigator gets one at once
             return self._start_gate_closed()
-        if any(stamp < t for stamp, _, _ in self._goals):
-            return False
-        if self._goals:  # the next goal came, stamped ahead: it applies at its stamp
-            return False
-        # The first tick answered after the goal ended (normally the next one; a later one when
-        # that tick's odometry or scan was lost, e.g. to a drop fault) waits, once, unless the
-        # commander said no goal is coming (a cancel while no goal runs).
-        return (self._terminal_ns is not None and t > self._terminal_ns
-                and (self._goal_wait_over is None or self._goal_wait_over <= self._terminal_ns)
-                and self._no_next_goal != self._terminal_ns
-                and self.count_publishers(self._goal_topic) > 0)
+        return self.goal_wait.needed(t, bool(self._goals), self._commander_connected)
+
+    def _commander_connected(self) -> bool:
+        return self.count_publishers(self._goal_topic) > 0
 
     def _start_gate_closed(self) -> bool:
         """Whether the first answer must still wait: for a commander to connect
@@ -373,18 +362,15 @@ class NavigatorNode(Node):
         return True
 
     def _on_goal_wait_poll(self, t: int) -> None:
-        waited = time.monotonic() - self._goal_wait_started
-        commander = self.count_publishers(self._goal_topic) > 0
-        if commander and waited < self._goal_wait_timeout:
+        commander = self._commander_connected()
+        if not self.goal_wait.poll(t, time.monotonic(), commander):
             return
         if commander:
-            self.goal_wait_timeouts += 1
             self._warn("goal_wait", f"the commander's next goal did not come within "
-                       f"{self._goal_wait_timeout:g} s (wall); tick {t / NS_PER_S:.3f} s answered "
-                       f"without it: this run is not reproducible "
-                       f"({self.goal_wait_timeouts} time(s) so far)")
+                       f"{self.goal_wait.timeout_s:g} s (wall); tick {t / NS_PER_S:.3f} s "
+                       f"answered without it: this run is not reproducible "
+                       f"({self.goal_wait.timeouts} time(s) so far)")
         self._cancel_goal_timer()
-        self._goal_wait_over = t
         self._release()
 
     def _cancel_goal_timer(self) -> None:
@@ -416,11 +402,10 @@ class NavigatorNode(Node):
         active = self.core.state not in TERMINAL
         self.core.cancel(self._now_ns / NS_PER_S)
         self._publish_status(force=True)
-        if not active and self._terminal_ns is not None:
-            # A cancel with no goal running says "no next goal is coming": the first tick after
-            # the goal that ended need not wait for one (a coordinated commander whose robot
-            # reached its waiting spot). Answered at that same tick: reproducible.
-            self._no_next_goal = self._terminal_ns
+        # A cancel with no goal running says "no next goal is coming": the first tick after the
+        # goal that ended need not wait for one (a coordinated commander whose robot reached its
+        # waiting spot). Answered at that same tick: reproducible.
+        if not active and self.goal_wait.no_goal_coming():
             self._release()
         response.success = active
         response.message = "canceled" if active else "no active goal"
@@ -455,11 +440,7 @@ class NavigatorNode(Node):
             if not (math.isfinite(v) and math.isfinite(w)):
                 v = w = 0.0
         self.cmd_pub.publish(self._cmd_writer.write(t, float(v), float(w)))
-        if self.core.state in TERMINAL:
-            if self._terminal_ns is None:
-                self._terminal_ns = t
-        else:
-            self._terminal_ns = None
+        self.goal_wait.answered(t, self.core.state in TERMINAL)
         if self.has_map and not self.ready:
             self.ready = True
             self.get_logger().info("ready: map and odometry received")
@@ -482,7 +463,7 @@ class NavigatorNode(Node):
     # -- outputs -------------------------------------------------------------------------------
 
     def _publish_status(self, force: bool = False) -> None:
-        key = (*self.core.status_key, self.goal_wait_timeouts)
+        key = (*self.core.status_key, self.goal_wait.timeouts)
         if not force and key == self._last_status and (
                 self._now_ns - self._last_status_ns < STATUS_PERIOD_NS):
             return
@@ -500,7 +481,7 @@ class NavigatorNode(Node):
             navigation_time=st.navigation_time if st else 0.0,
             recoveries=st.recoveries if st else 0,
             holding_time=st.holding_time if st else 0.0,
-            goal_wait_timeouts=self.goal_wait_timeouts, reason=reason)
+            goal_wait_timeouts=self.goal_wait.timeouts, reason=reason)
         self.status_pub.publish(diagnostic_status(  # CDR bytes: no 13 KeyValue objects
             level_of(state), f"{self.ns}/navigator", state.value, self.ns, encode(record)))
 

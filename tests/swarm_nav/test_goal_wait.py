@@ -1,0 +1,53 @@
+"""The goal-wait handshake (swarm_nav.goal_wait), pure: when a tick waits, and for how long."""
+
+from swarm_nav.goal_wait import GoalWait
+
+TICK = 100_000_000  # [ns]
+
+
+def _ended_at(t_ns: int, timeout_s: float = 2.5) -> GoalWait:
+    gw = GoalWait(timeout_s)
+    gw.answered(t_ns - TICK, terminal=False)
+    gw.answered(t_ns, terminal=True)
+    return gw
+
+
+def test_the_first_tick_after_a_goal_ended_waits_once_for_a_connected_commander():
+    gw = _ended_at(10 * TICK)
+    assert not gw.needed(10 * TICK, False, lambda: True)  # the ending tick itself
+    assert gw.needed(11 * TICK, False, lambda: True)
+    assert not gw.needed(11 * TICK, True, lambda: True)  # the goal came
+    assert not gw.needed(11 * TICK, False, lambda: False)  # no commander
+    gw.begin(0.0)
+    assert gw.poll(11 * TICK, 3.0, commander=True)  # timed out: answered without a goal
+    gw.answered(11 * TICK, terminal=True)
+    assert not gw.needed(12 * TICK, False, lambda: True)  # once per ended goal
+
+
+def test_a_running_goal_never_waits_and_the_commander_is_asked_last():
+    gw = GoalWait(2.5)
+    gw.answered(5 * TICK, terminal=False)
+    asked = []
+    assert not gw.needed(6 * TICK, False, lambda: asked.append(1) or True)
+    assert asked == []
+
+
+def test_a_wait_ends_at_the_timeout_and_is_counted_or_when_the_commander_leaves():
+    gw = _ended_at(10 * TICK, timeout_s=2.5)
+    gw.begin(100.0)
+    assert not gw.poll(11 * TICK, 101.0, commander=True)
+    assert gw.poll(11 * TICK, 102.5, commander=True)
+    assert gw.timeouts == 1
+    assert not gw.needed(11 * TICK, False, lambda: True)  # over: the tick is answered
+    gw = _ended_at(10 * TICK)
+    gw.begin(100.0)
+    assert gw.poll(11 * TICK, 100.1, commander=False)
+    assert gw.timeouts == 0
+
+
+def test_no_goal_coming_lifts_the_wait_only_after_a_goal_ended():
+    gw = GoalWait(2.5)
+    assert not gw.no_goal_coming()
+    gw = _ended_at(10 * TICK)
+    assert gw.no_goal_coming()
+    assert not gw.needed(11 * TICK, False, lambda: True)
