@@ -35,7 +35,6 @@ from nav_msgs.msg import OccupancyGrid, Odometry
 from nav_msgs.msg import Path as PathMsg
 from rclpy.clock import Clock as RclpyClock
 from rclpy.clock import ClockType
-from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -62,6 +61,7 @@ from swarm_common.stamps import NS_PER_S
 from swarm_nav.goal_wait import POLL_S as GOAL_WAIT_POLL_S
 from swarm_nav.goal_wait import GoalWait
 from swarm_ros.qos import publisher, subscription
+from swarm_ros.session import node_session, spin_forever
 from swarm_up.clock import SharedClock
 
 STATUS_PERIOD_NS = NS_PER_S // 2  # nav_status at 2 Hz simulated and on every change (as nav)
@@ -299,25 +299,22 @@ def run_sim(cfg: BaselineConfig) -> int:
     Returns:
         0 when the run reached its duration, 130 when stopped, 1 when the gate never opened.
     """
-    rclpy.init(args=["baseline_sim"], signal_handler_options=SignalHandlerOptions.NO)
-    node = BaselineSimNode(cfg)
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, node.request_stop)
-    executor = EventsExecutor()
-    executor.add_node(node)
     wall_s, started = 0.0, False
-    try:
-        wall_s, started = node.run(executor)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        summary = node.summary(wall_s, started)
-        Path(cfg.summary_path).write_text(json.dumps(summary, indent=2) + "\n")
-        print(f"baseline: simulated {summary['sim_time_s']:.1f} s in {wall_s:.1f} s wall "
-              f"(RTF {summary['rtf']}), late ticks {summary['late_ticks']}", flush=True)
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
+    with node_session(["baseline_sim"], signal_handler_options=SignalHandlerOptions.NO) as nodes:
+        node = BaselineSimNode(cfg)
+        nodes.append(node)
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, node.request_stop)
+        executor = EventsExecutor()
+        executor.add_node(node)
+        try:
+            wall_s, started = node.run(executor)
+        finally:
+            summary = node.summary(wall_s, started)
+            Path(cfg.summary_path).write_text(json.dumps(summary, indent=2) + "\n")
+            print(f"baseline: simulated {summary['sim_time_s']:.1f} s in {wall_s:.1f} s wall "
+                  f"(RTF {summary['rtf']}), late ticks {summary['late_ticks']}", flush=True)
+            executor.shutdown()
     if node.stop_requested:
         return 130
     return 0 if started else 1
@@ -558,14 +555,13 @@ class BaselineListenerNode(Node):
 
 # ------------------------------------------------------------------------------------ processes
 def _spin(nodes: list[Node]) -> None:
+    """Spin ``nodes`` until SIGINT/SIGTERM (rclpy's own handlers end the spin), then print the
+    navigators' goals and this process's CPU line."""
     executor = EventsExecutor()
     for node in nodes:
         executor.add_node(node)
     try:
-        while rclpy.ok():
-            executor.spin_once(timeout_sec=0.5)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        spin_forever(executor, nodes[0].context)
     finally:
         executor.shutdown()
         for node in nodes:
@@ -573,9 +569,6 @@ def _spin(nodes: list[Node]) -> None:
                 print(f"baseline: {node.ns} took {node.goals_taken} goals, "
                       f"{node.goal_wait.timeouts} goal-wait timeouts", flush=True)
         print(_Cpu.line(), flush=True)
-        for node in nodes:
-            node.destroy_node()
-        rclpy.try_shutdown()
 
 
 def run_group(cfg: BaselineConfig, namespaces: list[str], navigators: bool,
@@ -585,19 +578,18 @@ def run_group(cfg: BaselineConfig, namespaces: list[str], navigators: bool,
     Returns:
         0 (stopped by SIGINT/SIGTERM).
     """
-    rclpy.init(args=["baseline_group"])  # rclpy's own SIGINT/SIGTERM handlers end the spin
-    nodes: list[Node] = []
-    for ns in namespaces:
-        if navigators:
-            nodes.append(BaselineNavigatorNode(ns, cfg))
-        if commanders:
-            nodes.append(BaselineCommanderNode(ns))
-    if len(nodes) > 1:  # a group process: one /clock subscription, as swarm_up.group
-        clock = SharedClock(f"/{namespaces[0]}")
-        for node in nodes:
-            clock.adopt(node)
-        nodes.append(clock.node)
-    _spin(nodes)
+    with node_session(["baseline_group"]) as nodes:
+        for ns in namespaces:
+            if navigators:
+                nodes.append(BaselineNavigatorNode(ns, cfg))
+            if commanders:
+                nodes.append(BaselineCommanderNode(ns))
+        if len(nodes) > 1:  # a group process: one /clock subscription, as swarm_up.group
+            clock = SharedClock(f"/{namespaces[0]}")
+            for node in nodes:
+                clock.adopt(node)
+            nodes.append(clock.node)
+        _spin(nodes)
     return 0
 
 
@@ -607,8 +599,9 @@ def run_listener(cfg: BaselineConfig) -> int:
     Returns:
         0 (stopped by SIGINT/SIGTERM).
     """
-    rclpy.init(args=["baseline_listener"])
-    _spin([BaselineListenerNode(cfg)])
+    with node_session(["baseline_listener"]) as nodes:
+        nodes.append(BaselineListenerNode(cfg))
+        _spin(nodes)
     return 0
 
 

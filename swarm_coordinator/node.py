@@ -31,11 +31,9 @@ import sys
 import time
 import uuid
 
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy._rclpy_pybind11 import RCLInvalidROSArgsError
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.utilities import remove_ros_args
@@ -56,6 +54,7 @@ from swarm_common.errors import InputError, run_cli
 from swarm_common.stamps import NS_PER_S
 from swarm_coordinator.core import CoordinatorConfig, CoordinatorCore
 from swarm_ros.qos import publisher, subscription
+from swarm_ros.session import node_session, spin_forever
 
 PROG = "swarm-coordinator"
 NODE_NAME = COORDINATOR_NODE
@@ -305,23 +304,15 @@ def _run(argv: list[str]) -> int:
     robots = tuple(f"{opts.name_prefix}{i}" for i in range(1, opts.swarm_size + 1))
     epoch = uuid.uuid4().hex[:12]  # fixed length: message sizes do not depend on it
     core = build_core(opts.world, opts.seed, robots, opts.robot, opts.control_period, epoch)
-    rclpy.init(args=[PROG, *argv])
-    node = None
-    try:
+    with node_session([PROG, *argv]) as nodes:
         node = CoordinatorNode(core, opts.batch_window, opts.start_timeout,
                                opts.restart_timeout)
+        nodes.append(node)
         print(f"{PROG}: up (epoch {epoch}): {len(robots)} robots, {len(core.stations)} "
               f"workstations, {len(core.spots)} waiting spots", flush=True)
         executor = EventsExecutor()
         executor.add_node(node)
-        while rclpy.ok():
-            executor.spin_once(timeout_sec=0.5)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+        spin_forever(executor, node.context)
     return 0
 
 

@@ -19,13 +19,11 @@ import sys
 import time
 
 import numpy as np
-import rclpy
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import LaserScan
@@ -51,6 +49,7 @@ from swarm_nav.goal_wait import POLL_S as GOAL_WAIT_POLL_S
 from swarm_nav.goal_wait import GoalWait
 from swarm_nav.holding import holding_sites_from_poi, site_kinds_from_poi
 from swarm_ros.qos import publisher, subscription
+from swarm_ros.session import node_session, spin_forever
 
 STATUS_PERIOD_NS = NS_PER_S // 2  # nav_status at 2 Hz simulated, and on every change of state
 # Parameters that describe the robot and its world rather than an algorithm.
@@ -502,16 +501,6 @@ class NavigatorNode(Node):
             self._now_ns, np.zeros((0, 2)) if path is None else path))
 
 
-def spin_forever(executor, context) -> None:
-    """Spin until the context shuts down (Ctrl-C, SIGTERM).
-
-    ``EventsExecutor.spin()`` of this rclpy (7.1.6 wheels) delivered no message across processes
-    in our tests while ``spin_once`` did, so we loop on ``spin_once``.
-    """
-    while context.ok():
-        executor.spin_once(timeout_sec=0.5)
-
-
 def main(args=None) -> int:
     """Entry point of ``swarm-nav`` (STYLE.md point 7)."""
     argv = sys.argv if args is None else args
@@ -523,26 +512,15 @@ def main(args=None) -> int:
         for name, (default, unit, text) in _CONTEXT_PARAMS.items():
             print(f"  {name} = {default!r}  [{unit}] {text}")
         return 0
-    rclpy.init(args=argv)
-    node = None
     try:
-        node = NavigatorNode()
-        executor = EventsExecutor()
-        executor.add_node(node)
-        spin_forever(executor, node.context)
+        with node_session(argv) as nodes:
+            nodes.append(NavigatorNode())
+            executor = EventsExecutor()
+            executor.add_node(nodes[0])
+            spin_forever(executor, nodes[0].context)
     except InputError as exc:
         print(f"swarm-nav: error: {exc}", file=sys.stderr)
         return 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except Exception:
-        if rclpy.ok():
-            raise
-        # Stopped while still starting: the node's creation failed on the shut-down context.
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
     return 0
 
 

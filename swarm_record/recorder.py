@@ -186,6 +186,8 @@ def _record(args, robots, selected, tf) -> int:
     from rclpy.experimental import EventsExecutor
     from rclpy.signals import SignalHandlerOptions
 
+    from swarm_ros.session import node_session
+
     stop = {"why": None}
 
     def on_signal(signum, frame):
@@ -199,28 +201,27 @@ def _record(args, robots, selected, tf) -> int:
     meta = json.loads(args.meta)
     if meta:
         recording.add_metadata(rec.META_NAME, {k: str(v) for k, v in meta.items()})
-    rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
-    node = make_node(recording, robots, selected, tf)
-    executor = EventsExecutor()
-    executor.add_node(node)
-    print(f"{READY_LINE}: {len(node.subs)} subscriptions, writing {args.out}", flush=True)
-    next_check = time.monotonic() + PARENT_CHECK_S
-    try:
-        while stop["why"] is None and rclpy.ok():
-            executor.spin_once(timeout_sec=0.1)
-            now = time.monotonic()
-            if now >= next_check:
-                next_check = now + PARENT_CHECK_S
-                if os.getppid() != parent:
-                    stop["why"] = "parent gone"
-        until = time.monotonic() + DRAIN_S
-        while time.monotonic() < until and rclpy.ok():
-            executor.spin_once(timeout_sec=0.05)
-    finally:
-        recording.close()
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
+    with node_session([], signal_handler_options=SignalHandlerOptions.NO) as nodes:
+        node = make_node(recording, robots, selected, tf)
+        nodes.append(node)
+        executor = EventsExecutor()
+        executor.add_node(node)
+        print(f"{READY_LINE}: {len(node.subs)} subscriptions, writing {args.out}", flush=True)
+        next_check = time.monotonic() + PARENT_CHECK_S
+        try:
+            while stop["why"] is None and rclpy.ok():
+                executor.spin_once(timeout_sec=0.1)
+                now = time.monotonic()
+                if now >= next_check:
+                    next_check = now + PARENT_CHECK_S
+                    if os.getppid() != parent:
+                        stop["why"] = "parent gone"
+            until = time.monotonic() + DRAIN_S
+            while time.monotonic() < until and rclpy.ok():
+                executor.spin_once(timeout_sec=0.05)
+        finally:
+            recording.close()
+            executor.shutdown()
     total = sum(recording.counts.values())
     size_mb = os.path.getsize(args.out) / 2**20
     print(f"recorded {total} messages on {len(recording.counts)} topics to {args.out} "

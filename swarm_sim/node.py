@@ -29,7 +29,6 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseArray, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry
 from rclpy.duration import Duration
-from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node, NodeNameNonExistentError
 from rclpy.parameter import Parameter
@@ -56,6 +55,7 @@ from swarm_common.sim_summary import CollisionCounts, RobotSummary, SimSummary
 from swarm_common.stamps import NS_PER_S
 from swarm_common.world import describe_skipped
 from swarm_ros.qos import publisher, subscription
+from swarm_ros.session import node_session
 from swarm_sim.standstill import StandstillTracker
 
 # A manual (zero-stamp) command outranks the navigator's answers for this long after it arrived,
@@ -866,33 +866,30 @@ def main(args=None) -> int:
         # callback comes out as pybind11's "Unable to convert call argument" RuntimeError.
         signal.signal(signal.SIGTERM, _raise_interrupt)
         signal.signal(signal.SIGINT, signal.default_int_handler)  # even if started ignoring it
-        rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
-        node = SimulatorNode(settings, engine, occ, namespaces, faults)
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(sig, node.request_stop)
-        node.set_parameters([Parameter("use_sim_time", value=False)])
-        executor = EventsExecutor()
-        executor.add_node(node)
-        wall0 = time.monotonic()
-        try:
-            node.publish_spawns()
-            node.run(executor)
-        except (KeyboardInterrupt, ExternalShutdownException):
-            pass
-        finally:
-            wall_s = time.monotonic() - wall0
-            node.wait_for_acks()
-            summary = node.summary_record(wall_s, spawned, world.skipped)
-            if settings.summary:
-                summary.write(settings.summary)
-            c = summary.collisions
-            print(f"simulated {summary.sim_time_s:.1f} s in {wall_s:.1f} s wall "
-                  f"(RTF {summary.rtf}), collisions robot-robot {c.robot_robot} "
-                  f"robot-wall {c.robot_wall}, late ticks {summary.late_ticks}",
-                  flush=True)
-            executor.shutdown()
-            node.destroy_node()
-            rclpy.try_shutdown()
+        with node_session(argv, signal_handler_options=SignalHandlerOptions.NO) as nodes:
+            node = SimulatorNode(settings, engine, occ, namespaces, faults)
+            nodes.append(node)
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                signal.signal(sig, node.request_stop)
+            node.set_parameters([Parameter("use_sim_time", value=False)])
+            executor = EventsExecutor()
+            executor.add_node(node)
+            wall0 = time.monotonic()
+            try:
+                node.publish_spawns()
+                node.run(executor)
+            finally:  # also on Ctrl-C (then the session ends it quietly)
+                wall_s = time.monotonic() - wall0
+                node.wait_for_acks()
+                summary = node.summary_record(wall_s, spawned, world.skipped)
+                if settings.summary:
+                    summary.write(settings.summary)
+                c = summary.collisions
+                print(f"simulated {summary.sim_time_s:.1f} s in {wall_s:.1f} s wall "
+                      f"(RTF {summary.rtf}), collisions robot-robot {c.robot_robot} "
+                      f"robot-wall {c.robot_wall}, late ticks {summary.late_ticks}",
+                      flush=True)
+                executor.shutdown()
         return 0
 
     try:
