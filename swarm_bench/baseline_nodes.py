@@ -58,7 +58,6 @@ from swarm_common.cdr import (
 from swarm_common.errors import InputError, run_cli
 from swarm_common.nav_status import TERMINAL
 from swarm_common.stamps import NS_PER_S
-from swarm_nav.goal_wait import POLL_S as GOAL_WAIT_POLL_S
 from swarm_nav.goal_wait import GoalWait
 from swarm_ros.qos import publisher, subscription
 from swarm_ros.session import node_session, spin_forever
@@ -351,13 +350,13 @@ class BaselineNavigatorNode(Node):
         self.goal_start_ns = 0
         self.path_version = 0
         self.goals_taken = 0
-        self.goal_wait = GoalWait(cfg.goal_wait_timeout_s)  # the real navigator's handshake
+        self.goal_wait = GoalWait(  # the real navigator's handshake
+            cfg.goal_wait_timeout_s, self._steady_timer, self.destroy_timer)
         self._published_path = 0
         self._scan_stamp = -1
         self._ranges = None
         self._pending: Odometry | None = None
         self._goals: list[tuple[int, str]] = []  # (stamp, id) awaiting a tick
-        self._goal_timer = None
         self._goal_topic = f"/{ns}/goal_pose"
         self._last_status: tuple | None = None
         self._last_status_ns = -STATUS_PERIOD_NS
@@ -404,14 +403,11 @@ class BaselineNavigatorNode(Node):
         if round(t / self.tick_ns) % self.cfg.lidar_every == 0 and self._scan_stamp != t:
             return
         if self._awaits_goal(t):
-            if self._goal_timer is None and self.answered:
-                self.goal_wait.begin(time.monotonic())
-                self._goal_timer = self.create_timer(
-                    GOAL_WAIT_POLL_S, lambda: self._on_goal_wait_poll(t),
-                    clock=RclpyClock(clock_type=ClockType.STEADY_TIME))
+            if self.answered:
+                self.goal_wait.hold(t, time.monotonic(), self._on_goal_wait_poll)
             return
         self._pending = None
-        self._cancel_goal_timer()
+        self.goal_wait.release()
         self._tick(odom)
 
     def _awaits_goal(self, t: int) -> bool:
@@ -427,13 +423,11 @@ class BaselineNavigatorNode(Node):
 
     def _on_goal_wait_poll(self, t: int) -> None:
         if self.goal_wait.poll(t, time.monotonic(), self._commander_connected()):
-            self._cancel_goal_timer()
             self._release()
 
-    def _cancel_goal_timer(self) -> None:
-        if self._goal_timer is not None:
-            self.destroy_timer(self._goal_timer)
-            self._goal_timer = None
+    def _steady_timer(self, period_s: float, callback):
+        return self.create_timer(period_s, callback,
+                                 clock=RclpyClock(clock_type=ClockType.STEADY_TIME))
 
     def _tick(self, odom: tuple) -> None:
         _Cpu.begin()

@@ -51,6 +51,7 @@ written, shown and plotted; the interrupted run is left out).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime
 import json
 import logging
@@ -62,6 +63,7 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
@@ -624,6 +626,67 @@ def _write_json(path: Path, doc: dict) -> None:
     os.replace(tmp, path)
 
 
+# ------------------------------------------------------- shared by swarm-bench, swarm-experiment
+def _now() -> str:
+    return datetime.datetime.now().astimezone().isoformat(timespec="seconds")
+
+
+def new_doc(kind: str, prog: str, schema_version: int, argv: list[str], settings: dict,
+            **extra) -> dict:
+    """The JSON document of a bench or an experiment before its first run: ``{kind: prog}``,
+    ``schema_version``, ``command``, ``started``, ``git``, ``machine``, ``settings``, ``extra``,
+    and the run's outcome (``finished``, ``interrupted``, ``exit_code``, ``records``,
+    ``summary``) still empty."""
+    return {kind: prog, "schema_version": schema_version, "command": [prog, *argv],
+            "started": _now(), "finished": None, "git": git_commit(), "machine": machine_info(),
+            "settings": settings, **extra, "interrupted": False, "exit_code": None,
+            "records": [], "summary": []}
+
+
+@contextlib.contextmanager
+def stop_on_signals() -> Iterator[StopFlag]:
+    """A :class:`StopFlag` that SIGINT and SIGTERM set while the block runs (the handlers
+    before it are restored after)."""
+    stop = StopFlag()
+    old = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield stop
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+
+
+def finish_doc(doc: dict, path: Path, summary: list[dict], stop: StopFlag, failed: bool) -> int:
+    """Close the document (outcome, end time, the machine's load, ``summary``) and write it to
+    ``path``.
+
+    Returns:
+        The exit code: 130 interrupted, 1 a run failed, else 0.
+    """
+    code = 130 if stop else (EXIT_RUNTIME if failed else EXIT_OK)
+    doc.update(interrupted=bool(stop), exit_code=code, finished=_now())
+    doc["machine"]["load_average_end"] = [round(x, 2) for x in os.getloadavg()]
+    doc["summary"] = summary
+    _write_json(path, doc)
+    return code
+
+
+def say_outcome(prog: str, stop: StopFlag, failed: bool, kept: str, results: Path) -> None:
+    """On stderr: the interruption (``kept``: what was kept) or that a run failed."""
+    if stop:
+        print(f"{prog}: interrupted; kept the {kept}", file=sys.stderr, flush=True)
+    elif failed:
+        print(f"{prog}: error: a run failed (see its exit code and log in {results})",
+              file=sys.stderr, flush=True)
+
+
+def command_main(prog: str, argv: list[str] | None, parse_and_check, run) -> int:
+    """A measuring command's entry point: ``run(parse_and_check(args), args)`` under
+    :func:`~swarm_common.errors.run_cli` (exit 2 on bad input)."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    return run_cli(prog, lambda: run(parse_and_check(args), args))
+
+
 # ------------------------------------------------------------------------------------------ main
 def bench(cfg: BenchConfig, argv: list[str]) -> int:
     """Run the whole bench; returns the exit code (0, 1 or 130)."""
@@ -639,90 +702,62 @@ def bench(cfg: BenchConfig, argv: list[str]) -> int:
             base_baseline = make_config(1, cfg.duration_s, cfg.run_dir, world=cfg.world)
         finally:
             quiet.setLevel(level)
-    doc = {
-        "bench": PROG,
-        "schema_version": SCHEMA_VERSION,
-        "command": [PROG, *argv],
-        "started": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
-        "finished": None,
-        "git": git_commit(),
-        "machine": machine_info(),
-        "settings": {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(cfg).items()},
-        "run_dir": str(cfg.run_dir),
-        "interrupted": False,
-        "exit_code": None,
-        "records": [],
-        "summary": [],
-    }
+    settings = {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(cfg).items()}
+    doc = new_doc("bench", PROG, SCHEMA_VERSION, argv, settings, run_dir=str(cfg.run_dir))
     title = (f"swarm-bench: {cfg.world}, {cfg.duration_s:g} simulated s, commanders, "
              f"{os.cpu_count()} cores")
-    stop = StopFlag()
-    old = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
-    view = BenchView(tty=sys.stdout.isatty())
-    view.say(f"{len(cfg.sizes)} sizes x {cfg.runs} runs of {cfg.duration_s:g} simulated s"
-             f"{' and the baseline' if cfg.baseline else ''}; logs in {cfg.run_dir}")
-    failed = False
-    try:
-        for n in cfg.sizes:
-            runs = []
-            for r in range(cfg.runs):
-                if stop:
-                    break
-                rec = run_swarm_up(cfg, n, r, stop, view)
-                if rec["interrupted"]:
-                    break
-                runs.append(rec)
-                failed |= rec["exit_code"] != EXIT_OK
-                doc["records"].append(rec)
-                doc["summary"] = summarize(cfg.sizes, doc["records"])
-                _write_json(cfg.output, doc)
-            if cfg.baseline and not stop:
-                layout = cfg.processes
-                if layout is None:
-                    reported = [r["metrics"].get("processes") for r in runs if r["metrics"]]
-                    layout = next((p for p in reported if p == PER_ROBOT
-                                   or (isinstance(p, int) and p > 0)), None)
-                    layout = layout if layout is not None else default_processes(n)
-                rec = run_baseline_size(cfg, base_baseline, n, layout, stop, view)
-                if not rec["interrupted"]:
-                    failed |= rec["exit_code"] != EXIT_OK
-                    doc["records"].append(rec)
-                    doc["summary"] = summarize(cfg.sizes, doc["records"])
-                    _write_json(cfg.output, doc)
-            if stop:
-                break
-    finally:
-        view.close()
-        for sig, handler in old.items():
-            signal.signal(sig, handler)
-    code = 130 if stop else (EXIT_RUNTIME if failed else EXIT_OK)
-    doc.update(interrupted=bool(stop), exit_code=code,
-               finished=datetime.datetime.now().astimezone().isoformat(timespec="seconds"))
-    doc["machine"]["load_average_end"] = [round(x, 2) for x in os.getloadavg()]
-    doc["summary"] = summarize(cfg.sizes, doc["records"])
-    _write_json(cfg.output, doc)
+    with stop_on_signals() as stop:
+        view = BenchView(tty=sys.stdout.isatty())
+        view.say(f"{len(cfg.sizes)} sizes x {cfg.runs} runs of {cfg.duration_s:g} simulated s"
+                 f"{' and the baseline' if cfg.baseline else ''}; logs in {cfg.run_dir}")
+        try:
+            _bench_sizes(cfg, base_baseline, doc, stop, view)
+        finally:
+            view.close()
+        failed = any(r["exit_code"] != EXIT_OK for r in doc["records"])
+    code = finish_doc(doc, cfg.output, summarize(cfg.sizes, doc["records"]), stop, failed)
     print_table(doc["summary"], cfg.baseline, title)
     write_plot(cfg.plot, doc["summary"], title)
     print(f"{PROG}: results: {cfg.output}", flush=True)
     print(f"{PROG}: plot: {cfg.plot}", flush=True)
-    if stop:
-        print(f"{PROG}: interrupted; kept the {len(doc['records'])} finished records",
-              file=sys.stderr, flush=True)
-    elif failed:
-        print(f"{PROG}: error: a run failed (see its exit code and log in {cfg.output})",
-              file=sys.stderr, flush=True)
+    say_outcome(PROG, stop, failed, f"{len(doc['records'])} finished records", cfg.output)
     return code
+
+
+def _bench_sizes(cfg: BenchConfig, base_baseline, doc: dict, stop: StopFlag,
+                 view: BenchView) -> None:
+    """Every size's runs (and baseline), each record added to ``doc`` and written at once."""
+    for n in cfg.sizes:
+        runs = []
+        for r in range(cfg.runs):
+            if stop:
+                break
+            rec = run_swarm_up(cfg, n, r, stop, view)
+            if rec["interrupted"]:
+                break
+            runs.append(rec)
+            doc["records"].append(rec)
+            doc["summary"] = summarize(cfg.sizes, doc["records"])
+            _write_json(cfg.output, doc)
+        if cfg.baseline and not stop:
+            layout = cfg.processes
+            if layout is None:
+                reported = [r["metrics"].get("processes") for r in runs if r["metrics"]]
+                layout = next((p for p in reported if p == PER_ROBOT
+                               or (isinstance(p, int) and p > 0)), None)
+                layout = layout if layout is not None else default_processes(n)
+            rec = run_baseline_size(cfg, base_baseline, n, layout, stop, view)
+            if not rec["interrupted"]:
+                doc["records"].append(rec)
+                doc["summary"] = summarize(cfg.sizes, doc["records"])
+                _write_json(cfg.output, doc)
+        if stop:
+            break
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``swarm-bench``; returns the exit code (0, 1, 2 or 130)."""
-    args_list = list(sys.argv[1:] if argv is None else argv)
-
-    def body() -> int:
-        cfg = validate(build_parser().parse_args(args_list))
-        return bench(cfg, args_list)
-
-    return run_cli(PROG, body)
+    return command_main(PROG, argv, lambda args: validate(build_parser().parse_args(args)), bench)
 
 
 if __name__ == "__main__":

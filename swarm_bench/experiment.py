@@ -44,16 +44,13 @@ Exit codes: 0 every run ended well, 1 a run failed (the experiment goes on), 2 b
 from __future__ import annotations
 
 import argparse
-import datetime
 import math
-import os
-import signal
 import sys
 from dataclasses import dataclass
 from pathlib import Path
 
 from swarm_common import cli
-from swarm_common.errors import EXIT_OK, EXIT_RUNTIME, InputError, run_cli
+from swarm_common.errors import EXIT_OK, InputError
 from swarm_common.faults import KILL_COORDINATOR
 from swarm_up.args import default_run_dir, processes_arg
 
@@ -662,79 +659,59 @@ def experiment(cfg: ExperimentConfig, argv: list[str]) -> int:
         BenchConfig,
         BenchView,
         _write_json,
-        git_commit,
-        machine_info,
+        finish_doc,
+        new_doc,
         run_swarm_up,
+        say_outcome,
+        stop_on_signals,
     )
-    from swarm_up.supervisor import StopFlag
 
     out = cfg.output
     out.mkdir(parents=True, exist_ok=True)
+    results = out / "experiment.json"
     cells = cfg.cells()
-    doc = {
-        "experiment": PROG, "schema_version": SCHEMA_VERSION, "command": [PROG, *argv],
-        "started": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
-        "finished": None, "git": git_commit(), "machine": machine_info(),
-        "settings": {"sizes": cfg.sizes, "duration_s": cfg.duration_s, "runs": cfg.runs,
-                     "seed": cfg.seed, "world": cfg.world, "modes": cfg.modes,
-                     "faults": cfg.faults, "fault_size": cfg.fault_size,
-                     "fault_times_s": cfg.fault_times, "fault_modes": cfg.fault_modes,
-                     "warmup_s": cfg.warmup_s,
-                     "processes": cfg.processes, "swarm_up": str(cfg.swarm_up)},
-        "interrupted": False, "exit_code": None, "records": [], "summary": [],
-    }
-    stop = StopFlag()
-    old = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
-    view = BenchView(tty=sys.stdout.isatty(), prog=PROG)
-    view.say(f"{len(cells)} cells x {cfg.runs} runs of {cfg.duration_s:g} simulated s; "
-             f"report in {out}")
-    failed = False
-    try:
-        for i, cell in enumerate(cells, start=1):
-            if stop:
-                break
-            view.say(f"cell {i}/{len(cells)}: {cell.mode}, {cell.size} robots"
-                     f"{', faults: ' + cell.fault if cell.fault else ''}")
-            bcfg = BenchConfig(sizes=(cell.size,), duration_s=cfg.duration_s, runs=cfg.runs,
-                               world=cfg.world, seed=cfg.seed, coordination=cell.mode,
-                               processes=cfg.processes, output=out / "experiment.json",
-                               plot=out / "unused.png", baseline=False,
-                               run_dir=out / "runs" / cell.label, swarm_up=cfg.swarm_up,
-                               extra_args=("--faults", cell.fault) if cell.fault else ())
-            bcfg.run_dir.mkdir(parents=True, exist_ok=True)
-            recs = []
-            for r in range(cfg.runs):
+    doc = new_doc("experiment", PROG, SCHEMA_VERSION, argv, {
+        "sizes": cfg.sizes, "duration_s": cfg.duration_s, "runs": cfg.runs, "seed": cfg.seed,
+        "world": cfg.world, "modes": cfg.modes, "faults": cfg.faults,
+        "fault_size": cfg.fault_size, "fault_times_s": cfg.fault_times,
+        "fault_modes": cfg.fault_modes, "warmup_s": cfg.warmup_s,
+        "processes": cfg.processes, "swarm_up": str(cfg.swarm_up)})
+    with stop_on_signals() as stop:
+        view = BenchView(tty=sys.stdout.isatty(), prog=PROG)
+        view.say(f"{len(cells)} cells x {cfg.runs} runs of {cfg.duration_s:g} simulated s; "
+                 f"report in {out}")
+        try:
+            for i, cell in enumerate(cells, start=1):
                 if stop:
                     break
-                rec = run_swarm_up(bcfg, cell.size, r, stop, view)
-                if rec["interrupted"]:
-                    break
-                rec.update(cell=cell.label, mode=cell.mode, fault=cell.fault)
-                recs.append(rec)
-                failed |= rec["exit_code"] != EXIT_OK
-                doc["records"].append(rec)
-                doc["summary"] = _summaries(cfg, doc["records"])
-                _write_json(out / "experiment.json", doc)
-    finally:
-        view.close()
-        for sig, handler in old.items():
-            signal.signal(sig, handler)
-    code = 130 if stop else (EXIT_RUNTIME if failed else EXIT_OK)
-    doc.update(interrupted=bool(stop), exit_code=code,
-               finished=datetime.datetime.now().astimezone().isoformat(timespec="seconds"))
-    doc["machine"]["load_average_end"] = [round(x, 2) for x in os.getloadavg()]
-    doc["summary"] = _summaries(cfg, doc["records"])
-    _write_json(out / "experiment.json", doc)
+                view.say(f"cell {i}/{len(cells)}: {cell.mode}, {cell.size} robots"
+                         f"{', faults: ' + cell.fault if cell.fault else ''}")
+                bcfg = BenchConfig(sizes=(cell.size,), duration_s=cfg.duration_s,
+                                   runs=cfg.runs, world=cfg.world, seed=cfg.seed,
+                                   coordination=cell.mode, processes=cfg.processes,
+                                   output=results, plot=out / "unused.png", baseline=False,
+                                   run_dir=out / "runs" / cell.label, swarm_up=cfg.swarm_up,
+                                   extra_args=("--faults", cell.fault) if cell.fault else ())
+                bcfg.run_dir.mkdir(parents=True, exist_ok=True)
+                for r in range(cfg.runs):
+                    if stop:
+                        break
+                    rec = run_swarm_up(bcfg, cell.size, r, stop, view)
+                    if rec["interrupted"]:
+                        break
+                    rec.update(cell=cell.label, mode=cell.mode, fault=cell.fault)
+                    doc["records"].append(rec)
+                    doc["summary"] = _summaries(cfg, doc["records"])
+                    _write_json(results, doc)
+        finally:
+            view.close()
+        failed = any(r["exit_code"] != EXIT_OK for r in doc["records"])
+    code = finish_doc(doc, results, _summaries(cfg, doc["records"]), stop, failed)
     report = write_report(cfg, doc)
     print_summary(doc["summary"])
     print(f"{PROG}: report: {report}", flush=True)
-    print(f"{PROG}: raw results: {out / 'experiment.json'}", flush=True)
-    if stop:
-        print(f"{PROG}: interrupted; kept the {len(doc['records'])} finished runs",
-              file=sys.stderr, flush=True)
-    elif failed:
-        print(f"{PROG}: error: a run failed (see its exit code and log in "
-              f"{out / 'experiment.json'})", file=sys.stderr, flush=True)
+    print(f"{PROG}: raw results: {results}", flush=True)
+    say_outcome(PROG, stop, failed, f"{len(doc['records'])} finished runs", results)
     return code
 
 
@@ -749,13 +726,10 @@ def _summaries(cfg: ExperimentConfig, records: list[dict]) -> list[dict]:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``swarm-experiment``; returns the exit code (0, 1, 2 or 130)."""
-    args_list = list(sys.argv[1:] if argv is None else argv)
+    from swarm_bench.bench import command_main
 
-    def body() -> int:
-        cfg = validate(build_parser().parse_args(args_list))
-        return experiment(cfg, args_list)
-
-    return run_cli(PROG, body)
+    return command_main(PROG, argv, lambda args: validate(build_parser().parse_args(args)),
+                        experiment)
 
 
 if __name__ == "__main__":

@@ -9,8 +9,8 @@ connected, the commander said no goal is coming (a cancel while no goal runs), o
 ``timeout_s`` wall seconds pass (counted: the run is then no longer reproducible).
 
 :class:`swarm_nav.node.NavigatorNode` and the benchmark's mirror navigator
-(:class:`swarm_bench.baseline_nodes.BaselineNavigatorNode`) both use :class:`GoalWait`; each
-keeps only the timer that polls it.  Pure: no ROS import.
+(:class:`swarm_bench.baseline_nodes.BaselineNavigatorNode`) both use :class:`GoalWait`, giving it
+the means to start and stop the wall-clock timer that polls a wait.  Pure: no ROS import.
 """
 
 from __future__ import annotations
@@ -25,14 +25,21 @@ class GoalWait:
 
     Args:
         timeout_s: [s] wall: how long a tick may wait for the commander's next goal.
+        start_timer: ``start_timer(period_s, callback)`` starts a wall-clock timer and returns
+            it (a node's ``create_timer`` on a steady clock).
+        stop_timer: stops and destroys such a timer (a node's ``destroy_timer``).
 
     Attributes:
         timeouts: ticks answered without the commander's goal because the wait timed out.
     """
 
-    def __init__(self, timeout_s: float):
+    def __init__(self, timeout_s: float, start_timer: Callable[[float, Callable], object],
+                 stop_timer: Callable[[object], object]):
         self.timeout_s = timeout_s
         self.timeouts = 0
+        self._start_timer = start_timer
+        self._stop_timer = stop_timer
+        self._timer = None  # polls the current wait
         self._terminal_ns: int | None = None  # tick at which the current terminal state began
         self._over_ns: int | None = None  # tick whose wait for a goal ended without one
         self._no_next_goal: int | None = None  # end tick of the goal after which none will come
@@ -56,13 +63,23 @@ class GoalWait:
         return ((self._over_ns is None or self._over_ns <= self._terminal_ns)
                 and self._no_next_goal != self._terminal_ns and commander())
 
-    def begin(self, now_s: float) -> None:
-        """A wait begins at wall time ``now_s`` [s] (monotonic)."""
-        self._started_s = now_s
+    def hold(self, t_ns: int, now_s: float, on_poll: Callable[[int], None]) -> None:
+        """Tick ``t_ns`` waits: from wall time ``now_s`` [s] (monotonic), ``on_poll(t_ns)`` is
+        called every :data:`POLL_S` until :meth:`release` (nothing if a wait is on already)."""
+        if self._timer is None:
+            self._started_s = now_s
+            self._timer = self._start_timer(POLL_S, lambda: on_poll(t_ns))
+
+    def release(self) -> None:
+        """No tick waits any more: stop the poll timer (if any)."""
+        if self._timer is not None:
+            self._stop_timer(self._timer)
+            self._timer = None
 
     def poll(self, t_ns: int, now_s: float, commander: bool) -> bool:
         """Whether the wait of tick ``t_ns`` is over at wall time ``now_s`` [s] without a goal:
-        the commander left, or ``timeout_s`` passed (counted in :attr:`timeouts`).
+        the commander left, or ``timeout_s`` passed (counted in :attr:`timeouts`); then the
+        timer is stopped.
 
         Args:
             t_ns: the waiting tick [ns].
@@ -74,6 +91,7 @@ class GoalWait:
         if commander:
             self.timeouts += 1
         self._over_ns = t_ns
+        self.release()
         return True
 
     def answered(self, t_ns: int, terminal: bool) -> None:

@@ -45,7 +45,6 @@ from swarm_common.stamps import NS_PER_S, format_stamp
 from swarm_nav import jit
 from swarm_nav.config import NavigatorConfig, flat_defaults
 from swarm_nav.core import NavigatorCore
-from swarm_nav.goal_wait import POLL_S as GOAL_WAIT_POLL_S
 from swarm_nav.goal_wait import GoalWait
 from swarm_nav.holding import holding_sites_from_poi, site_kinds_from_poi
 from swarm_ros.qos import publisher, subscription
@@ -155,12 +154,11 @@ class NavigatorNode(Node):
         self._lidar_every = max(1, round(1.0 / (self.lidar.rate_hz * self.cfg.control_period)))
         self._pending: Odometry | None = None
         self._goals: list[tuple[int, np.ndarray, str]] = []  # (stamp, pose, id) awaiting a tick
-        self._goal_timer = None
         goal_wait_timeout = float(self.get_parameter("goal_wait_timeout").value)
         if not (math.isfinite(goal_wait_timeout) and goal_wait_timeout >= 0.0):
             raise InputError(f"parameter goal_wait_timeout: must be a finite number >= 0 "
                              f"[s], got {goal_wait_timeout}")
-        self.goal_wait = GoalWait(goal_wait_timeout)
+        self.goal_wait = GoalWait(goal_wait_timeout, self._steady_timer, self.destroy_timer)
         self._answered = False
         self._started = time.monotonic()
         self._goal_topic = f"{self.get_namespace().rstrip('/')}/goal_pose"
@@ -306,14 +304,11 @@ class NavigatorNode(Node):
         if self._is_lidar_tick(t) and (self._scan is None or self._scan[0] != t):
             return
         if self._awaits_goal(t):
-            if self._goal_timer is None and self._answered:
-                self.goal_wait.begin(time.monotonic())
-                self._goal_timer = self.create_timer(
-                    GOAL_WAIT_POLL_S, lambda: self._on_goal_wait_poll(t),
-                    clock=Clock(clock_type=ClockType.STEADY_TIME))
+            if self._answered:
+                self.goal_wait.hold(t, time.monotonic(), self._on_goal_wait_poll)
             return
         self._pending = None
-        self._cancel_goal_timer()
+        self.goal_wait.release()
         self._tick(odom)
 
     def _awaits_goal(self, t: int) -> bool:
@@ -369,13 +364,10 @@ class NavigatorNode(Node):
                        f"{self.goal_wait.timeout_s:g} s (wall); tick {t / NS_PER_S:.3f} s "
                        f"answered without it: this run is not reproducible "
                        f"({self.goal_wait.timeouts} time(s) so far)")
-        self._cancel_goal_timer()
         self._release()
 
-    def _cancel_goal_timer(self) -> None:
-        if self._goal_timer is not None:
-            self.destroy_timer(self._goal_timer)
-            self._goal_timer = None
+    def _steady_timer(self, period_s: float, callback):
+        return self.create_timer(period_s, callback, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     def _on_goal_pose(self, msg: PoseStamped) -> None:
         p, q = msg.pose.position, msg.pose.orientation
