@@ -95,6 +95,21 @@ def _sizes(text: str) -> tuple[int, ...]:
     return sizes
 
 
+def add_sweep_flags(p: argparse.ArgumentParser, sizes: tuple[int, ...], runs: int,
+                    runs_help: str) -> None:
+    """The flags of a sweep of ``swarm-up`` runs that ``swarm-bench`` and ``swarm-experiment``
+    share: ``--sizes``, ``--duration``, ``--runs``, ``--world``, ``--seed`` (defaults: ``sizes``,
+    300 s, ``runs``, slim_blockage, 0)."""
+    p.add_argument("--sizes", type=_sizes, default=sizes, metavar="N,N,...",
+                   help=f"swarm sizes (default: {','.join(map(str, sizes))})")
+    p.add_argument("--duration", type=cli.positive_float, default=300.0, metavar="SEC",
+                   help="simulated seconds per run (default: %(default)g)")
+    p.add_argument("--runs", type=cli.positive_int, default=runs, metavar="R",
+                   help=f"{runs_help} (default: %(default)s)")
+    cli.add_shared(p, "--world", help="world (default: %(default)s)")
+    cli.add_shared(p, "--seed", help="seed of the first run (default: %(default)s)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``swarm-bench`` argument parser."""
     p = cli.ArgumentParser(
@@ -104,16 +119,7 @@ def build_parser() -> argparse.ArgumentParser:
         "the messaging baseline of every size.",
         epilog="Exit codes: 0 success, 1 a run failed (the bench goes on), 2 bad input, "
         "130 interrupted (the finished rows are kept).")
-    p.add_argument("--sizes", type=_sizes, default=(5, 20, 50, 100), metavar="N,N,...",
-                   help="swarm sizes (default: 5,20,50,100)")
-    p.add_argument("--duration", type=cli.positive_float, default=300.0, metavar="SEC",
-                   help="simulated seconds per run (default: %(default)g)")
-    p.add_argument("--runs", type=cli.positive_int, default=1, metavar="R",
-                   help="runs per size; run r uses seed S+r (default: %(default)s)")
-    p.add_argument("--world", default="slim_blockage", metavar="NAME|PATH",
-                   help="world (default: %(default)s)")
-    p.add_argument("--seed", type=cli.seed, default=0, metavar="S",
-                   help="seed of the first run (default: %(default)s)")
+    add_sweep_flags(p, (5, 20, 50, 100), 1, "runs per size; run r uses seed S+r")
     p.add_argument("--coordination", choices=("decentralized", "centralized"),
                    default="decentralized", help="passed to swarm-up (default: %(default)s)")
     p.add_argument("--processes", type=processes_arg, default=None, metavar="per-robot|K",

@@ -82,7 +82,7 @@ def _fault_spec(text: str) -> str:
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``swarm-experiment`` argument parser."""
-    from swarm_bench.bench import _sizes
+    from swarm_bench.bench import add_sweep_flags
 
     p = cli.ArgumentParser(
         prog=PROG, allow_abbrev=False,
@@ -91,17 +91,7 @@ def build_parser() -> argparse.ArgumentParser:
         "directory (Markdown, PNG plots, raw JSON).",
         epilog="Exit codes: 0 success, 1 a run failed (the experiment goes on), 2 bad input, "
         "130 interrupted (the finished runs are kept).")
-    p.add_argument("--sizes", type=_sizes, default=(5, 10, 20, 40), metavar="N,N,...",
-                   help="swarm sizes (default: 5,10,20,40)")
-    p.add_argument("--duration", type=cli.positive_float, default=300.0, metavar="SEC",
-                   help="simulated seconds per run (default: %(default)g)")
-    p.add_argument("--runs", type=cli.positive_int, default=3, metavar="R",
-                   help="runs per cell; run r uses seed S+r in every mode (default: "
-                   "%(default)s)")
-    p.add_argument("--seed", type=cli.seed, default=0, metavar="S",
-                   help="seed of the first run (default: %(default)s)")
-    p.add_argument("--world", default="slim_blockage", metavar="NAME|PATH",
-                   help="world (default: %(default)s)")
+    add_sweep_flags(p, (5, 10, 20, 40), 3, "runs per cell; run r uses seed S+r in every mode")
     p.add_argument("--modes", type=_modes, default=MODES, metavar="M,M",
                    help="coordination modes (default: decentralized,centralized)")
     p.add_argument("--fault-spec", type=_fault_spec, action="append", default=None,

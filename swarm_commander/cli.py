@@ -268,7 +268,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("ns", metavar="NS",
                    help="the robot's namespace (Srobot3, /Srobot3) or number (3, with "
                         "--name-prefix)")
-    p.add_argument("--world", default="slim_blockage", metavar="NAME|PATH",
+    cli.add_shared(p, "--world",
                    help="world whose workstations to visit: a name under worlds/ or a "
                         ".world/.sdf path (default: %(default)s)")
     p.add_argument("--route", default="random", metavar="random|PATH.yaml",
@@ -278,11 +278,11 @@ def _parser() -> argparse.ArgumentParser:
                         "instead of the one sent (swap_range) (default: %(default)s)")
     p.add_argument("--loops", type=cli.non_negative_int, default=0, metavar="N",
                    help="loops over the route; 0 = forever (default: %(default)s)")
-    p.add_argument("--seed", type=cli.seed, default=0, metavar="S",
+    cli.add_shared(p, "--seed",
                    help="seed of the random order, mixed with NS (default: %(default)s)")
     p.add_argument("--wait-timeout", type=cli.positive_float, default=30.0, metavar="SEC",
                    help="wall seconds to wait for the navigator (default: %(default)s)")
-    p.add_argument("--name-prefix", type=cli.ros_name, default="Srobot", metavar="PREFIX",
+    cli.add_shared(p, "--name-prefix",
                    help="prefix of robot namespaces, for a numeric NS (default: %(default)s)")
     p.add_argument("--coordinated", action="store_true",
                    help="ask the coordinator (swarm-coordinator) for every task instead of "

@@ -169,6 +169,13 @@ def _text(data: Mapping, key: str, default: str | None = None) -> str:
     return value
 
 
+def _choice(data: Mapping, key: str, allowed: tuple[str, ...], default: str | None = None) -> str:
+    value = _text(data, key, default)
+    if value not in allowed:
+        raise ContractError(f"{key}: expected one of {allowed}, got {value!r}")
+    return value
+
+
 def _int(data: Mapping, key: str, default: int | None = None) -> int:
     value = data.get(key, default)
     if isinstance(value, bool) or not isinstance(value, int) or value < 0:
@@ -203,12 +210,8 @@ def decode_request(text: str) -> Request:
         ContractError: malformed (names the key).
     """
     d = _load(text)
-    kind = _text(d, "kind")
-    if kind not in REQUEST_KINDS:
-        raise ContractError(f"kind: expected one of {REQUEST_KINDS}, got {kind!r}")
-    outcome = _text(d, "outcome", "")
-    if outcome not in OUTCOMES:
-        raise ContractError(f"outcome: expected one of {OUTCOMES}, got {outcome!r}")
+    kind = _choice(d, "kind", REQUEST_KINDS)
+    outcome = _choice(d, "outcome", OUTCOMES, "")
     holds = d.get("holds", [])
     if not isinstance(holds, list) or not all(isinstance(h, str) for h in holds):
         raise ContractError(f"holds: expected a list of strings, got {holds!r}")
@@ -242,9 +245,7 @@ def decode_assignment(text: str) -> Assignment:
         ContractError: malformed (names the key).
     """
     d = _load(text)
-    kind = _text(d, "kind")
-    if kind not in ASSIGNMENT_KINDS:
-        raise ContractError(f"kind: expected one of {ASSIGNMENT_KINDS}, got {kind!r}")
+    kind = _choice(d, "kind", ASSIGNMENT_KINDS)
     pose = []
     for key in ("x", "y", "yaw"):
         value = d.get(key)

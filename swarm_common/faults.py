@@ -40,7 +40,7 @@ import numpy as np
 import yaml
 
 from swarm_common import topics
-from swarm_common.errors import InputError, did_you_mean
+from swarm_common.errors import InputError, check_keys, did_you_mean
 from swarm_common.stamps import NS_PER_S
 
 KILL_NAV = "kill-nav"
@@ -249,13 +249,7 @@ def _load_yaml(path: Path, robots, prefix) -> list[Fault]:
         where = f"{path}: fault {i}"
         if not isinstance(entry, dict):
             raise InputError(f"{where}: must be a mapping with keys {', '.join(YAML_KEYS)}")
-        for key in entry:
-            if key not in YAML_KEYS:
-                raise InputError(f"{where}: unknown key '{key}'"
-                                 f"{did_you_mean(str(key), YAML_KEYS)}")
-        for key in ("kind", "at"):
-            if key not in entry:
-                raise InputError(f"{where}: missing key '{key}'")
+        check_keys(where, entry, YAML_KEYS, ("kind", "at"))
         try:
             faults.append(_make(i, str(entry["kind"]), robot=entry.get("robot"),
                                 topic=entry.get("topic"), fraction=entry.get("fraction"),

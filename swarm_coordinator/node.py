@@ -227,16 +227,14 @@ def build_parser() -> cli.ArgumentParser:
                            "--coordination centralized: assigns every robot its next "
                            "workstation, reserves workstations and waiting spots first come, "
                            "first served, and tells robots where to wait.")
-    p.add_argument("--swarm-size", type=cli.positive_int, required=True, metavar="N",
+    cli.add_shared(p, "--swarm-size", required=True,
                    help="number of robots: <PREFIX>1 .. <PREFIX>N")
-    p.add_argument("--name-prefix", type=cli.ros_name, default="Srobot", metavar="PREFIX",
-                   help="prefix of robot namespaces (default: %(default)s)")
-    p.add_argument("--world", default="slim_blockage", metavar="NAME|PATH",
-                   help="world whose workstations and holding spots to use "
+    cli.add_shared(p, "--name-prefix", help="prefix of robot namespaces (default: %(default)s)")
+    cli.add_shared(p, "--world", help="world whose workstations and holding spots to use "
                    "(default: %(default)s)")
-    p.add_argument("--seed", type=cli.seed, default=0, metavar="S",
+    cli.add_shared(p, "--seed",
                    help="seed of the robots' routes, as the commanders' (default: %(default)s)")
-    p.add_argument("--robot", default="turtlebot3_waffle", metavar="NAME|PATH|MIX",
+    cli.add_shared(p, "--robot",
                    help="robot model, or a mix NAME:COUNT,... as swarm-up's, for the parking "
                    "spots' clearance (the largest model's) (default: %(default)s)")
     p.add_argument("--control-period", type=cli.positive_float, default=0.1, metavar="SEC",

@@ -688,18 +688,17 @@ def build_parser() -> argparse.ArgumentParser:
         "(geometry_msgs/TwistStamped).",
         epilog="ROS arguments may follow --ros-args. Exit codes: 0 success, 2 bad input, "
         "1 runtime failure.")
-    p.add_argument("--world", default="slim_blockage",
+    cli.add_shared(p, "--world",
                    help="world name under worlds/ or path to a .world/.sdf [slim_blockage]")
-    p.add_argument("--robot", default="turtlebot3_waffle", metavar="NAME|PATH|MIX",
+    cli.add_shared(p, "--robot",
                    help="robot name under robots/ or path to a .urdf/.xacro; or a mixed fleet "
                    "NAME:COUNT,NAME:COUNT,... whose counts add up to --swarm-size, or a fleet "
                    ".yaml file; the models are interleaved over the robot numbers "
                    "[turtlebot3_waffle]")
-    p.add_argument("--swarm-size", type=cli.positive_int, default=5, metavar="N",
-                   help="number of robots [5]")
-    p.add_argument("--name-prefix", type=cli.ros_name, default="Srobot",
+    cli.add_shared(p, "--swarm-size", default=5, help="number of robots [5]")
+    cli.add_shared(p, "--name-prefix",
                    help=f"namespace prefix, a ROS name ({cli.ROS_NAME_RULE}) [Srobot]")
-    p.add_argument("--seed", type=cli.seed, default=0, help="random seed (lidar noise) [0]")
+    cli.add_shared(p, "--seed", help="random seed (lidar noise) [0]")
     p.add_argument("--rtf", type=cli.non_negative_float, default=1.0, metavar="X",
                    help="real-time factor to pace to; 0 = as fast as possible [1.0]")
     p.add_argument("--duration", type=cli.positive_float, default=None, metavar="SEC",

@@ -73,25 +73,23 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="Exit codes: 0 success, 2 bad input, 1 runtime failure. "
         "Ctrl-C stops every process within 5 s.",
     )
-    p.add_argument("--swarm-size", type=cli.positive_int, default=None, metavar="N",
+    cli.add_shared(p, "--swarm-size", default=None,
                    help=f"number of robots (default: {DEFAULT_SWARM_SIZE}, or the total of a "
                    "--robot mix)")
-    p.add_argument("--world", default="slim_blockage", metavar="NAME|PATH",
-                   help="a world under worlds/ or a Gazebo .world/.sdf path "
+    cli.add_shared(p, "--world", help="a world under worlds/ or a Gazebo .world/.sdf path "
                    "(default: %(default)s)")
     p.add_argument("--map", type=Path, default=None, metavar="PATH",
                    help="map_server map YAML (default: the world's map under maps/, "
                    "else rasterised from the world)")
-    p.add_argument("--robot", default="turtlebot3_waffle", metavar="NAME|PATH|MIX",
+    cli.add_shared(p, "--robot",
                    help="a robot under robots/ or a .urdf/.xacro path; or a mixed fleet "
                    "NAME:COUNT,NAME:COUNT,... (e.g. turtlebot3_waffle:12,turtlebot3_burger:4,"
                    "linorobot2_2wd:4; the counts add up to --swarm-size) or a fleet .yaml "
                    "file (README, Robots); the models are interleaved over the robot numbers "
                    "(default: %(default)s)")
-    p.add_argument("--name-prefix", type=cli.ros_name, default="Srobot", metavar="PREFIX",
+    cli.add_shared(p, "--name-prefix",
                    help="robot namespaces are /<PREFIX><i>, i = 1..N (default: %(default)s)")
-    p.add_argument("--seed", type=cli.seed, default=0, metavar="S",
-                   help="seed of every random choice (default: %(default)s)")
+    cli.add_shared(p, "--seed", help="seed of every random choice (default: %(default)s)")
     p.add_argument("--rtf", type=cli.non_negative_float, default=1.0, metavar="X",
                    help="real-time factor; 0 = as fast as possible (default: %(default)s)")
     p.add_argument("--duration", type=cli.positive_float, default=None, metavar="SEC",

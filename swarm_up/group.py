@@ -43,8 +43,8 @@ def build_parser() -> cli.ArgumentParser:
                    help="directory holding <ns>.yaml for every namespace")
     p.add_argument("--commanders", action="store_true",
                    help="also run a commander for every robot (random workstation route)")
-    p.add_argument("--world", default="slim_blockage", help="world of the commanders' route")
-    p.add_argument("--seed", type=cli.seed, default=0, help="seed of the commanders' routes")
+    cli.add_shared(p, "--world", help="world of the commanders' route")
+    cli.add_shared(p, "--seed", help="seed of the commanders' routes")
     p.add_argument("--loops", type=cli.non_negative_int, default=0,
                    help="commander route loops, 0 = forever")
     p.add_argument("--faults", action="store_true",

@@ -208,19 +208,10 @@ def stale_files(
     return stale
 
 
-def clean_stale(
-    before: frozenset[str] | set[str],
-    shm_dir: Path | str = SHM_DIR,
-    min_age_s: float = 1.0,
-    ignore_pids: frozenset[int] = frozenset(),
-) -> list[Path]:
-    """Remove the files :func:`stale_files` finds; never raises.
-
-    Args:
-        before: the :func:`snapshot` taken before the run.
-        shm_dir: the shared-memory directory.
-        min_age_s: spare files younger than this [s].
-        ignore_pids: processes whose open files and mappings do not count (their locks do).
+def clean_stale(before: frozenset[str] | set[str], shm_dir: Path | str = SHM_DIR,
+                min_age_s: float = 1.0,
+                ignore_pids: frozenset[int] = frozenset()) -> list[Path]:
+    """Remove the files :func:`stale_files` finds (the arguments are its own); never raises.
 
     Returns:
         The paths actually removed.
@@ -235,12 +226,9 @@ def clean_stale(
     return removed
 
 
-def clean_after_run(
-    before: frozenset[str] | set[str],
-    shm_dir: Path | str = SHM_DIR,
-    min_age_s: float = 1.0,
-    ignore_pids: frozenset[int] = frozenset(),
-) -> list[Path]:
+def clean_after_run(before: frozenset[str] | set[str], shm_dir: Path | str = SHM_DIR,
+                    min_age_s: float = 1.0,
+                    ignore_pids: frozenset[int] = frozenset()) -> list[Path]:
     """:func:`clean_stale` once a run's processes have all ended, and once more ``min_age_s``
     later if it spared files only for being too young: a participant that was still exiting can
     create or re-create a port file in that last second (a Ctrl-C run left
