@@ -32,7 +32,6 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry
-from nav_msgs.msg import Path as PathMsg
 from rclpy.clock import Clock as RclpyClock
 from rclpy.clock import ClockType
 from rclpy.experimental import EventsExecutor
@@ -59,6 +58,7 @@ from swarm_common.errors import InputError, run_cli
 from swarm_common.nav_status import TERMINAL
 from swarm_common.stamps import NS_PER_S
 from swarm_nav.goal_wait import GoalWait
+from swarm_ros.navigator import navigator_interface
 from swarm_ros.qos import publisher, subscription
 from swarm_ros.session import node_session, spin_forever
 from swarm_up.clock import SharedClock
@@ -362,15 +362,8 @@ class BaselineNavigatorNode(Node):
         self._last_status_ns = -STATUS_PERIOD_NS
         self._now_ns = 0
         # Publishers, subscribers, service (swarm_nav.node's).
-        self.cmd_pub = publisher(self, TwistStamped, topics.CMD_VEL)
-        self.plan_pub = publisher(self, PathMsg, topics.PLAN)
-        self.status_pub = publisher(self, DiagnosticStatus, topics.NAV_STATUS)
-        subscription(self, OccupancyGrid, topics.MAP, self._on_map)
-        # Raw, read with swarm_common.cdr, as the real navigator does.
-        subscription(self, LaserScan, topics.SCAN, self._on_scan, raw=True)
-        subscription(self, Odometry, topics.ODOM, self._on_odom, raw=True)
-        subscription(self, PoseStamped, topics.GOAL_POSE, self._on_goal_pose)
-        self.create_service(Trigger, topics.CANCEL_SERVICE, self._on_cancel)
+        self.cmd_pub, self.plan_pub, self.status_pub = navigator_interface(
+            self, self._on_map, self._on_scan, self._on_odom, self._on_goal_pose, self._on_cancel)
 
     def _on_map(self, msg: OccupancyGrid) -> None:
         np.asarray(msg.data, dtype=np.int8)  # the conversion the real navigator makes
@@ -402,12 +395,10 @@ class BaselineNavigatorNode(Node):
         t = odom[0]
         if round(t / self.tick_ns) % self.cfg.lidar_every == 0 and self._scan_stamp != t:
             return
-        if self._awaits_goal(t):
-            if self.answered:
-                self.goal_wait.hold(t, time.monotonic(), self._on_goal_wait_poll)
+        if self.goal_wait.must_wait(t, self._awaits_goal(t), time.monotonic(),
+                                    self._on_goal_wait_poll, poll=self.answered):
             return
         self._pending = None
-        self.goal_wait.release()
         self._tick(odom)
 
     def _awaits_goal(self, t: int) -> bool:

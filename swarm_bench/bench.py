@@ -95,11 +95,25 @@ def _sizes(text: str) -> tuple[int, ...]:
     return sizes
 
 
-def add_sweep_flags(p: argparse.ArgumentParser, sizes: tuple[int, ...], runs: int,
-                    runs_help: str) -> None:
-    """The flags of a sweep of ``swarm-up`` runs that ``swarm-bench`` and ``swarm-experiment``
-    share: ``--sizes``, ``--duration``, ``--runs``, ``--world``, ``--seed`` (defaults: ``sizes``,
-    300 s, ``runs``, slim_blockage, 0)."""
+def sweep_parser(prog: str, description: str, goes_on: str, kept: str,
+                 sizes: tuple[int, ...], runs: int, runs_help: str) -> argparse.ArgumentParser:
+    """The parser of a sweep of ``swarm-up`` runs, with the flags ``swarm-bench`` and
+    ``swarm-experiment`` share: ``--sizes``, ``--duration``, ``--runs``, ``--world``, ``--seed``
+    (defaults: ``sizes``, 300 s, ``runs``, slim_blockage, 0).
+
+    Args:
+        prog: the command.
+        description: what it does.
+        goes_on: what goes on after a failed run (its epilog: "the bench goes on").
+        kept: what an interruption keeps ("rows").
+        sizes: default ``--sizes``.
+        runs: default ``--runs``.
+        runs_help: ``--runs``' help.
+    """
+    p = cli.ArgumentParser(
+        prog=prog, allow_abbrev=False, description=description,
+        epilog=f"Exit codes: 0 success, 1 a run failed (the {goes_on} goes on), 2 bad input, "
+        f"130 interrupted (the finished {kept} are kept).")
     p.add_argument("--sizes", type=_sizes, default=sizes, metavar="N,N,...",
                    help=f"swarm sizes (default: {','.join(map(str, sizes))})")
     p.add_argument("--duration", type=cli.positive_float, default=300.0, metavar="SEC",
@@ -108,18 +122,16 @@ def add_sweep_flags(p: argparse.ArgumentParser, sizes: tuple[int, ...], runs: in
                    help=f"{runs_help} (default: %(default)s)")
     cli.add_shared(p, "--world", help="world (default: %(default)s)")
     cli.add_shared(p, "--seed", help="seed of the first run (default: %(default)s)")
+    return p
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``swarm-bench`` argument parser."""
-    p = cli.ArgumentParser(
-        prog=PROG, allow_abbrev=False,
-        description="Benchmark the swarm: run swarm-up unpaced with commanders for every size "
-        "(and run), then print a table and write JSON and a PNG plot; --baseline also measures "
-        "the messaging baseline of every size.",
-        epilog="Exit codes: 0 success, 1 a run failed (the bench goes on), 2 bad input, "
-        "130 interrupted (the finished rows are kept).")
-    add_sweep_flags(p, (5, 20, 50, 100), 1, "runs per size; run r uses seed S+r")
+    p = sweep_parser(
+        PROG, "Benchmark the swarm: run swarm-up unpaced with commanders for every size (and "
+        "run), then print a table and write JSON and a PNG plot; --baseline also measures the "
+        "messaging baseline of every size.", "bench", "rows", (5, 20, 50, 100), 1,
+        "runs per size; run r uses seed S+r")
     p.add_argument("--coordination", choices=("decentralized", "centralized"),
                    default="decentralized", help="passed to swarm-up (default: %(default)s)")
     p.add_argument("--processes", type=processes_arg, default=None, metavar="per-robot|K",

@@ -82,16 +82,13 @@ def _fault_spec(text: str) -> str:
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``swarm-experiment`` argument parser."""
-    from swarm_bench.bench import add_sweep_flags
+    from swarm_bench.bench import sweep_parser
 
-    p = cli.ArgumentParser(
-        prog=PROG, allow_abbrev=False,
-        description="Compare decentralized with centralized coordination on the same world, "
-        "seeds and sizes (and faults): runs swarm-up for every cell and writes a report "
-        "directory (Markdown, PNG plots, raw JSON).",
-        epilog="Exit codes: 0 success, 1 a run failed (the experiment goes on), 2 bad input, "
-        "130 interrupted (the finished runs are kept).")
-    add_sweep_flags(p, (5, 10, 20, 40), 3, "runs per cell; run r uses seed S+r in every mode")
+    p = sweep_parser(
+        PROG, "Compare decentralized with centralized coordination on the same world, seeds "
+        "and sizes (and faults): runs swarm-up for every cell and writes a report directory "
+        "(Markdown, PNG plots, raw JSON).", "experiment", "runs", (5, 10, 20, 40), 3,
+        "runs per cell; run r uses seed S+r in every mode")
     p.add_argument("--modes", type=_modes, default=MODES, metavar="M,M",
                    help="coordination modes (default: decentralized,centralized)")
     p.add_argument("--fault-spec", type=_fault_spec, action="append", default=None,

@@ -70,6 +70,17 @@ class GoalWait:
             self._started_s = now_s
             self._timer = self._start_timer(POLL_S, lambda: on_poll(t_ns))
 
+    def must_wait(self, t_ns: int, waits: bool, now_s: float, on_poll: Callable[[int], None],
+                  poll: bool = True) -> bool:
+        """Whether tick ``t_ns`` must wait now (``waits``: :meth:`needed`, or the node's own
+        start gate): then, with ``poll``, :meth:`hold` it; else :meth:`release`."""
+        if waits:
+            if poll:
+                self.hold(t_ns, now_s, on_poll)
+            return True
+        self.release()
+        return False
+
     def release(self) -> None:
         """No tick waits any more: stop the poll timer (if any)."""
         if self._timer is not None:

@@ -19,17 +19,13 @@ import sys
 import time
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticStatus
-from geometry_msgs.msg import PoseStamped, TwistStamped
-from nav_msgs.msg import OccupancyGrid, Odometry, Path
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import OccupancyGrid, Odometry
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
-from sensor_msgs.msg import LaserScan
-from std_srvs.srv import Trigger
 
-from swarm_common import topics
 from swarm_common.cdr import (
     PathWriter,
     TwistStampedWriter,
@@ -47,7 +43,7 @@ from swarm_nav.config import NavigatorConfig, flat_defaults
 from swarm_nav.core import NavigatorCore
 from swarm_nav.goal_wait import GoalWait
 from swarm_nav.holding import holding_sites_from_poi, site_kinds_from_poi
-from swarm_ros.qos import publisher, subscription
+from swarm_ros.navigator import navigator_interface
 from swarm_ros.session import node_session, spin_forever
 
 STATUS_PERIOD_NS = NS_PER_S // 2  # nav_status at 2 Hz simulated, and on every change of state
@@ -168,16 +164,8 @@ class NavigatorNode(Node):
         self._now_ns = 0
         self._warned: dict[str, float] = {}
         # Publishers, subscribers, service.
-        self.cmd_pub = publisher(self, TwistStamped, topics.CMD_VEL)
-        self.plan_pub = publisher(self, Path, topics.PLAN)
-        self.status_pub = publisher(self, DiagnosticStatus, topics.NAV_STATUS)
-        subscription(self, OccupancyGrid, topics.MAP, self._on_map)
-        # Odometry and scans come every tick: read raw with swarm_common.cdr, no message objects
-        # (rclpy built 15 of them per odometry message, 10 % of a group process's CPU).
-        subscription(self, LaserScan, topics.SCAN, self._on_scan, raw=True)
-        subscription(self, Odometry, topics.ODOM, self._on_odom, raw=True)
-        subscription(self, PoseStamped, topics.GOAL_POSE, self._on_goal_pose)
-        self.create_service(Trigger, topics.CANCEL_SERVICE, self._on_cancel)
+        self.cmd_pub, self.plan_pub, self.status_pub = navigator_interface(
+            self, self._on_map, self._on_scan, self._on_odom, self._on_goal_pose, self._on_cancel)
         map_yaml = self.get_parameter("map_yaml_path").value
         if map_yaml:
             from swarm_common.map_io import load_map
@@ -303,12 +291,10 @@ class NavigatorNode(Node):
             return
         if self._is_lidar_tick(t) and (self._scan is None or self._scan[0] != t):
             return
-        if self._awaits_goal(t):
-            if self._answered:
-                self.goal_wait.hold(t, time.monotonic(), self._on_goal_wait_poll)
-            return
+        if self.goal_wait.must_wait(t, self._awaits_goal(t), time.monotonic(),
+                                    self._on_goal_wait_poll, poll=self._answered):
+            return  # the start gate is checked again with every message; a goal wait polled
         self._pending = None
-        self.goal_wait.release()
         self._tick(odom)
 
     def _awaits_goal(self, t: int) -> bool:
