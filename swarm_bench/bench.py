@@ -99,7 +99,8 @@ def sweep_parser(prog: str, description: str, goes_on: str, kept: str,
                  sizes: tuple[int, ...], runs: int, runs_help: str) -> argparse.ArgumentParser:
     """The parser of a sweep of ``swarm-up`` runs, with the flags ``swarm-bench`` and
     ``swarm-experiment`` share: ``--sizes``, ``--duration``, ``--runs``, ``--world``, ``--seed``
-    (defaults: ``sizes``, 300 s, ``runs``, slim_blockage, 0).
+    (defaults: ``sizes``, 300 s, ``runs``, slim_blockage, 0) and ``--processes`` (passed to
+    swarm-up).
 
     Args:
         prog: the command.
@@ -122,6 +123,8 @@ def sweep_parser(prog: str, description: str, goes_on: str, kept: str,
                    help=f"{runs_help} (default: %(default)s)")
     cli.add_shared(p, "--world", help="world (default: %(default)s)")
     cli.add_shared(p, "--seed", help="seed of the first run (default: %(default)s)")
+    p.add_argument("--processes", type=processes_arg, default=None, metavar="per-robot|K",
+                   help="passed to swarm-up (default: swarm-up's own choice per size)")
     return p
 
 
@@ -134,8 +137,6 @@ def build_parser() -> argparse.ArgumentParser:
         "runs per size; run r uses seed S+r")
     p.add_argument("--coordination", choices=("decentralized", "centralized"),
                    default="decentralized", help="passed to swarm-up (default: %(default)s)")
-    p.add_argument("--processes", type=processes_arg, default=None, metavar="per-robot|K",
-                   help="passed to swarm-up (default: swarm-up's own choice per size)")
     p.add_argument("--output", type=Path, default=Path("bench.json"), metavar="PATH",
                    help="JSON results (default: %(default)s)")
     p.add_argument("--plot", type=Path, default=Path("bench.png"), metavar="PATH.png",

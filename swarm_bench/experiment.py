@@ -52,7 +52,7 @@ from pathlib import Path
 from swarm_common import cli
 from swarm_common.errors import EXIT_OK, InputError
 from swarm_common.faults import KILL_COORDINATOR
-from swarm_up.args import default_run_dir, processes_arg
+from swarm_up.args import default_run_dir
 
 PROG = "swarm-experiment"
 MODES = ("decentralized", "centralized")
@@ -108,8 +108,6 @@ def build_parser() -> argparse.ArgumentParser:
                    help="simulated seconds left out of the throughput (default: %(default)g)")
     p.add_argument("--output", type=Path, default=None, metavar="DIR",
                    help="report directory (default: experiment-<timestamp>/)")
-    p.add_argument("--processes", type=processes_arg, default=None, metavar="per-robot|K",
-                   help="passed to swarm-up (default: swarm-up's own choice per size)")
     p.add_argument("--swarm-up", type=Path, default=None, metavar="PATH",
                    help="the swarm-up executable (default: the one beside this Python)")
     return p
