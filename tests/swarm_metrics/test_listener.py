@@ -14,10 +14,11 @@ import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 
-from swarm_bench.baseline_nodes import LATCHED
+from swarm_common import topics
 from swarm_common.nav_status import NavState, NavStatusRecord, encode
 from swarm_common.stamps import format_stamp
 from swarm_metrics.listener import MetricsListener
+from swarm_ros.qos import profile
 from tests.support.ros import ros_context
 
 pytestmark = pytest.mark.node
@@ -40,7 +41,8 @@ def test_a_late_listener_still_counts_every_goal_reached():
     try:
         with ros_context() as (ctx, executor):
             node = rclpy.create_node("status_burst", context=ctx)
-            pub = node.create_publisher(DiagnosticStatus, "/Srobot1/nav_status", LATCHED)  # as nav
+            pub = node.create_publisher(DiagnosticStatus, "/Srobot1/nav_status",
+                                        profile(topics.LATCHED))
             deadline = time.monotonic() + 20.0
             while pub.get_subscription_count() < 1:
                 assert time.monotonic() < deadline, "the metrics node never subscribed"
