@@ -33,11 +33,10 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-import rclpy
 from geometry_msgs.msg import PoseStamped
 from rclpy._rclpy_pybind11 import RCLInvalidROSArgsError
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.logging import LoggingSeverity
 from rclpy.parameter import Parameter
 from rclpy.task import Future
@@ -48,6 +47,7 @@ from swarm_commander.route import FixedRoute, RandomRoute, RouteStop, build_rout
 from swarm_common import cli
 from swarm_common.errors import EXIT_BAD_INPUT, EXIT_OK, EXIT_RUNTIME, InputError, run_cli
 from swarm_common.geometry import pose2d, yaw_to_quaternion
+from swarm_ros.session import node_session
 
 PROG = "swarm-commander"
 NODE_NAME = "commander"
@@ -268,7 +268,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("ns", metavar="NS",
                    help="the robot's namespace (Srobot3, /Srobot3) or number (3, with "
                         "--name-prefix)")
-    p.add_argument("--world", default="slim_blockage", metavar="NAME|PATH",
+    cli.add_shared(p, "--world",
                    help="world whose workstations to visit: a name under worlds/ or a "
                         ".world/.sdf path (default: %(default)s)")
     p.add_argument("--route", default="random", metavar="random|PATH.yaml",
@@ -278,11 +278,11 @@ def _parser() -> argparse.ArgumentParser:
                         "instead of the one sent (swap_range) (default: %(default)s)")
     p.add_argument("--loops", type=cli.non_negative_int, default=0, metavar="N",
                    help="loops over the route; 0 = forever (default: %(default)s)")
-    p.add_argument("--seed", type=cli.seed, default=0, metavar="S",
+    cli.add_shared(p, "--seed",
                    help="seed of the random order, mixed with NS (default: %(default)s)")
     p.add_argument("--wait-timeout", type=cli.positive_float, default=30.0, metavar="SEC",
                    help="wall seconds to wait for the navigator (default: %(default)s)")
-    p.add_argument("--name-prefix", type=cli.ros_name, default="Srobot", metavar="PREFIX",
+    cli.add_shared(p, "--name-prefix",
                    help="prefix of robot namespaces, for a numeric NS (default: %(default)s)")
     p.add_argument("--coordinated", action="store_true",
                    help="ask the coordinator (swarm-coordinator) for every task instead of "
@@ -327,44 +327,36 @@ def _run(argv: list[str]) -> int:
     route = None if opts.coordinated else build_route(opts.world, opts.seed, ns, opts.route)
     cfg = CommanderConfig(loops=opts.loops, wait_timeout=opts.wait_timeout)
 
-    rclpy.init(args=[PROG, *argv])
-    node = None
     runner = None
-    executor = SingleThreadedExecutor()
     code = EXIT_OK
-    try:
-        if opts.coordinated:
-            _wait_for_coordinator(ns, executor, opts.wait_timeout)
-        # A coordinated commander connects to its navigator once it reaches the coordinator.
-        node = BasicNavigator(node_name=NODE_NAME, namespace=ns, connect=not opts.coordinated)
-        _use_sim_time_by_default(node)
-        node.get_logger().set_level(LoggingSeverity.WARN)  # the task lines say what happens
-        if opts.coordinated:
-            from swarm_commander.coordinated import CoordinatedConfig, CoordinatedRunner
+    with node_session([PROG, *argv]) as nodes:
+        executor = SingleThreadedExecutor()
+        try:
+            if opts.coordinated:
+                _wait_for_coordinator(ns, executor, opts.wait_timeout)
+            # A coordinated commander connects to its navigator once it reaches the coordinator.
+            node = BasicNavigator(node_name=NODE_NAME, namespace=ns, connect=not opts.coordinated)
+            nodes.append(node)
+            _use_sim_time_by_default(node)
+            node.get_logger().set_level(LoggingSeverity.WARN)  # the task lines say what happens
+            if opts.coordinated:
+                from swarm_commander.coordinated import CoordinatedConfig, CoordinatedRunner
 
-            runner = CoordinatedRunner(node, CoordinatedConfig(wait_timeout=opts.wait_timeout),
-                                       emit=_emit)
-        else:
-            runner = CommanderRunner(node, route, cfg, emit=_emit)
-        executor.add_node(node)
-        executor.spin_until_future_complete(runner.finished)
-        code = runner.finished.result() if runner.finished.done() else EXIT_OK
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except Exception:
-        if rclpy.ok():
-            raise
-        # Ctrl-C shut the context down while a callback was publishing (rcl: "publisher's
-        # context is invalid"): a Ctrl-C like any other
-    finally:
-        if runner is not None:
-            runner.stop()
-            if runner.started:
-                _emit(runner.summary())
-        executor.shutdown(timeout_sec=0)
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+                runner = CoordinatedRunner(
+                    node, CoordinatedConfig(wait_timeout=opts.wait_timeout), emit=_emit)
+            else:
+                runner = CommanderRunner(node, route, cfg, emit=_emit)
+            executor.add_node(node)
+            executor.spin_until_future_complete(runner.finished)
+            code = runner.finished.result() if runner.finished.done() else EXIT_OK
+        finally:  # then the session destroys the node; a Ctrl-C (also one that shut the
+            # context down while a callback was publishing, rcl: "publisher's context is
+            # invalid") ends quietly
+            if runner is not None:
+                runner.stop()
+                if runner.started:
+                    _emit(runner.summary())
+            executor.shutdown(timeout_sec=0)
     if runner is not None and runner.error:
         print(f"{PROG}: error: {runner.error}", file=sys.stderr)
     return code

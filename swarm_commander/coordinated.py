@@ -36,17 +36,14 @@ from dataclasses import dataclass
 
 from geometry_msgs.msg import PoseStamped
 from rclpy.clock import Clock, ClockType
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
 from swarm_commander.robot_navigator import BasicNavigator, TaskResult
+from swarm_common import topics
 from swarm_common.coordination import (
-    ASSIGNMENT_TOPIC,
     COORDINATOR_NODE,
-    REQUEST_TOPIC,
-    STATE_TOPIC,
     Assignment,
     ContractError,
     Request,
@@ -59,14 +56,8 @@ from swarm_common.coordination import (
 from swarm_common.errors import EXIT_BAD_INPUT, EXIT_RUNTIME
 from swarm_common.geometry import yaw_to_quaternion
 from swarm_common.stamps import NS_PER_S
+from swarm_ros.qos import publisher, subscription
 
-# Transient local: a reader that matches late (the metrics node counting the communication
-# load) still gets the last requests; the coordinator reads them volatile (no stale requests).
-REQUEST_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
-ASSIGNMENT_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-STATE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
 _OUTCOME = {TaskResult.SUCCEEDED: "succeeded", TaskResult.FAILED: "failed",
             TaskResult.CANCELED: "canceled"}
 
@@ -125,12 +116,13 @@ class CoordinatedRunner:
         self._resync = False  # a new coordinator is to be told what we hold
         self._first_start_ns: int | None = None
         navigator.on_task_complete = self._on_task_complete
-        self._req_pub = navigator.create_publisher(String, REQUEST_TOPIC, REQUEST_QOS)
-        self._assignment_sub = navigator.create_subscription(
-            String, ASSIGNMENT_TOPIC, self._on_assignment, ASSIGNMENT_QOS)
-        self._state_sub = navigator.create_subscription(String, STATE_TOPIC, self._on_state,
-                                                        STATE_QOS)
-        self._decline = navigator.create_client(Trigger, "navigator/cancel")
+        self._req_pub = publisher(navigator, String, topics.COORDINATOR_REQUEST)
+        self._assignment_sub = subscription(navigator, String, topics.ASSIGNMENT,
+                                            self._on_assignment,
+                                            qos=topics.ASSIGNMENT_READER_QOS)
+        self._state_sub = subscription(navigator, String, topics.COORDINATOR_STATE,
+                                       self._on_state)
+        self._decline = navigator.create_client(Trigger, topics.CANCEL_SERVICE)
         self._timer = navigator.create_timer(
             cfg.poll_period, self._on_timer, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
@@ -321,7 +313,7 @@ class CoordinatedRunner:
     def _heard_by_coordinator(self) -> bool:
         """Whether our request publisher is matched with the coordinator's subscription (a
         request published before discovery matched it would be lost)."""
-        infos = self.nav.get_subscriptions_info_by_topic(REQUEST_TOPIC)
+        infos = self.nav.get_subscriptions_info_by_topic(topics.COORDINATOR_REQUEST.name)
         return (any(i.node_name == COORDINATOR_NODE for i in infos)
                 and self._req_pub.get_subscription_count() >= len(infos))
 
@@ -351,7 +343,7 @@ def wait_for_coordinator(node, timeout_s: float, spin_once: Callable[[float], No
         True once seen, False after ``timeout_s``.
     """
     seen = []
-    sub = node.create_subscription(String, STATE_TOPIC, lambda m: seen.append(m), STATE_QOS)
+    sub = subscription(node, String, topics.COORDINATOR_STATE, seen.append)
     deadline = time.monotonic() + timeout_s
     try:
         while not seen and time.monotonic() < deadline:

@@ -64,22 +64,14 @@ from geometry_msgs.msg import PoseStamped
 from rclpy._rclpy_pybind11 import RCLError  # what a call on a shut-down context raises
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import QoSDurabilityPolicy, QoSHistoryPolicy, QoSProfile, QoSReliabilityPolicy
 from std_srvs.srv import Trigger
 
+from swarm_common import topics
 from swarm_common.nav_status import NavState, NavStatusRecord, decode
 from swarm_common.stamps import NS_PER_S, format_stamp
+from swarm_ros.qos import publisher, subscription
 
 __all__ = ["BasicNavigator", "NavFeedback", "TaskResult"]
-
-NAV_STATUS_QOS = QoSProfile(
-    reliability=QoSReliabilityPolicy.RELIABLE,
-    durability=QoSDurabilityPolicy.TRANSIENT_LOCAL,
-    history=QoSHistoryPolicy.KEEP_LAST,
-    depth=10,  # 10 here so no transition is lost in a burst
-)
-"""QoS of our ``nav_status`` subscription; compatible with the navigator's (reliable, transient
-local, depth 100: ``swarm_nav.node.NAV_STATUS_QOS``)."""
 
 MAP_FRAME = "map"
 
@@ -207,14 +199,15 @@ class BasicNavigator(Node):
         self._goal_pub = None
         if connect:
             self.connect()
-        self._status_sub = self.create_subscription(
-            DiagnosticStatus, "nav_status", self._on_nav_status, NAV_STATUS_QOS)
-        self._cancel_client = self.create_client(Trigger, "navigator/cancel")
+        self._status_sub = subscription(self, DiagnosticStatus, topics.NAV_STATUS,
+                                        self._on_nav_status,
+                                        qos=topics.NAV_STATUS_COMMANDER_READER_QOS)
+        self._cancel_client = self.create_client(Trigger, topics.CANCEL_SERVICE)
 
     def connect(self) -> None:
         """Create the ``goal_pose`` publisher (idempotent): the navigator sees a commander."""
         if self._goal_pub is None:
-            self._goal_pub = self.create_publisher(PoseStamped, "goal_pose", 10)
+            self._goal_pub = publisher(self, PoseStamped, topics.GOAL_POSE)
 
     @property
     def connected(self) -> bool:

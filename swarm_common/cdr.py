@@ -31,9 +31,12 @@ import struct
 
 import numpy as np
 
+from swarm_common.geometry import quaternion_to_yaw
+
 __all__ = ["LaserScanWriter", "OdometryWriter", "PathWriter", "PoseArrayWriter",
-           "TwistStampedWriter", "diagnostic_status",
-           "odom_pose", "path_points", "pose_array", "scan_ranges", "twist_stamped"]
+           "TwistStampedWriter", "diagnostic_status", "header_stamp", "odom_pose",
+           "odometry_pose", "path_points", "pose_array", "scan_ranges", "string_data",
+           "tf_message", "twist_stamped"]
 
 _CDR_LE = b"\x00\x01"
 _U32 = struct.Struct("<I")
@@ -87,11 +90,6 @@ def _after_header(body: memoryview, pos: int = 0) -> int:
     return _skip_string(body, _align(pos, 4) + 8)
 
 
-def _yaw(qz: float, qw: float, qx: float = 0.0, qy: float = 0.0) -> float:
-    """Yaw [rad] of a quaternion (ZYX convention)."""
-    return math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
-
-
 def odom_pose(buf) -> tuple[int, float, float, float, float, float]:
     """The stamp, pose and velocity of a serialized ``nav_msgs/Odometry``.
 
@@ -110,15 +108,60 @@ def odom_pose(buf) -> tuple[int, float, float, float, float, float]:
 
 
 def _odom_pose(body: memoryview) -> tuple[int, float, float, float, float, float]:
-    pos = _skip_string(body, _after_header(body))  # child_frame_id
-    pos = _align(pos, 8)
+    pos = _odom_pose_at(body)
     x, y, _, qx, qy, qz, qw = _POSE.unpack_from(body, pos)
     vx, _, _, _, _, wz = _TWIST.unpack_from(body, pos + _TWIST_AT)
     if math.isfinite(qx) and math.isfinite(qy) and math.isfinite(qz) and math.isfinite(qw):
-        yaw = _yaw(qz, qw, qx, qy)
+        yaw = quaternion_to_yaw(qx, qy, qz, qw)
     else:  # atan2 of infinities can be finite: say plainly that there is no heading
         yaw = math.nan
     return _stamp_ns(body), x, y, yaw, vx, wz
+
+
+def _odom_pose_at(body: memoryview) -> int:
+    """Where ``pose.pose`` of an ``nav_msgs/Odometry`` body starts."""
+    return _align(_skip_string(body, _after_header(body)), 8)  # after child_frame_id
+
+
+def odometry_pose(buf) -> tuple[int, tuple[float, ...]]:
+    """The stamp and full pose of a serialized ``nav_msgs/Odometry`` (``/tf`` is built from it).
+
+    Args:
+        buf: the message's CDR bytes.
+
+    Returns:
+        ``(stamp_ns, (x, y, z, qx, qy, qz, qw))``: header stamp [ns]; position [m] and
+        orientation quaternion in the message's frame.
+
+    Raises:
+        ValueError: not little-endian CDR, or too short.
+    """
+    return _decoded(lambda body: (_stamp_ns(body), _POSE.unpack_from(body, _odom_pose_at(body))),
+                    buf)
+
+
+def header_stamp(buf) -> int:
+    """The stamp [ns] of a serialized message whose first field is a ``std_msgs/Header`` (or a
+    ``builtin_interfaces/Time``, as ``rosgraph_msgs/Clock``).
+
+    Raises:
+        ValueError: not little-endian CDR, or too short.
+    """
+    return _decoded(_stamp_ns, buf)
+
+
+def string_data(buf) -> str:
+    """The ``data`` of a serialized ``std_msgs/String`` (bytes that are not UTF-8 replaced).
+
+    Raises:
+        ValueError: not little-endian CDR, or truncated.
+    """
+    return _decoded(_string_data, buf)
+
+
+def _string_data(body: memoryview) -> str:
+    end = _skip_string(body, 0)
+    return bytes(body[4:max(end - 1, 4)]).decode("utf-8", errors="replace")
 
 
 def path_points(buf) -> np.ndarray:
@@ -176,8 +219,7 @@ def _pose_array(body: memoryview) -> tuple[int, np.ndarray]:
     if pos + _POSE.size * count > len(body):
         raise ValueError("poses run past the end of the message")
     p = np.frombuffer(body, dtype="<f8", count=7 * count, offset=pos).reshape(count, 7)
-    qx, qy, qz, qw = p[:, 3], p[:, 4], p[:, 5], p[:, 6]
-    yaw = np.arctan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+    yaw = quaternion_to_yaw(p[:, 3], p[:, 4], p[:, 5], p[:, 6])
     return _stamp_ns(body), np.column_stack((p[:, 0], p[:, 1], yaw))
 
 
@@ -449,4 +491,30 @@ def diagnostic_status(level: int, name: str, message: str, hardware_id: str,
         for text in (key, value):
             parts.append(_string(pos, text))
             pos += len(parts[-1])
+    return b"".join(parts)
+
+
+def tf_message(transforms) -> bytes:
+    """A serialized ``tf2_msgs/msg/TFMessage`` (no ``tf2_msgs`` wheel exists to build one).
+
+    Args:
+        transforms: ``(stamp_ns, parent, child, (x, y, z), (qx, qy, qz, qw))`` per
+            ``geometry_msgs/TransformStamped``: stamp [ns], header frame, child frame,
+            translation [m] and rotation quaternion.
+
+    Layout: ``uint32`` count, then per transform ``int32 sec, uint32 nanosec``, ``frame_id`` and
+    ``child_frame_id`` as strings, padding to 8, seven ``float64``.
+    """
+    parts = [_ENCAPSULATION, _U32.pack(len(transforms))]
+    pos = 4
+    for stamp_ns, parent, child, translation, rotation in transforms:
+        head = _pad(pos, 4) + _stamp(stamp_ns)
+        pos += len(head)
+        parent_s = _string(pos, parent)
+        pos += len(parent_s)
+        child_s = _string(pos, child)
+        pos += len(child_s)
+        pose = _pad(pos, 8) + _POSE.pack(*translation, *rotation)
+        pos += len(pose)
+        parts += [head, parent_s, child_s, pose]
     return b"".join(parts)

@@ -109,9 +109,10 @@ def ros_names(text: str) -> tuple[str, ...]:
 
 
 # ---------------------------------------------------------------------------------- numbers
-def _int(text: str, ok, what: str) -> int:
+def _number(text: str, parse, ok, what: str):
+    """``parse(text)`` if it parses and ``ok`` holds, else argparse's error naming ``what``."""
     try:
-        value = int(text)
+        value = parse(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"must be {what}, got {text!r}") from None
     if not ok(value):
@@ -119,14 +120,12 @@ def _int(text: str, ok, what: str) -> int:
     return value
 
 
+def _int(text: str, ok, what: str) -> int:
+    return _number(text, int, ok, what)
+
+
 def _float(text: str, ok, what: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be {what}, got {text!r}") from None
-    if not math.isfinite(value) or not ok(value):
-        raise argparse.ArgumentTypeError(f"must be {what}, got {text!r}")
-    return value
+    return _number(text, float, lambda v: math.isfinite(v) and ok(v), what)
 
 
 def positive_int(text: str) -> int:
@@ -162,3 +161,20 @@ def non_negative_float(text: str) -> float:
 def positive_float(text: str) -> float:
     """argparse type: a finite number > 0."""
     return _float(text, lambda v: v > 0, "a positive number")
+
+
+# ------------------------------------------------------------------------------ shared flags
+SHARED_FLAGS = {
+    "--world": {"default": "slim_blockage", "metavar": "NAME|PATH"},
+    "--robot": {"default": "turtlebot3_waffle", "metavar": "NAME|PATH|MIX"},
+    "--seed": {"type": seed, "default": 0, "metavar": "S"},
+    "--name-prefix": {"type": ros_name, "default": "Srobot", "metavar": "PREFIX"},
+    "--swarm-size": {"type": positive_int, "metavar": "N"},
+}
+"""The flags several commands take, each defined once: type (validator), default, metavar."""
+
+
+def add_shared(p: argparse.ArgumentParser, flag: str, help: str, **overrides) -> None:
+    """Add one of :data:`SHARED_FLAGS` to ``p`` with the command's own ``help`` (and, say, its
+    own ``default``)."""
+    p.add_argument(flag, **{**SHARED_FLAGS[flag], **overrides}, help=help)

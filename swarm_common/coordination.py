@@ -1,7 +1,7 @@
 """The coordination contract of ``swarm-up --coordination centralized``, written once.
 
 The commanders (:mod:`swarm_commander.coordinated`), the coordinator
-(:mod:`swarm_coordinator.node`) and the metrics recorder (:mod:`swarm_up.aggregate`) all go
+(:mod:`swarm_coordinator.node`) and the metrics recorder (:mod:`swarm_metrics.aggregate`) all go
 through this module (STYLE.md rule 15). Pure: no ROS import. Standard message types only: every
 message is a ``std_msgs/String`` whose ``data`` is one JSON object (:func:`encode_request`,
 :func:`encode_assignment`, :func:`encode_state`); reservation and task events go onto
@@ -15,7 +15,8 @@ Topics (as ``ros2 topic list`` shows them)::
     /swarm/coordinator/state       coordinator -> robots  std_msgs/String  reliable, latched
 
 Writers of requests and assignments keep their last 10 messages (transient local) for readers
-that match late (the metrics node); the coordinator and the commanders read them volatile.
+that match late (the metrics node); the coordinator and the commanders read them volatile (names
+and QoS: :mod:`swarm_common.topics`).
 
 Resources are named ``workstation:<name>`` and ``spot:<id>`` (:func:`workstation_resource`,
 :func:`spot_resource`). Stamps are simulated times in integer nanoseconds inside, and the
@@ -30,10 +31,6 @@ from dataclasses import dataclass, field
 
 from swarm_common.stamps import format_stamp_ns, parse_stamp
 
-REQUEST_TOPIC = "/swarm/coordinator/request"
-STATE_TOPIC = "/swarm/coordinator/state"
-ASSIGNMENT_TOPIC = "coordinator/assignment"  # relative: /<ns>/coordinator/assignment
-EVENTS_TOPIC = "/swarm/events"
 COORDINATOR_NODE = "swarm_coordinator"  # the coordinator's node name
 METRICS_NODE = "swarm_up_metrics"  # swarm-up's node that records /swarm/events for the metrics
 
@@ -47,11 +44,6 @@ EVENT_COORDINATOR = "coordinator"
 
 class ContractError(ValueError):
     """A message that does not follow the contract (the reader drops it and warns)."""
-
-
-def assignment_topic(ns: str) -> str:
-    """The absolute assignment topic of robot ``ns`` (``/Srobot3/coordinator/assignment``)."""
-    return f"/{ns.strip('/')}/{ASSIGNMENT_TOPIC}"
 
 
 def workstation_resource(name: str) -> str:
@@ -177,6 +169,13 @@ def _text(data: Mapping, key: str, default: str | None = None) -> str:
     return value
 
 
+def _choice(data: Mapping, key: str, allowed: tuple[str, ...], default: str | None = None) -> str:
+    value = _text(data, key, default)
+    if value not in allowed:
+        raise ContractError(f"{key}: expected one of {allowed}, got {value!r}")
+    return value
+
+
 def _int(data: Mapping, key: str, default: int | None = None) -> int:
     value = data.get(key, default)
     if isinstance(value, bool) or not isinstance(value, int) or value < 0:
@@ -211,12 +210,8 @@ def decode_request(text: str) -> Request:
         ContractError: malformed (names the key).
     """
     d = _load(text)
-    kind = _text(d, "kind")
-    if kind not in REQUEST_KINDS:
-        raise ContractError(f"kind: expected one of {REQUEST_KINDS}, got {kind!r}")
-    outcome = _text(d, "outcome", "")
-    if outcome not in OUTCOMES:
-        raise ContractError(f"outcome: expected one of {OUTCOMES}, got {outcome!r}")
+    kind = _choice(d, "kind", REQUEST_KINDS)
+    outcome = _choice(d, "outcome", OUTCOMES, "")
     holds = d.get("holds", [])
     if not isinstance(holds, list) or not all(isinstance(h, str) for h in holds):
         raise ContractError(f"holds: expected a list of strings, got {holds!r}")
@@ -250,9 +245,7 @@ def decode_assignment(text: str) -> Assignment:
         ContractError: malformed (names the key).
     """
     d = _load(text)
-    kind = _text(d, "kind")
-    if kind not in ASSIGNMENT_KINDS:
-        raise ContractError(f"kind: expected one of {ASSIGNMENT_KINDS}, got {kind!r}")
+    kind = _choice(d, "kind", ASSIGNMENT_KINDS)
     pose = []
     for key in ("x", "y", "yaw"):
         value = d.get(key)

@@ -32,6 +32,22 @@ def did_you_mean(word: str, choices) -> str:
     return f" (did you mean '{close[0]}'?)" if close else ""
 
 
+def check_keys(where: str, mapping, allowed, required=()) -> None:
+    """A strict loader's key check: every key of ``mapping`` is ``allowed``, every ``required``
+    one is there.
+
+    Raises:
+        InputError: ``"<where>: unknown key 'k' (did you mean ...)"`` or
+            ``"<where>: missing key 'k'"``, for the first such key.
+    """
+    for key in mapping:
+        if key not in allowed:
+            raise InputError(f"{where}: unknown key '{key}'{did_you_mean(str(key), allowed)}")
+    for key in required:
+        if key not in mapping:
+            raise InputError(f"{where}: missing key '{key}'")
+
+
 def run_cli(prog: str, body: Callable[[], int | None]) -> int:
     """Run a command's body and map errors onto the exit-code contract.
 

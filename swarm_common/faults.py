@@ -39,7 +39,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from swarm_common.errors import InputError, did_you_mean
+from swarm_common import topics
+from swarm_common.errors import InputError, check_keys, did_you_mean
 from swarm_common.stamps import NS_PER_S
 
 KILL_NAV = "kill-nav"
@@ -51,7 +52,7 @@ KINDS = (KILL_NAV, KILL_ROBOT, FREEZE, DROP, KILL_COORDINATOR)
 ROBOT_KINDS = (KILL_NAV, KILL_ROBOT, FREEZE, DROP)
 PROCESS_KINDS = (KILL_NAV, KILL_ROBOT, KILL_COORDINATOR)
 """Kinds with a process-side part, carried out by swarm-up or a group process."""
-DROP_TOPICS = ("scan", "odom", "cmd_vel")
+DROP_TOPICS = (topics.SCAN.name, topics.ODOM.name, topics.CMD_VEL.name)
 """The robot topics a ``drop`` fault can thin out (the simulator's own topics)."""
 COORDINATOR = "coordinator"
 """The ``swarm-up`` child that ``kill-coordinator`` kills."""
@@ -62,8 +63,6 @@ EVENT_NAME = "fault"
 """``name`` of a fault's ``DiagnosticStatus`` on ``/swarm/events``."""
 ACK_NAME = "fault_ack"
 """``name`` of an acknowledgement on ``/swarm/fault_acks``."""
-EVENTS_TOPIC = "/swarm/events"
-ACKS_TOPIC = "/swarm/fault_acks"
 YAML_KEYS = ("kind", "robot", "topic", "fraction", "at", "for")
 
 
@@ -250,13 +249,7 @@ def _load_yaml(path: Path, robots, prefix) -> list[Fault]:
         where = f"{path}: fault {i}"
         if not isinstance(entry, dict):
             raise InputError(f"{where}: must be a mapping with keys {', '.join(YAML_KEYS)}")
-        for key in entry:
-            if key not in YAML_KEYS:
-                raise InputError(f"{where}: unknown key '{key}'"
-                                 f"{did_you_mean(str(key), YAML_KEYS)}")
-        for key in ("kind", "at"):
-            if key not in entry:
-                raise InputError(f"{where}: missing key '{key}'")
+        check_keys(where, entry, YAML_KEYS, ("kind", "at"))
         try:
             faults.append(_make(i, str(entry["kind"]), robot=entry.get("robot"),
                                 topic=entry.get("topic"), fraction=entry.get("fraction"),

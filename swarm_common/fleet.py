@@ -30,7 +30,7 @@ from pathlib import Path
 
 import yaml
 
-from swarm_common.errors import InputError, did_you_mean
+from swarm_common.errors import InputError, check_keys, did_you_mean
 
 FLEET_SUFFIXES = (".yaml", ".yml")
 _ENTRY_KEYS = ("robot", "count")
@@ -213,13 +213,7 @@ def _read_fleet_file(path: Path) -> tuple[tuple[str, int], ...]:
         where = f"{path}: fleet[{k}]"
         if not isinstance(item, dict):
             raise InputError(f"{where}: expected {{robot: NAME|PATH, count: N}}")
-        for key in item:
-            if key not in _ENTRY_KEYS:
-                raise InputError(f"{where}: unknown key '{key}'"
-                                 f"{did_you_mean(str(key), _ENTRY_KEYS)}")
-        for key in _ENTRY_KEYS:
-            if key not in item:
-                raise InputError(f"{where}: missing '{key}'")
+        check_keys(where, item, _ENTRY_KEYS, _ENTRY_KEYS)
         model, count = str(item["robot"]).strip(), item["count"]
         if isinstance(count, bool) or not isinstance(count, int) or count <= 0:
             raise InputError(f"{where}: count must be a positive integer, got {count!r}")

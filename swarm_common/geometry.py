@@ -40,9 +40,15 @@ def yaw_to_quaternion(yaw: float) -> tuple[float, float, float, float]:
     return (0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0))
 
 
-def quaternion_to_yaw(x: float, y: float, z: float, w: float) -> float:
-    """Yaw [rad] of a quaternion ``(x, y, z, w)`` (ZYX convention, as tf2's ``getYaw``)."""
-    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+def quaternion_to_yaw(x, y, z, w):
+    """Yaw [rad] in [-pi, pi] of a quaternion ``(x, y, z, w)`` (ZYX convention, as tf2's
+    ``getYaw``): ``atan2(2 (w z + x y), 1 - 2 (y^2 + z^2))``.
+
+    The one copy of this formula: floats give a float (``math.atan2``), arrays of equal shape an
+    array, element by element (``numpy.arctan2``).
+    """
+    atan2 = np.arctan2 if isinstance(z, np.ndarray) else math.atan2
+    return atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
 def transform_points(pose: Pose2D, points: Points2D) -> Points2D:

@@ -1,7 +1,7 @@
 """The navigator's status contract: what ``/<ns>/nav_status`` carries, written once.
 
 The navigator (:mod:`swarm_nav.node`) publishes it; the commander
-(:mod:`swarm_commander.robot_navigator`) and the metrics recorder (:mod:`swarm_up.aggregate`)
+(:mod:`swarm_commander.robot_navigator`) and the metrics recorder (:mod:`swarm_metrics.aggregate`)
 read it. All three go through this module (STYLE.md rule 15); docs/ARCHITECTURE.md describes
 the topic (QoS, rate, ``name``/``hardware_id``).
 

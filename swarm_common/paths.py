@@ -15,6 +15,16 @@ FASTDDS_UDP_ONLY_PROFILE = PARAMS_DIR / "fastdds_udp_only.xml"
 FASTDDS_UDP_LOOPBACK_PROFILE = PARAMS_DIR / "fastdds_udp_loopback.xml"
 
 
+def find_named(name: str, directory: Path, suffixes) -> Path | None:
+    """The absolute path of ``<directory>/<name><suffix>`` for the first of ``suffixes`` that
+    exists as a file, else None (a world or robot given by name)."""
+    for suffix in suffixes:
+        candidate = directory / f"{name}{suffix}"
+        if candidate.is_file():
+            return candidate.resolve()
+    return None
+
+
 def default_map_for(world_path: str | Path) -> Path | None:
     """The bundled map of a bundled world: ``maps/<stem>.yaml`` for a world under ``worlds/``.
 

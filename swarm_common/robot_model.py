@@ -44,7 +44,7 @@ import yaml
 
 from swarm_common.errors import InputError, did_you_mean
 from swarm_common.geometry import convex_hull_2d, pose_to_matrix
-from swarm_common.paths import ROBOT_PARAMS_DIR, ROBOTS_DIR, ROOT
+from swarm_common.paths import ROBOT_PARAMS_DIR, ROBOTS_DIR, ROOT, find_named
 
 _log = logging.getLogger(__name__)
 
@@ -196,10 +196,9 @@ def resolve_robot(name_or_path: str | Path) -> Path:
     """
     text = str(name_or_path)
     if not (isinstance(name_or_path, Path) or "/" in text or Path(text).suffix):
-        for suffix in (".urdf.xacro", ".urdf"):
-            candidate = ROBOTS_DIR / f"{text}{suffix}"
-            if candidate.is_file():
-                return candidate.resolve()
+        found = find_named(text, ROBOTS_DIR, (".urdf.xacro", ".urdf"))
+        if found is not None:
+            return found
         names = robot_names()
         available = ", ".join(names) if names else "none"
         raise InputError(

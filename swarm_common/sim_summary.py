@@ -2,7 +2,7 @@
 
 The simulator (:meth:`swarm_sim.node.SimulatorNode.summary_record`) builds a :class:`SimSummary`
 and writes its :meth:`~SimSummary.to_dict` as :meth:`~SimSummary.to_json` does; ``swarm-up``
-reads it back (:func:`swarm_up.aggregate.load_sim_summary`) and merges its figures into
+reads it back (:func:`swarm_metrics.aggregate.load_sim_summary`) and merges its figures into
 ``--metrics``. Both go through this module (STYLE.md rule 15).
 
 The file is one JSON object (2-space indent, a final newline), keys in the order of the fields

@@ -58,7 +58,7 @@ from swarm_common.geometry import (
     quaternion_to_matrix,
     rpy_to_matrix,
 )
-from swarm_common.paths import WORLDS_DIR
+from swarm_common.paths import WORLDS_DIR, find_named
 
 WORLD_SUFFIXES = (".world", ".sdf")
 # The robots' height band (ROS REP 103: z up, z = 0 the ground the robots stand on). A shape is
@@ -154,10 +154,9 @@ def resolve_world(name_or_path: str | Path) -> Path:
         if path.is_dir():
             raise InputError(f"{text}: is a directory, not a .world/.sdf file")
         raise InputError(f"{text}: no such world file")
-    for suffix in WORLD_SUFFIXES:
-        candidate = WORLDS_DIR / f"{text}{suffix}"
-        if candidate.is_file():
-            return candidate.resolve()
+    found = find_named(text, WORLDS_DIR, WORLD_SUFFIXES)
+    if found is not None:
+        return found
     names = available_worlds()
     listing = ", ".join(names) if names else "none"
     raise InputError(

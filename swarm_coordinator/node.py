@@ -31,28 +31,21 @@ import sys
 import time
 import uuid
 
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy._rclpy_pybind11 import RCLInvalidROSArgsError
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.utilities import remove_ros_args
 from std_msgs.msg import String
 
-from swarm_common import cli
+from swarm_common import cli, topics
 from swarm_common.coordination import (
     COORDINATOR_NODE,
     EVENT_COORDINATOR,
-    EVENTS_TOPIC,
     METRICS_NODE,
-    REQUEST_TOPIC,
-    STATE_TOPIC,
     ContractError,
     CoordinatorEvent,
-    assignment_topic,
     decode_request,
     encode_assignment,
     encode_state,
@@ -60,20 +53,11 @@ from swarm_common.coordination import (
 from swarm_common.errors import InputError, run_cli
 from swarm_common.stamps import NS_PER_S
 from swarm_coordinator.core import CoordinatorConfig, CoordinatorCore
+from swarm_ros.qos import publisher, subscription
+from swarm_ros.session import node_session, spin_forever
 
 PROG = "swarm-coordinator"
 NODE_NAME = COORDINATOR_NODE
-REQUEST_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-# Transient local writer (a late-matching metrics reader still counts the first answers); the
-# commanders read volatile, so a restarted commander gets no stale assignment.
-ASSIGNMENT_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
-                            durability=DurabilityPolicy.TRANSIENT_LOCAL)
-STATE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
-# Transient local, as the simulator's writer of /swarm/events: the metrics' reader is transient
-# local (it matches no volatile writer) and gets from the history what it missed while matching.
-EVENTS_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
-                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
 SYNC_POLL_S = 0.05  # [s] wall
 METRICS_MATCH_GRACE_S = 2.0  # [s] wall: discovery matches a reader well within this
 # [s] wall: the writer may match a reader before that reader has matched the writer; a volatile
@@ -110,12 +94,13 @@ class CoordinatorNode(Node):
         self._warned = 0.0
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         # publishers, subscribers
-        self._assign_pubs = {ns: self.create_publisher(String, assignment_topic(ns),
-                                                       ASSIGNMENT_QOS)
+        self._assign_pubs = {ns: publisher(self, String, topics.ASSIGNMENT, ns)
                              for ns in core.robots}
-        self._events_pub = self.create_publisher(DiagnosticArray, EVENTS_TOPIC, EVENTS_QOS)
-        self._state_pub = self.create_publisher(String, STATE_TOPIC, STATE_QOS)
-        self.create_subscription(String, REQUEST_TOPIC, self._on_request, REQUEST_QOS)
+        self._events_pub = publisher(self, DiagnosticArray, topics.EVENTS,
+                                     qos=topics.EVENTS_COORDINATOR_WRITER_QOS)
+        self._state_pub = publisher(self, String, topics.COORDINATOR_STATE)
+        subscription(self, String, topics.COORDINATOR_REQUEST, self._on_request,
+                     qos=topics.COORDINATOR_REQUEST_READER_QOS)
         # timers
         self._sync_timer = self.create_timer(SYNC_POLL_S, self._on_sync_poll, clock=self._steady)
         self._state_pub.publish(String(data=encode_state(core.epoch, len(core.robots))))
@@ -159,8 +144,8 @@ class CoordinatorNode(Node):
                 self.get_logger().warning(f"sync: no word from {len(missing)} robot(s) "
                                           f"({', '.join(missing[:5])}); going on without them")
             if not watched:
-                self.get_logger().warning(f"sync: the metrics' reader of {EVENTS_TOPIC} is "
-                                          "not matched; this start and the first answers may "
+                self.get_logger().warning(f"sync: the metrics' reader of {topics.EVENTS.name} "
+                                          "is not matched; this start and the first answers may "
                                           "go unrecorded")
             self._syncing = False
             self.destroy_timer(self._sync_timer)
@@ -181,7 +166,7 @@ class CoordinatorNode(Node):
         The writer's side of a match comes first; the readers' side is given
         :data:`METRICS_SETTLE_S` more.
         """
-        readers = self.get_subscriptions_info_by_topic(EVENTS_TOPIC)
+        readers = self.get_subscriptions_info_by_topic(topics.EVENTS.name)
         if not any(r.node_name == METRICS_NODE for r in readers):
             return False
         now = time.monotonic()
@@ -242,16 +227,14 @@ def build_parser() -> cli.ArgumentParser:
                            "--coordination centralized: assigns every robot its next "
                            "workstation, reserves workstations and waiting spots first come, "
                            "first served, and tells robots where to wait.")
-    p.add_argument("--swarm-size", type=cli.positive_int, required=True, metavar="N",
+    cli.add_shared(p, "--swarm-size", required=True,
                    help="number of robots: <PREFIX>1 .. <PREFIX>N")
-    p.add_argument("--name-prefix", type=cli.ros_name, default="Srobot", metavar="PREFIX",
-                   help="prefix of robot namespaces (default: %(default)s)")
-    p.add_argument("--world", default="slim_blockage", metavar="NAME|PATH",
-                   help="world whose workstations and holding spots to use "
+    cli.add_shared(p, "--name-prefix", help="prefix of robot namespaces (default: %(default)s)")
+    cli.add_shared(p, "--world", help="world whose workstations and holding spots to use "
                    "(default: %(default)s)")
-    p.add_argument("--seed", type=cli.seed, default=0, metavar="S",
+    cli.add_shared(p, "--seed",
                    help="seed of the robots' routes, as the commanders' (default: %(default)s)")
-    p.add_argument("--robot", default="turtlebot3_waffle", metavar="NAME|PATH|MIX",
+    cli.add_shared(p, "--robot",
                    help="robot model, or a mix NAME:COUNT,... as swarm-up's, for the parking "
                    "spots' clearance (the largest model's) (default: %(default)s)")
     p.add_argument("--control-period", type=cli.positive_float, default=0.1, metavar="SEC",
@@ -319,23 +302,15 @@ def _run(argv: list[str]) -> int:
     robots = tuple(f"{opts.name_prefix}{i}" for i in range(1, opts.swarm_size + 1))
     epoch = uuid.uuid4().hex[:12]  # fixed length: message sizes do not depend on it
     core = build_core(opts.world, opts.seed, robots, opts.robot, opts.control_period, epoch)
-    rclpy.init(args=[PROG, *argv])
-    node = None
-    try:
+    with node_session([PROG, *argv]) as nodes:
         node = CoordinatorNode(core, opts.batch_window, opts.start_timeout,
                                opts.restart_timeout)
+        nodes.append(node)
         print(f"{PROG}: up (epoch {epoch}): {len(robots)} robots, {len(core.stations)} "
               f"workstations, {len(core.spots)} waiting spots", flush=True)
         executor = EventsExecutor()
         executor.add_node(node)
-        while rclpy.ok():
-            executor.spin_once(timeout_sec=0.5)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+        spin_forever(executor, node.context)
     return 0
 
 

@@ -19,18 +19,12 @@ import sys
 import time
 
 import numpy as np
-import rclpy
-from diagnostic_msgs.msg import DiagnosticStatus
-from geometry_msgs.msg import PoseStamped, TwistStamped
-from nav_msgs.msg import OccupancyGrid, Odometry, Path
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import OccupancyGrid, Odometry
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
-from sensor_msgs.msg import LaserScan
-from std_srvs.srv import Trigger
 
 from swarm_common.cdr import (
     PathWriter,
@@ -47,7 +41,10 @@ from swarm_common.stamps import NS_PER_S, format_stamp
 from swarm_nav import jit
 from swarm_nav.config import NavigatorConfig, flat_defaults
 from swarm_nav.core import NavigatorCore
+from swarm_nav.goal_wait import GoalWait
 from swarm_nav.holding import holding_sites_from_poi, site_kinds_from_poi
+from swarm_ros.navigator import navigator_interface
+from swarm_ros.session import node_session, spin_forever
 
 STATUS_PERIOD_NS = NS_PER_S // 2  # nav_status at 2 Hz simulated, and on every change of state
 # Parameters that describe the robot and its world rather than an algorithm.
@@ -73,25 +70,7 @@ _CONTEXT_PARAMS = {
                           "irreproducible and is counted (nav_status goal_wait_timeouts); "
                           "swarm-up --commanders sets 2.5"),
 }
-GOAL_WAIT_POLL_S = 0.05  # [s] wall: how often a waiting tick checks its commander is still there
 COMMANDER_WAIT_S = 60.0  # [s] wall: how long the first answer waits for a commander to connect
-CMD_VEL_HISTORY = 300  # [messages] kept for late-joining readers: 30 s simulated at 10 Hz
-CMD_VEL_QOS = QoSProfile(depth=CMD_VEL_HISTORY, reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
-"""``cmd_vel``'s publisher: reliable and transient-local, like ``/rosout``, so that a reader that
-asks for transient-local (swarm-up's recorder) gets the commands sent before it matched.  A
-writer matches a reader before the reader matches the writer; what the writer sends in between,
-a volatile reader drops (23 ticks of one robot in one CI run, the navigator's start gate passed on
-the writer's side).  Volatile readers (the simulator) are unaffected."""
-NAV_STATUS_HISTORY = 100  # [messages] kept for late-joining readers: 50 s simulated at 2 Hz
-NAV_STATUS_QOS = QoSProfile(depth=NAV_STATUS_HISTORY, reliability=ReliabilityPolicy.RELIABLE,
-                            durability=DurabilityPolicy.TRANSIENT_LOCAL)
-"""``nav_status``'s publisher: reliable and transient-local with a history, for the reason
-:data:`CMD_VEL_QOS` has one: a reader whose side matched late (the start gate counts the
-writer's side) still gets every status, not the last alone, and so every goal, even one that
-ended, or whose navigator was killed, before the reader matched."""
-
-
 def stamp_ns(stamp) -> int:
     """``builtin_interfaces/Time`` -> integer nanoseconds."""
     return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
@@ -171,17 +150,11 @@ class NavigatorNode(Node):
         self._lidar_every = max(1, round(1.0 / (self.lidar.rate_hz * self.cfg.control_period)))
         self._pending: Odometry | None = None
         self._goals: list[tuple[int, np.ndarray, str]] = []  # (stamp, pose, id) awaiting a tick
-        self._terminal_ns: int | None = None  # tick at which the current terminal state began
-        self._goal_wait_over: int | None = None  # tick whose wait for a goal ended without one
-        self._no_next_goal: int | None = None  # end tick of the goal after which none will come
-        self._goal_timer = None
-        self._goal_wait_started = 0.0  # [s] monotonic, when the current wait began
-        self._goal_wait_timeout = float(self.get_parameter("goal_wait_timeout").value)
-        if not (math.isfinite(self._goal_wait_timeout) and self._goal_wait_timeout >= 0.0):
+        goal_wait_timeout = float(self.get_parameter("goal_wait_timeout").value)
+        if not (math.isfinite(goal_wait_timeout) and goal_wait_timeout >= 0.0):
             raise InputError(f"parameter goal_wait_timeout: must be a finite number >= 0 "
-                             f"[s], got {self._goal_wait_timeout}")
-        self.goal_wait_timeouts = 0
-        """Ticks answered without the commander's goal because the wait timed out."""
+                             f"[s], got {goal_wait_timeout}")
+        self.goal_wait = GoalWait(goal_wait_timeout, self._steady_timer, self.destroy_timer)
         self._answered = False
         self._started = time.monotonic()
         self._goal_topic = f"{self.get_namespace().rstrip('/')}/goal_pose"
@@ -191,20 +164,8 @@ class NavigatorNode(Node):
         self._now_ns = 0
         self._warned: dict[str, float] = {}
         # Publishers, subscribers, service.
-        reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        self.cmd_pub = self.create_publisher(TwistStamped, "cmd_vel", CMD_VEL_QOS)
-        self.plan_pub = self.create_publisher(Path, "plan", latched)
-        self.status_pub = self.create_publisher(DiagnosticStatus, "nav_status", NAV_STATUS_QOS)
-        self.create_subscription(OccupancyGrid, "/map", self._on_map, latched)
-        # Odometry and scans come every tick: read raw with swarm_common.cdr, no message objects
-        # (rclpy built 15 of them per odometry message, 10 % of a group process's CPU).
-        self.create_subscription(LaserScan, "scan", self._on_scan, qos_profile_sensor_data,
-                                 raw=True)
-        self.create_subscription(Odometry, "odom", self._on_odom, reliable, raw=True)
-        self.create_subscription(PoseStamped, "goal_pose", self._on_goal_pose, reliable)
-        self.create_service(Trigger, "navigator/cancel", self._on_cancel)
+        self.cmd_pub, self.plan_pub, self.status_pub = navigator_interface(
+            self, self._on_map, self._on_scan, self._on_odom, self._on_goal_pose, self._on_cancel)
         map_yaml = self.get_parameter("map_yaml_path").value
         if map_yaml:
             from swarm_common.map_io import load_map
@@ -330,31 +291,19 @@ class NavigatorNode(Node):
             return
         if self._is_lidar_tick(t) and (self._scan is None or self._scan[0] != t):
             return
-        if self._awaits_goal(t):
-            if self._goal_timer is None and self._answered:
-                self._goal_wait_started = time.monotonic()
-                self._goal_timer = self.create_timer(
-                    GOAL_WAIT_POLL_S, lambda: self._on_goal_wait_poll(t),
-                    clock=Clock(clock_type=ClockType.STEADY_TIME))
-            return
+        if self.goal_wait.must_wait(t, self._awaits_goal(t), time.monotonic(),
+                                    self._on_goal_wait_poll, poll=self._answered):
+            return  # the start gate is checked again with every message; a goal wait polled
         self._pending = None
-        self._cancel_goal_timer()
         self._tick(odom)
 
     def _awaits_goal(self, t: int) -> bool:
         if not self._answered:  # even with a goal there: a restarted navigator gets one at once
             return self._start_gate_closed()
-        if any(stamp < t for stamp, _, _ in self._goals):
-            return False
-        if self._goals:  # the next goal came, stamped ahead: it applies at its stamp
-            return False
-        # The first tick answered after the goal ended (normally the next one; a later one when
-        # that tick's odometry or scan was lost, e.g. to a drop fault) waits, once, unless the
-        # commander said no goal is coming (a cancel while no goal runs).
-        return (self._terminal_ns is not None and t > self._terminal_ns
-                and (self._goal_wait_over is None or self._goal_wait_over <= self._terminal_ns)
-                and self._no_next_goal != self._terminal_ns
-                and self.count_publishers(self._goal_topic) > 0)
+        return self.goal_wait.needed(t, bool(self._goals), self._commander_connected)
+
+    def _commander_connected(self) -> bool:
+        return self.count_publishers(self._goal_topic) > 0
 
     def _start_gate_closed(self) -> bool:
         """Whether the first answer must still wait: for a commander to connect
@@ -367,11 +316,12 @@ class NavigatorNode(Node):
         that discovered it only after that goal ended would never see the goal.  Likewise a
         recorder matched to ``cmd_vel`` only after the first answer had lost it while
         ``cmd_vel`` was volatile: 1 tick in 2 of about 15 CI runs of
-        ``tests/swarm_up/test_record.py``, the first 8 simulated s of one robot of a 3-robot
-        group run.  This gate counts the writer's matches only; the reader's
-        side can lag behind (23 ticks lost once more), which the histories of
-        :data:`CMD_VEL_QOS` and :data:`NAV_STATUS_QOS` cover.  The simulator holds the tick
-        until the navigator answers, so the wait costs wall time, not reproducibility.
+        ``tests/swarm_record/test_recorder.py``, the first 8 simulated s of one robot of a
+        3-robot group run.  This gate counts the writer's matches only; the reader's side can lag
+        behind (23 ticks lost once more), which the histories of
+        :data:`swarm_common.topics.CMD_VEL` and :data:`~swarm_common.topics.NAV_STATUS` cover.
+        The simulator holds the tick until the navigator answers, so the wait costs wall time,
+        not reproducibility.
         """
         waiting = []
         if (self.get_parameter("wait_for_commander").value
@@ -392,24 +342,18 @@ class NavigatorNode(Node):
         return True
 
     def _on_goal_wait_poll(self, t: int) -> None:
-        waited = time.monotonic() - self._goal_wait_started
-        commander = self.count_publishers(self._goal_topic) > 0
-        if commander and waited < self._goal_wait_timeout:
+        commander = self._commander_connected()
+        if not self.goal_wait.poll(t, time.monotonic(), commander):
             return
         if commander:
-            self.goal_wait_timeouts += 1
             self._warn("goal_wait", f"the commander's next goal did not come within "
-                       f"{self._goal_wait_timeout:g} s (wall); tick {t / NS_PER_S:.3f} s answered "
-                       f"without it: this run is not reproducible "
-                       f"({self.goal_wait_timeouts} time(s) so far)")
-        self._cancel_goal_timer()
-        self._goal_wait_over = t
+                       f"{self.goal_wait.timeout_s:g} s (wall); tick {t / NS_PER_S:.3f} s "
+                       f"answered without it: this run is not reproducible "
+                       f"({self.goal_wait.timeouts} time(s) so far)")
         self._release()
 
-    def _cancel_goal_timer(self) -> None:
-        if self._goal_timer is not None:
-            self.destroy_timer(self._goal_timer)
-            self._goal_timer = None
+    def _steady_timer(self, period_s: float, callback):
+        return self.create_timer(period_s, callback, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     def _on_goal_pose(self, msg: PoseStamped) -> None:
         p, q = msg.pose.position, msg.pose.orientation
@@ -435,11 +379,10 @@ class NavigatorNode(Node):
         active = self.core.state not in TERMINAL
         self.core.cancel(self._now_ns / NS_PER_S)
         self._publish_status(force=True)
-        if not active and self._terminal_ns is not None:
-            # A cancel with no goal running says "no next goal is coming": the first tick after
-            # the goal that ended need not wait for one (a coordinated commander whose robot
-            # reached its waiting spot). Answered at that same tick: reproducible.
-            self._no_next_goal = self._terminal_ns
+        # A cancel with no goal running says "no next goal is coming": the first tick after the
+        # goal that ended need not wait for one (a coordinated commander whose robot reached its
+        # waiting spot). Answered at that same tick: reproducible.
+        if not active and self.goal_wait.no_goal_coming():
             self._release()
         response.success = active
         response.message = "canceled" if active else "no active goal"
@@ -474,11 +417,7 @@ class NavigatorNode(Node):
             if not (math.isfinite(v) and math.isfinite(w)):
                 v = w = 0.0
         self.cmd_pub.publish(self._cmd_writer.write(t, float(v), float(w)))
-        if self.core.state in TERMINAL:
-            if self._terminal_ns is None:
-                self._terminal_ns = t
-        else:
-            self._terminal_ns = None
+        self.goal_wait.answered(t, self.core.state in TERMINAL)
         if self.has_map and not self.ready:
             self.ready = True
             self.get_logger().info("ready: map and odometry received")
@@ -501,7 +440,7 @@ class NavigatorNode(Node):
     # -- outputs -------------------------------------------------------------------------------
 
     def _publish_status(self, force: bool = False) -> None:
-        key = (*self.core.status_key, self.goal_wait_timeouts)
+        key = (*self.core.status_key, self.goal_wait.timeouts)
         if not force and key == self._last_status and (
                 self._now_ns - self._last_status_ns < STATUS_PERIOD_NS):
             return
@@ -519,7 +458,7 @@ class NavigatorNode(Node):
             navigation_time=st.navigation_time if st else 0.0,
             recoveries=st.recoveries if st else 0,
             holding_time=st.holding_time if st else 0.0,
-            goal_wait_timeouts=self.goal_wait_timeouts, reason=reason)
+            goal_wait_timeouts=self.goal_wait.timeouts, reason=reason)
         self.status_pub.publish(diagnostic_status(  # CDR bytes: no 13 KeyValue objects
             level_of(state), f"{self.ns}/navigator", state.value, self.ns, encode(record)))
 
@@ -540,16 +479,6 @@ class NavigatorNode(Node):
             self._now_ns, np.zeros((0, 2)) if path is None else path))
 
 
-def spin_forever(executor, context) -> None:
-    """Spin until the context shuts down (Ctrl-C, SIGTERM).
-
-    ``EventsExecutor.spin()`` of this rclpy (7.1.6 wheels) delivered no message across processes
-    in our tests while ``spin_once`` did, so we loop on ``spin_once``.
-    """
-    while context.ok():
-        executor.spin_once(timeout_sec=0.5)
-
-
 def main(args=None) -> int:
     """Entry point of ``swarm-nav`` (STYLE.md point 7)."""
     argv = sys.argv if args is None else args
@@ -561,26 +490,15 @@ def main(args=None) -> int:
         for name, (default, unit, text) in _CONTEXT_PARAMS.items():
             print(f"  {name} = {default!r}  [{unit}] {text}")
         return 0
-    rclpy.init(args=argv)
-    node = None
     try:
-        node = NavigatorNode()
-        executor = EventsExecutor()
-        executor.add_node(node)
-        spin_forever(executor, node.context)
+        with node_session(argv) as nodes:
+            nodes.append(NavigatorNode())
+            executor = EventsExecutor()
+            executor.add_node(nodes[0])
+            spin_forever(executor, nodes[0].context)
     except InputError as exc:
         print(f"swarm-nav: error: {exc}", file=sys.stderr)
         return 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except Exception:
-        if rclpy.ok():
-            raise
-        # Stopped while still starting: the node's creation failed on the shut-down context.
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
     return 0
 
 

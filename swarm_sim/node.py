@@ -29,21 +29,18 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseArray, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry
 from rclpy.duration import Duration
-from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node, NodeNameNonExistentError
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 
-from swarm_common import cli
+from swarm_common import cli, topics
 from swarm_common.cdr import LaserScanWriter, OdometryWriter, PoseArrayWriter, twist_stamped
 from swarm_common.errors import InputError, run_cli
 from swarm_common.faults import (
     ACK_NAME,
-    ACKS_TOPIC,
     END,
     EVENT_NAME,
     KILL_COORDINATOR,
@@ -54,10 +51,11 @@ from swarm_common.faults import (
     FaultEvent,
     parse_faults,
 )
-from swarm_common.fleet_poses import POSES_DEPTH, POSES_TOPIC
 from swarm_common.sim_summary import CollisionCounts, RobotSummary, SimSummary
 from swarm_common.stamps import NS_PER_S
 from swarm_common.world import describe_skipped
+from swarm_ros.qos import publisher, subscription
+from swarm_ros.session import node_session
 from swarm_sim.standstill import StandstillTracker
 
 # A manual (zero-stamp) command outranks the navigator's answers for this long after it arrived,
@@ -94,7 +92,7 @@ class SimSettings:
         reader_subscriptions: how many subscriptions of ``wait_for_reader`` to the simulator's
             topics it waits for: those discovered so far are not all of them while discovery
             runs (``swarm-up`` passes the recorder's count,
-            :func:`swarm_up.recording.simulator_readers`) [-].
+            :func:`swarm_record.mcap_format.simulator_readers`) [-].
         gui: open PyBullet's window.
         faults: the ``--faults`` SPEC (inline syntax or YAML path, :mod:`swarm_common.faults`),
             or None.
@@ -209,34 +207,22 @@ class SimulatorNode(Node):
         self.fault_log: list[dict] = []  # every fault transition applied, in order
         self._last_cmd = np.zeros((self.n, 2))
         # Publishers and subscribers.
-        reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        events_qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
-                                durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        self.clock_pub = self.create_publisher(Clock, "/clock", reliable)
-        self.map_pub = self.create_publisher(OccupancyGrid, "/map", latched)
-        self.events_pub = self.create_publisher(DiagnosticArray, "/swarm/events", events_qos)
-        self.poses_pub = self.create_publisher(
-            PoseArray, POSES_TOPIC,
-            QoSProfile(depth=POSES_DEPTH, reliability=ReliabilityPolicy.RELIABLE))
+        self.clock_pub = publisher(self, Clock, topics.CLOCK)
+        self.map_pub = publisher(self, OccupancyGrid, topics.MAP)
+        self.events_pub = publisher(self, DiagnosticArray, topics.EVENTS)
+        self.poses_pub = publisher(self, PoseArray, topics.POSES)
         self.odom_pubs, self.truth_pubs, self.scan_pubs = [], [], []
         for i, ns in enumerate(namespaces):
-            self.odom_pubs.append(self.create_publisher(Odometry, f"/{ns}/odom", reliable))
-            self.truth_pubs.append(
-                self.create_publisher(Odometry, f"/{ns}/ground_truth", reliable))
-            self.scan_pubs.append(
-                self.create_publisher(LaserScan, f"/{ns}/scan", qos_profile_sensor_data))
-            self.create_subscription(
-                TwistStamped, f"/{ns}/cmd_vel", lambda buf, i=i: self._on_cmd_vel(i, buf),
-                reliable, raw=True)  # read with swarm_common.cdr: no message objects
+            self.odom_pubs.append(publisher(self, Odometry, topics.ODOM, ns))
+            self.truth_pubs.append(publisher(self, Odometry, topics.GROUND_TRUTH, ns))
+            self.scan_pubs.append(publisher(self, LaserScan, topics.SCAN, ns))
+            subscription(self, TwistStamped, topics.CMD_VEL,
+                         lambda buf, i=i: self._on_cmd_vel(i, buf), ns,
+                         topics.CMD_VEL_READER_QOS, raw=True)  # read with swarm_common.cdr
         if self.faults is not None:
             # transient local (as swarm-up's writers): an acknowledgement sent before this
             # reader matched its writer comes from the writer's history, not lost
-            self.create_subscription(DiagnosticStatus, ACKS_TOPIC, self._on_fault_ack,
-                                     QoSProfile(depth=100,
-                                                reliability=ReliabilityPolicy.RELIABLE,
-                                                durability=DurabilityPolicy.TRANSIENT_LOCAL))
+            subscription(self, DiagnosticStatus, topics.FAULT_ACKS, self._on_fault_ack)
         # Odometry, ground truth and scans are published as CDR bytes (swarm_common.cdr): 100
         # robots' messages a tick, each a struct.pack instead of rclpy's conversion.
         self._odom_writers = [OdometryWriter(f"{ns}/odom", f"{ns}/base_footprint")
@@ -466,7 +452,7 @@ class SimulatorNode(Node):
             self._publish_poses()
 
     def _publish_poses(self) -> None:
-        """``/swarm/poses`` (:mod:`swarm_common.fleet_poses`): every robot's pose in ``map``,
+        """``/swarm/poses`` (:data:`swarm_common.topics.POSES`): every robot's pose in ``map``,
         written as CDR bytes (100 rclpy Pose objects a tick were a millisecond of the
         simulator's tick, on the lockstep's critical path, while a dashboard watched)."""
         self.poses_pub.publish(self._poses_writer.write(self.t_ns, self.engine.poses))
@@ -702,18 +688,17 @@ def build_parser() -> argparse.ArgumentParser:
         "(geometry_msgs/TwistStamped).",
         epilog="ROS arguments may follow --ros-args. Exit codes: 0 success, 2 bad input, "
         "1 runtime failure.")
-    p.add_argument("--world", default="slim_blockage",
+    cli.add_shared(p, "--world",
                    help="world name under worlds/ or path to a .world/.sdf [slim_blockage]")
-    p.add_argument("--robot", default="turtlebot3_waffle", metavar="NAME|PATH|MIX",
+    cli.add_shared(p, "--robot",
                    help="robot name under robots/ or path to a .urdf/.xacro; or a mixed fleet "
                    "NAME:COUNT,NAME:COUNT,... whose counts add up to --swarm-size, or a fleet "
                    ".yaml file; the models are interleaved over the robot numbers "
                    "[turtlebot3_waffle]")
-    p.add_argument("--swarm-size", type=cli.positive_int, default=5, metavar="N",
-                   help="number of robots [5]")
-    p.add_argument("--name-prefix", type=cli.ros_name, default="Srobot",
+    cli.add_shared(p, "--swarm-size", default=5, help="number of robots [5]")
+    cli.add_shared(p, "--name-prefix",
                    help=f"namespace prefix, a ROS name ({cli.ROS_NAME_RULE}) [Srobot]")
-    p.add_argument("--seed", type=cli.seed, default=0, help="random seed (lidar noise) [0]")
+    cli.add_shared(p, "--seed", help="random seed (lidar noise) [0]")
     p.add_argument("--rtf", type=cli.non_negative_float, default=1.0, metavar="X",
                    help="real-time factor to pace to; 0 = as fast as possible [1.0]")
     p.add_argument("--duration", type=cli.positive_float, default=None, metavar="SEC",
@@ -880,33 +865,30 @@ def main(args=None) -> int:
         # callback comes out as pybind11's "Unable to convert call argument" RuntimeError.
         signal.signal(signal.SIGTERM, _raise_interrupt)
         signal.signal(signal.SIGINT, signal.default_int_handler)  # even if started ignoring it
-        rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
-        node = SimulatorNode(settings, engine, occ, namespaces, faults)
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(sig, node.request_stop)
-        node.set_parameters([Parameter("use_sim_time", value=False)])
-        executor = EventsExecutor()
-        executor.add_node(node)
-        wall0 = time.monotonic()
-        try:
-            node.publish_spawns()
-            node.run(executor)
-        except (KeyboardInterrupt, ExternalShutdownException):
-            pass
-        finally:
-            wall_s = time.monotonic() - wall0
-            node.wait_for_acks()
-            summary = node.summary_record(wall_s, spawned, world.skipped)
-            if settings.summary:
-                summary.write(settings.summary)
-            c = summary.collisions
-            print(f"simulated {summary.sim_time_s:.1f} s in {wall_s:.1f} s wall "
-                  f"(RTF {summary.rtf}), collisions robot-robot {c.robot_robot} "
-                  f"robot-wall {c.robot_wall}, late ticks {summary.late_ticks}",
-                  flush=True)
-            executor.shutdown()
-            node.destroy_node()
-            rclpy.try_shutdown()
+        with node_session(argv, signal_handler_options=SignalHandlerOptions.NO) as nodes:
+            node = SimulatorNode(settings, engine, occ, namespaces, faults)
+            nodes.append(node)
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                signal.signal(sig, node.request_stop)
+            node.set_parameters([Parameter("use_sim_time", value=False)])
+            executor = EventsExecutor()
+            executor.add_node(node)
+            wall0 = time.monotonic()
+            try:
+                node.publish_spawns()
+                node.run(executor)
+            finally:  # also on Ctrl-C (then the session ends it quietly)
+                wall_s = time.monotonic() - wall0
+                node.wait_for_acks()
+                summary = node.summary_record(wall_s, spawned, world.skipped)
+                if settings.summary:
+                    summary.write(settings.summary)
+                c = summary.collisions
+                print(f"simulated {summary.sim_time_s:.1f} s in {wall_s:.1f} s wall "
+                      f"(RTF {summary.rtf}), collisions robot-robot {c.robot_robot} "
+                      f"robot-wall {c.robot_wall}, late ticks {summary.late_ticks}",
+                      flush=True)
+                executor.shutdown()
         return 0
 
     try:

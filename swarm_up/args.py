@@ -13,7 +13,6 @@ import logging
 import os
 import re
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 from swarm_common import cli, paths
@@ -24,9 +23,9 @@ from swarm_common.poi import load_poi, poi_for_world
 from swarm_common.robot_model import load_robot
 from swarm_common.spawn import spawn_poses
 from swarm_up import PROG
+from swarm_up.run_config import PER_ROBOT, RunConfig
 from swarm_up.rundir import check_nav_template, load_nav_template
 
-PER_ROBOT = "per-robot"
 # Default layout: one process per robot (and one per commander) up to this many robots, else one
 # group process per core.  Each rclpy process is a DDS participant of ~75 MB whose start costs ~1 s
 # of CPU; 20 robots with commanders as 41 processes took minutes to come up on 2 cores.  Groups are
@@ -74,25 +73,23 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="Exit codes: 0 success, 2 bad input, 1 runtime failure. "
         "Ctrl-C stops every process within 5 s.",
     )
-    p.add_argument("--swarm-size", type=cli.positive_int, default=None, metavar="N",
+    cli.add_shared(p, "--swarm-size", default=None,
                    help=f"number of robots (default: {DEFAULT_SWARM_SIZE}, or the total of a "
                    "--robot mix)")
-    p.add_argument("--world", default="slim_blockage", metavar="NAME|PATH",
-                   help="a world under worlds/ or a Gazebo .world/.sdf path "
+    cli.add_shared(p, "--world", help="a world under worlds/ or a Gazebo .world/.sdf path "
                    "(default: %(default)s)")
     p.add_argument("--map", type=Path, default=None, metavar="PATH",
                    help="map_server map YAML (default: the world's map under maps/, "
                    "else rasterised from the world)")
-    p.add_argument("--robot", default="turtlebot3_waffle", metavar="NAME|PATH|MIX",
+    cli.add_shared(p, "--robot",
                    help="a robot under robots/ or a .urdf/.xacro path; or a mixed fleet "
                    "NAME:COUNT,NAME:COUNT,... (e.g. turtlebot3_waffle:12,turtlebot3_burger:4,"
                    "linorobot2_2wd:4; the counts add up to --swarm-size) or a fleet .yaml "
                    "file (README, Robots); the models are interleaved over the robot numbers "
                    "(default: %(default)s)")
-    p.add_argument("--name-prefix", type=cli.ros_name, default="Srobot", metavar="PREFIX",
+    cli.add_shared(p, "--name-prefix",
                    help="robot namespaces are /<PREFIX><i>, i = 1..N (default: %(default)s)")
-    p.add_argument("--seed", type=cli.seed, default=0, metavar="S",
-                   help="seed of every random choice (default: %(default)s)")
+    cli.add_shared(p, "--seed", help="seed of every random choice (default: %(default)s)")
     p.add_argument("--rtf", type=cli.non_negative_float, default=1.0, metavar="X",
                    help="real-time factor; 0 = as fast as possible (default: %(default)s)")
     p.add_argument("--duration", type=cli.positive_float, default=None, metavar="SEC",
@@ -147,74 +144,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 # ------------------------------------------------------------------------------------- validation
-@dataclass(frozen=True)
-class RunConfig:
-    """Everything a run needs, validated.
-
-    Attributes:
-        robots: namespaces without ``/`` (``Srobot1`` ...).
-        name_prefix: their common prefix (``Srobot``).
-        world_path: the world file.
-        world_name: its stem, for reports.
-        robot: ``--robot`` as the simulator gets it: the robot's name or absolute path, or a
-            mix ``NAME:COUNT,...`` in the order given (a fleet file's entries so; paths
-            absolute).
-        map_path: map YAML (None: rasterise or let the simulator do it).
-        poi_path: points-of-interest YAML beside the world (None: there is none).
-        seed: seed.
-        rtf: real-time factor (0 = as fast as possible).
-        duration: simulated seconds, or None (until Ctrl-C) [s].
-        commanders: start commanders.
-        coordination: ``decentralized`` | ``centralized`` (with commanders).
-        metrics_path: ``--metrics`` file or None.
-        groups: None for one process per robot, else the robots of every group process.
-        gui: open the PyBullet window.
-        run_dir: absolute run directory.
-        ready_timeout: [s] wall.
-        nav_template: navigator parameter template.
-        faults: the ``--faults`` schedule (:func:`swarm_common.faults.parse_faults`); empty:
-            none.
-        record_path: ``--record`` MCAP file (None: no recording).
-        record_topics: ``--record-topics`` regular expression (None: every topic).
-        dashboard_port: serve the dashboard on this port of 127.0.0.1 (None: no dashboard).
-        markers: publish ``/swarm/markers`` (also on with the dashboard).
-        fleet: the model of every robot (name or absolute path), index-aligned with
-            ``robots`` (:func:`swarm_common.fleet.fleet_models`); empty: every robot is
-            ``robot``.
-    """
-
-    robots: tuple[str, ...]
-    name_prefix: str
-    world_path: Path
-    world_name: str
-    robot: str
-    map_path: Path | None
-    poi_path: Path | None
-    seed: int
-    rtf: float
-    duration: float | None
-    commanders: bool
-    coordination: str
-    metrics_path: Path | None
-    groups: tuple[tuple[str, ...], ...] | None
-    gui: bool
-    run_dir: Path
-    ready_timeout: float
-    nav_template: Path
-    faults: tuple = ()
-    record_path: Path | None = None
-    record_topics: str | None = None
-    dashboard_port: int | None = None
-    markers: bool = False
-    fleet: tuple[str, ...] = ()
-
-    @property
-    def models(self) -> tuple[str, ...]:
-        """The model (name or absolute path) of every robot, index-aligned with ``robots``."""
-        return self.fleet if self.fleet else (self.robot,) * len(self.robots)
-
-
-
 def _prefix(flag: str, exc: InputError) -> InputError:
     msg = str(exc)
     return InputError(msg if msg.startswith(flag) else f"{flag}: {msg}")
@@ -389,7 +318,7 @@ def validate(args: argparse.Namespace) -> RunConfig:
         raise InputError("--coordination: centralized needs --commanders (the coordinator "
                          "assigns the commanders' tasks)")
     if args.dashboard is not None:
-        from swarm_up.dashboard import check_port
+        from swarm_viz.server import check_port
 
         check_port(args.dashboard)
     if args.metrics is not None:
@@ -489,7 +418,7 @@ def check_record(record: Path | None, topics: str | None, robots: tuple[str, ...
             matching no topic; a recording path that does not end in ``.mcap``, is a
             directory or lies in a missing directory.
     """
-    from swarm_up.recording import recorded_topics, select_topics
+    from swarm_record.mcap_format import recorded_topics, select_topics
 
     if record is None:
         if topics is not None:

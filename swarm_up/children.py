@@ -8,10 +8,8 @@ import os
 import shutil
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING
 
-if TYPE_CHECKING:
-    from swarm_up.args import RunConfig
+from swarm_up.run_config import RunConfig
 
 
 def command(script: str, module: str, func: str = "main") -> list[str]:
@@ -91,7 +89,7 @@ def child_specs(cfg: RunConfig):
     Returns:
         A list of :class:`swarm_up.supervisor.ChildSpec`.
     """
-    from swarm_up.recording import RECORDER_NODE, simulator_readers
+    from swarm_record.mcap_format import RECORDER_NODE, simulator_readers
     from swarm_up.supervisor import ChildSpec
 
     logs = cfg.run_dir / "logs"
@@ -160,13 +158,13 @@ def child_specs(cfg: RunConfig):
 
 
 def recorder_spec(cfg: RunConfig, env: dict[str, str]):
-    """The recorder of ``--record`` (:mod:`swarm_up.record`), not restarted if it dies (a new
+    """The recorder of ``--record`` (:mod:`swarm_record.recorder`), not restarted if it dies (a new
     one would truncate the file)."""
     import json
 
     from swarm_common.poi import load_poi
     from swarm_common.robot_model import load_robot
-    from swarm_up.recording import run_metadata
+    from swarm_record.mcap_format import run_metadata
     from swarm_up.supervisor import ChildSpec
 
     models = {name: load_robot(name) for name in dict.fromkeys(cfg.models)}
@@ -184,7 +182,7 @@ def recorder_spec(cfg: RunConfig, env: dict[str, str]):
     meta = run_metadata(world=cfg.world_path, robot=cfg.robot, seed=cfg.seed,
                         robots=cfg.robots, workstations=stations, rtf=cfg.rtf,
                         models=cfg.models)
-    argv = [sys.executable, "-m", "swarm_up.record", "--out", str(cfg.record_path),
+    argv = [sys.executable, "-m", "swarm_record.recorder", "--out", str(cfg.record_path),
             "--robots", ",".join(cfg.robots),
             "--lidar=" + ";".join(mounts), "--lidar-frame", ",".join(frames),
             "--meta", json.dumps(meta)]

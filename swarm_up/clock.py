@@ -1,7 +1,7 @@
 """One ``/clock`` subscription for all the nodes of a process (:class:`SharedClock`).
 
 Used by the group processes of ``swarm-up --processes K`` (:mod:`swarm_up.group`) and, to carry
-the same traffic, by the messaging floor's group processes (:mod:`swarm_up.floor_nodes`).
+the same traffic, by the messaging baseline's group processes (:mod:`swarm_bench.baseline_nodes`).
 """
 
 from __future__ import annotations

@@ -29,15 +29,13 @@ from collections.abc import Callable
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
+from swarm_common import topics
 from swarm_common.faults import (
     ACK_NAME,
-    ACKS_TOPIC,
     COORDINATOR,
     EVENT_NAME,
-    EVENTS_TOPIC,
     KILL_COORDINATOR,
     KILL_NAV,
     KILL_ROBOT,
@@ -45,16 +43,9 @@ from swarm_common.faults import (
     FaultAck,
     FaultEvent,
 )
-
-# the metrics' reader's QoS, transient local: a kill announced before this reader matched the
-# simulator's writer is still delivered
-from swarm_up.metrics import EVENTS_QOS
+from swarm_ros.qos import publisher, subscription
 
 GROUP_RESTART_DELAY_S = 0.5  # [s] wall: a group recreates a killed navigator this much later
-# Transient local on both sides (the simulator's reader too): an acknowledgement published
-# before the simulator's reader had matched this writer is delivered when it matches.
-ACK_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
-                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def ack_status(ack: FaultAck) -> DiagnosticStatus:
@@ -73,7 +64,7 @@ class AckPublisher:
         self._context = rclpy.Context()
         rclpy.init(context=self._context, signal_handler_options=SignalHandlerOptions.NO)
         self._node = Node("swarm_up_faults", context=self._context)
-        self._pub = self._node.create_publisher(DiagnosticStatus, ACKS_TOPIC, ACK_QOS)
+        self._pub = publisher(self._node, DiagnosticStatus, topics.FAULT_ACKS)
 
     def __call__(self, ack: FaultAck) -> None:
         """Publish one acknowledgement."""
@@ -99,7 +90,7 @@ class ProcessFaults:
         say: prints one status line.
         serving: returns the epochs of the coordinators that have announced themselves
             serving (their ``coordinator`` event on ``/swarm/events``, sent with their first
-            answers; :attr:`swarm_up.aggregate.RunRecorder.coordinator_serving`). Given, a
+            answers; :attr:`swarm_metrics.aggregate.RunRecorder.coordinator_serving`). Given, a
             restarted coordinator's end of outage is acknowledged only once a new epoch is
             among them (:meth:`poll`), so the simulator holds that tick through the
             coordinator's start-up; None: acknowledged as soon as the process is started.
@@ -229,8 +220,10 @@ class GroupFaults:
         self.emit = emit
         self.by = f"group_{label}"
         self.node = Node(f"faults_{label}", context=context)
-        self._pub = self.node.create_publisher(DiagnosticStatus, ACKS_TOPIC, ACK_QOS)
-        self.node.create_subscription(DiagnosticArray, EVENTS_TOPIC, self._on_events, EVENTS_QOS)
+        self._pub = publisher(self.node, DiagnosticStatus, topics.FAULT_ACKS)
+        # transient local, as the metrics' reader: a kill announced before this reader matched
+        # the simulator's writer is still delivered (topics.EVENTS)
+        subscription(self.node, DiagnosticArray, topics.EVENTS, self._on_events)
         self._todo: deque[FaultEvent] = deque()
         self._done: set[int] = set()
         self._restarts: list[tuple[float, str]] = []  # (monotonic due, ns)

@@ -22,13 +22,13 @@ import sys
 from pathlib import Path
 
 import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 
 from swarm_common import cli
 from swarm_common.errors import InputError, run_cli
-from swarm_nav.node import NavigatorNode, spin_forever
+from swarm_nav.node import NavigatorNode
 from swarm_nav.planner import share_cost_to_go
+from swarm_ros.session import node_session, spin_forever
 from swarm_up.clock import SharedClock
 
 PROG = "swarm_up.group"
@@ -43,8 +43,8 @@ def build_parser() -> cli.ArgumentParser:
                    help="directory holding <ns>.yaml for every namespace")
     p.add_argument("--commanders", action="store_true",
                    help="also run a commander for every robot (random workstation route)")
-    p.add_argument("--world", default="slim_blockage", help="world of the commanders' route")
-    p.add_argument("--seed", type=cli.seed, default=0, help="seed of the commanders' routes")
+    cli.add_shared(p, "--world", help="world of the commanders' route")
+    cli.add_shared(p, "--seed", help="seed of the commanders' routes")
     p.add_argument("--loops", type=cli.non_negative_int, default=0,
                    help="commander route loops, 0 = forever")
     p.add_argument("--faults", action="store_true",
@@ -81,82 +81,75 @@ def _run(argv: list[str]) -> int:
         return node
 
     share_cost_to_go(len(names))
-    rclpy.init(args=[PROG])
-    executor = EventsExecutor()
-    if len(names) > 1 or opts.commanders:
-        clock = SharedClock(f"/{names[0]}")
-        executor.add_node(clock.node)
-    nodes, runners = [], []
-    navigators, commanders = {}, {}  # ns -> node; ns -> (node, runner): what faults may kill
-    faults = None
-    try:
-        for ns in names:
-            node = make_navigator(ns)
-            executor.add_node(node)
-            nodes.append(node)
-            navigators[ns] = node
-        if opts.commanders and opts.coordinated:
-            _add_coordinated_commanders(names, executor, nodes, runners, commanders,
-                                        opts.coordinator_timeout)
-        elif opts.commanders:
-            from rclpy.logging import LoggingSeverity
-
-            from swarm_commander.cli import CommanderConfig, CommanderRunner
-
+    with node_session([PROG]) as owned:
+        executor = EventsExecutor()
+        if len(names) > 1 or opts.commanders:
+            clock = SharedClock(f"/{names[0]}")
+            executor.add_node(clock.node)
+            owned.append(clock.node)
+        nodes, runners = [], []
+        navigators, commanders = {}, {}  # ns -> node; ns -> (node, runner): what faults may kill
+        faults = None
+        try:
             for ns in names:
-                nav = commander_node(ns)
-                nav.get_logger().set_level(LoggingSeverity.WARN)
-                runners.append(CommanderRunner(nav, routes[ns], CommanderConfig(loops=opts.loops),
-                                               emit=lambda line: print(line, flush=True)))
-                executor.add_node(nav)
-                nodes.append(nav)
-                commanders[ns] = (nav, runners[-1])
-        if clock is not None:  # the commanders (each navigator was adopted at its creation)
-            for node in nodes:
-                clock.adopt(node)
-        print(f"{PROG}: {len(names)} navigators{' and commanders' if runners else ''} up: "
-              f"{','.join(names)}", flush=True)
-        if opts.faults:
-            from swarm_up.faults import GroupFaults
-
-            def gone(node):
-                nodes.remove(node)
-                if clock is not None:
-                    clock.forget(node)
-                runners[:] = [r for r in runners if r.nav is not node]
-
-            def added(node):
+                node = make_navigator(ns)
+                executor.add_node(node)
                 nodes.append(node)
-                if clock is not None:
-                    clock.adopt(node)
+                navigators[ns] = node
+            if opts.commanders and opts.coordinated:
+                _add_coordinated_commanders(names, executor, nodes, runners, commanders,
+                                            opts.coordinator_timeout)
+            elif opts.commanders:
+                from rclpy.logging import LoggingSeverity
 
-            faults = GroupFaults(executor, nodes[0].context, names[0], navigators, commanders,
-                                 make_navigator, gone, added,
-                                 emit=lambda line: print(line, flush=True))
-            context = nodes[0].context
-            while context.ok():
-                executor.spin_once(timeout_sec=0.1)
-                faults.service()
-        else:
-            spin_forever(executor, nodes[0].context)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except Exception:
-        if rclpy.ok():
-            raise
-        # Stopped while still starting: a node creation failed on the shut-down context.
-    finally:
-        for runner in runners:
-            runner.stop()
-            if runner.started:
-                print(runner.summary(), flush=True)
-        if faults is not None:
-            faults.close()
-        for node in nodes:
-            node.destroy_node()
-        if clock is not None:
-            clock.node.destroy_node()
-        rclpy.try_shutdown()
+                from swarm_commander.cli import CommanderConfig, CommanderRunner
+
+                for ns in names:
+                    nav = commander_node(ns)
+                    nav.get_logger().set_level(LoggingSeverity.WARN)
+                    runners.append(CommanderRunner(nav, routes[ns],
+                                                   CommanderConfig(loops=opts.loops),
+                                                   emit=lambda line: print(line, flush=True)))
+                    executor.add_node(nav)
+                    nodes.append(nav)
+                    commanders[ns] = (nav, runners[-1])
+            if clock is not None:  # the commanders (each navigator was adopted at its creation)
+                for node in nodes:
+                    clock.adopt(node)
+            print(f"{PROG}: {len(names)} navigators{' and commanders' if runners else ''} up: "
+                  f"{','.join(names)}", flush=True)
+            if opts.faults:
+                from swarm_up.faults import GroupFaults
+
+                def gone(node):
+                    nodes.remove(node)
+                    if clock is not None:
+                        clock.forget(node)
+                    runners[:] = [r for r in runners if r.nav is not node]
+
+                def added(node):
+                    nodes.append(node)
+                    if clock is not None:
+                        clock.adopt(node)
+
+                faults = GroupFaults(executor, nodes[0].context, names[0], navigators,
+                                     commanders, make_navigator, gone, added,
+                                     emit=lambda line: print(line, flush=True))
+                context = nodes[0].context
+                while context.ok():
+                    executor.spin_once(timeout_sec=0.1)
+                    faults.service()
+            else:
+                spin_forever(executor, nodes[0].context)
+        finally:  # the session then destroys the clock node and shuts the context down
+            for runner in runners:
+                runner.stop()
+                if runner.started:
+                    print(runner.summary(), flush=True)
+            if faults is not None:
+                faults.close()
+            for node in nodes:
+                node.destroy_node()
     return 0
 
 

@@ -25,10 +25,11 @@ from pathlib import Path
 from swarm_common.errors import EXIT_BAD_INPUT, EXIT_OK, EXIT_RUNTIME
 from swarm_common.faults import KILL_NAV
 from swarm_common.fleet import describe_fleet
+from swarm_metrics.summary import print_summary
 from swarm_up import PROG
-from swarm_up.args import PER_ROBOT, RunConfig
 from swarm_up.children import child_specs
-from swarm_up.output import ProgressView, print_summary, say, warn
+from swarm_up.output import ProgressView, say, warn
+from swarm_up.run_config import PER_ROBOT, RunConfig
 from swarm_up.rundir import RunError, load_nav_template, prepare_map, write_params_files
 from swarm_up.supervisor import LogTail, ResourceSampler, StopFlag, Supervisor
 
@@ -61,7 +62,9 @@ class Orchestrator:
     """
 
     def __init__(self, cfg: RunConfig):
-        from swarm_up.metrics import MetricsListener  # rclpy: imported only when a run starts
+        from swarm_metrics.listener import (
+            MetricsListener,  # rclpy: imported only when a run starts
+        )
 
         self.cfg = cfg
         self.logs = cfg.run_dir / "logs"
@@ -69,9 +72,9 @@ class Orchestrator:
         self.n = len(cfg.robots)
         self.t0 = time.monotonic()
         self.listener = MetricsListener(cfg.robots, self.t0)
-        self.live = None  # the dashboard and /swarm/markers (swarm_up.dashboard)
+        self.live = None  # the dashboard and /swarm/markers (swarm_viz.server)
         if cfg.markers or cfg.dashboard_port is not None:
-            from swarm_up.dashboard import LiveView
+            from swarm_viz.server import LiveView
 
             self.live = LiveView(cfg, self.listener)
         self.sup = Supervisor(on_restart=self._on_restart)
@@ -128,7 +131,7 @@ class Orchestrator:
         Raises:
             RunError: the recorder exited or did not get ready within ``timeout_s`` wall s.
         """
-        from swarm_up.record import READY_LINE
+        from swarm_record.recorder import READY_LINE
 
         tail, deadline = LogTail(spec.log_path), time.monotonic() + timeout_s
         while not any(line.startswith(READY_LINE) for line in tail.lines()):
@@ -296,7 +299,7 @@ class Orchestrator:
 
     def report(self, outcome: Outcome, wall_s: float) -> dict:
         """Merge the simulator's summary, write the metrics files, print the summary table."""
-        from swarm_up.aggregate import aggregate, load_sim_summary
+        from swarm_metrics.aggregate import aggregate, load_sim_summary
 
         cfg = self.cfg
         summary, warnings = load_sim_summary(cfg.run_dir / "sim_summary.json")

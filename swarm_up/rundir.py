@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import yaml
 
@@ -13,9 +12,7 @@ from swarm_common.errors import InputError
 from swarm_common.map_io import save_map
 from swarm_common.rasterize import rasterize_world
 from swarm_common.world import load_world
-
-if TYPE_CHECKING:
-    from swarm_up.args import RunConfig
+from swarm_up.run_config import RunConfig
 
 # [s] wall: the navigators' goal_wait_timeout with --commanders; below the simulator's
 # command_timeout (3 s), so a commander slower than this is a goal-wait timeout, not a late tick.
@@ -200,7 +197,7 @@ def _recorded_robot_topics(cfg: RunConfig, ns: str) -> frozenset[str]:
     (``cmd_vel``, ``nav_status``, ...); empty without ``--record``."""
     if cfg.record_path is None:
         return frozenset()
-    from swarm_up.recording import recorded_topics, select_topics
+    from swarm_record.mcap_format import recorded_topics, select_topics
 
     return frozenset(t.name.rsplit("/", 1)[-1]
                      for t in select_topics(recorded_topics((ns,)), cfg.record_topics)

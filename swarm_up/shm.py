@@ -208,19 +208,10 @@ def stale_files(
     return stale
 
 
-def clean_stale(
-    before: frozenset[str] | set[str],
-    shm_dir: Path | str = SHM_DIR,
-    min_age_s: float = 1.0,
-    ignore_pids: frozenset[int] = frozenset(),
-) -> list[Path]:
-    """Remove the files :func:`stale_files` finds; never raises.
-
-    Args:
-        before: the :func:`snapshot` taken before the run.
-        shm_dir: the shared-memory directory.
-        min_age_s: spare files younger than this [s].
-        ignore_pids: processes whose open files and mappings do not count (their locks do).
+def clean_stale(before: frozenset[str] | set[str], shm_dir: Path | str = SHM_DIR,
+                min_age_s: float = 1.0,
+                ignore_pids: frozenset[int] = frozenset()) -> list[Path]:
+    """Remove the files :func:`stale_files` finds (the arguments are its own); never raises.
 
     Returns:
         The paths actually removed.
@@ -235,25 +226,23 @@ def clean_stale(
     return removed
 
 
-def clean_after_run(
-    before: frozenset[str] | set[str],
-    shm_dir: Path | str = SHM_DIR,
-    min_age_s: float = 1.0,
-    ignore_pids: frozenset[int] = frozenset(),
-) -> list[Path]:
+def clean_after_run(before: frozenset[str] | set[str], shm_dir: Path | str = SHM_DIR,
+                    **where) -> list[Path]:
     """:func:`clean_stale` once a run's processes have all ended, and once more ``min_age_s``
     later if it spared files only for being too young: a participant that was still exiting can
     create or re-create a port file in that last second (a Ctrl-C run left
     ``fastrtps_port7007`` so in CI).  Never raises.
 
     Args:
-        before, shm_dir, min_age_s, ignore_pids: as :func:`clean_stale`.
+        before: the :func:`snapshot` taken before the run.
+        shm_dir: the shared-memory directory.
+        **where: ``min_age_s``, ``ignore_pids``, as :func:`stale_files` takes them.
 
     Returns:
         The paths removed.
     """
-    removed = clean_stale(before, shm_dir, min_age_s, ignore_pids)
-    if stale_files(before, shm_dir, 0.0, ignore_pids):
-        time.sleep(min_age_s)
-        removed += clean_stale(before, shm_dir, min_age_s, ignore_pids)
+    removed = clean_stale(before, shm_dir, **where)
+    if stale_files(before, shm_dir, **{**where, "min_age_s": 0.0}):
+        time.sleep(where.get("min_age_s", 1.0))
+        removed += clean_stale(before, shm_dir, **where)
     return removed

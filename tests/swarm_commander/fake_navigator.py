@@ -28,6 +28,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSDurabilityPolicy, QoSHistoryPolicy, QoSProfile, QoSReliabilityPolicy
 from std_srvs.srv import Trigger
 
+from swarm_common.geometry import quaternion_to_yaw
 from swarm_common.nav_status import NavState, NavStatusRecord, encode, level_of
 from swarm_common.stamps import format_stamp
 
@@ -92,7 +93,7 @@ class FakeNavigatorNode(Node):
             self.ignore_goals -= 1
             return
         q = msg.pose.orientation
-        yaw = math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+        yaw = quaternion_to_yaw(q.x, q.y, q.z, q.w)
         self.goal_id, self.goal, self.reason = goal_id, (x, y, yaw), ""
         self.start, self.elapsed = time.monotonic(), 0.0
         self.distance0 = math.dist(self.position, (x, y))

@@ -11,7 +11,9 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import Pose, PoseArray, PoseStamped, TwistStamped
 from nav_msgs.msg import Odometry, Path
 from rclpy.serialization import deserialize_message, serialize_message
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
+from std_msgs.msg import String
 
 from swarm_common.cdr import (
     LaserScanWriter,
@@ -20,10 +22,13 @@ from swarm_common.cdr import (
     PoseArrayWriter,
     TwistStampedWriter,
     diagnostic_status,
+    header_stamp,
     odom_pose,
+    odometry_pose,
     path_points,
     pose_array,
     scan_ranges,
+    string_data,
     twist_stamped,
 )
 
@@ -257,3 +262,33 @@ def test_path_writer_reads_back_with_rclpy(frame, n):
         assert (p.x, p.y, p.z, q.x, q.y, q.z, q.w) == (x, y, 0.0, 0.0, 0.0, 0.0, 1.0)
     assert len(buf) == len(serialize_message(msg))
     np.testing.assert_array_equal(path_points(buf), points.reshape(-1, 2))
+
+
+@pytest.mark.parametrize("text", ["", "a", "abc", '{"robot": "Srobot1", "kind": "ready"}', "ä€"])
+def test_string_data_matches_the_message(text):
+    assert string_data(serialize_message(String(data=text))) == text
+
+
+def test_string_data_of_a_truncated_message_is_a_value_error():
+    with pytest.raises(ValueError):
+        string_data(serialize_message(String(data="abcdef"))[:9])
+
+
+def test_header_stamp_of_a_header_and_of_a_clock():
+    msg = Odometry()
+    msg.header.stamp.sec, msg.header.stamp.nanosec = 12, 300_000_000
+    assert header_stamp(serialize_message(msg)) == 12_300_000_000
+    clock = Clock()
+    clock.clock.sec, clock.clock.nanosec = 7, 5
+    assert header_stamp(serialize_message(clock)) == 7_000_000_005
+
+
+def test_odometry_pose_is_the_full_pose():
+    msg = Odometry()
+    msg.header.frame_id, msg.child_frame_id = "Srobot1/odom", "Srobot1/base_footprint"
+    msg.header.stamp.sec = 3
+    p = msg.pose.pose
+    p.position.x, p.position.y, p.position.z = 1.5, -2.0, 0.25
+    p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w = 0.1, 0.2, 0.3, 0.9
+    assert odometry_pose(serialize_message(msg)) == (
+        3_000_000_000, (1.5, -2.0, 0.25, 0.1, 0.2, 0.3, 0.9))

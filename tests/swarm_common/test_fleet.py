@@ -91,7 +91,7 @@ def test_fleet_file_gives_the_same_fleet_as_the_inline_mix(tmp_path):
     ("fleet: []\n", "'fleet' must be a non-empty list of {robot, count}"),
     ("fleet:\n  - {robot: a, cuont: 1}\n", "fleet[0]: unknown key 'cuont' (did you mean "
                                             "'count'?)"),
-    ("fleet:\n  - {robot: a}\n", "fleet[0]: missing 'count'"),
+    ("fleet:\n  - {robot: a}\n", "fleet[0]: missing key 'count'"),
     ("fleet:\n  - {robot: a, count: 0}\n", "fleet[0]: count must be a positive integer, got 0"),
     ("fleet:\n  - {robot: a, count: 1}\n  - {robot: a, count: 2}\n",
      "'a' is listed twice"),

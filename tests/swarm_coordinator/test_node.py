@@ -7,21 +7,10 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from std_msgs.msg import String
 
-from swarm_common.coordination import (
-    EVENT_COORDINATOR,
-    EVENTS_TOPIC,
-    METRICS_NODE,
-    REQUEST_TOPIC,
-    Request,
-    assignment_topic,
-    encode_request,
-)
-from swarm_coordinator.node import (
-    ASSIGNMENT_QOS,
-    EVENTS_QOS,
-    REQUEST_QOS,
-    CoordinatorNode,
-)
+from swarm_common import topics
+from swarm_common.coordination import EVENT_COORDINATOR, METRICS_NODE, Request, encode_request
+from swarm_coordinator.node import CoordinatorNode
+from swarm_ros.qos import publisher, subscription
 from tests.support.ros import ros_context, spin_until
 from tests.swarm_coordinator.test_core import make_core
 
@@ -42,10 +31,9 @@ def test_first_answers_wait_for_a_reader_of_the_events():
         robot = Node("fake_robots", context=ctx)
         events: list[DiagnosticArray] = []
         answers: list[str] = []
-        requests = robot.create_publisher(String, REQUEST_TOPIC, REQUEST_QOS)
+        requests = publisher(robot, String, topics.COORDINATOR_REQUEST)
         for ns in ("r1", "r2"):
-            robot.create_subscription(String, assignment_topic(ns),
-                                      lambda m: answers.append(m.data), ASSIGNMENT_QOS)
+            subscription(robot, String, topics.ASSIGNMENT, lambda m: answers.append(m.data), ns)
         for node in (coordinator, robot):
             executor.add_node(node)
         spin_until(executor, lambda: requests.get_subscription_count() > 0, 10.0,
@@ -54,11 +42,11 @@ def test_first_answers_wait_for_a_reader_of_the_events():
             requests.publish(String(data=encode_request(Request(ns, 1, "ready", 0))))
         # every robot is heard, but only another node (a group's fault node) reads
         # /swarm/events: no answer goes out
-        robot.create_subscription(DiagnosticArray, EVENTS_TOPIC, lambda m: None, EVENTS_QOS)
+        subscription(robot, DiagnosticArray, topics.EVENTS, lambda m: None)
         _spin_for(executor, 1.5)
         assert answers == []
         metrics = Node(METRICS_NODE, context=ctx)
-        metrics.create_subscription(DiagnosticArray, EVENTS_TOPIC, events.append, EVENTS_QOS)
+        subscription(metrics, DiagnosticArray, topics.EVENTS, events.append)
         executor.add_node(metrics)
         spin_until(executor, lambda: len(answers) == 2 and events, 10.0,
                    "the answers and the events")
@@ -75,9 +63,8 @@ def test_without_a_reader_of_the_events_the_sync_deadline_still_answers():
         coordinator = CoordinatorNode(make_core({"r1": ["A"]}), start_timeout=1.0, context=ctx)
         robot = Node("fake_robot", context=ctx)
         answers: list[str] = []
-        requests = robot.create_publisher(String, REQUEST_TOPIC, REQUEST_QOS)
-        robot.create_subscription(String, assignment_topic("r1"),
-                                  lambda m: answers.append(m.data), ASSIGNMENT_QOS)
+        requests = publisher(robot, String, topics.COORDINATOR_REQUEST)
+        subscription(robot, String, topics.ASSIGNMENT, lambda m: answers.append(m.data), "r1")
         for node in (coordinator, robot):
             executor.add_node(node)
         spin_until(executor, lambda: requests.get_subscription_count() > 0, 10.0,

@@ -8,7 +8,7 @@ import pytest
 
 from swarm_common.faults import FaultAck, FaultEvent
 from swarm_common.sim_summary import SimSummary
-from swarm_up.aggregate import RunRecorder, aggregate
+from swarm_metrics.aggregate import RunRecorder, aggregate
 from swarm_up.faults import ProcessFaults
 from swarm_up.supervisor import ChildSpec, Supervisor
 

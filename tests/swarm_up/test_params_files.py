@@ -8,8 +8,9 @@ import pytest
 import yaml
 
 from swarm_common.errors import InputError
-from swarm_up.args import RunConfig, split_groups
+from swarm_up.args import split_groups
 from swarm_up.children import child_specs
+from swarm_up.run_config import RunConfig
 from swarm_up.rundir import RunError, load_nav_template, write_params_files
 
 TEMPLATE = """\

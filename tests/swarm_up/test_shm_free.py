@@ -15,7 +15,6 @@ from std_msgs.msg import String
 
 from swarm_common.faults import parse_faults
 from swarm_common.paths import FASTDDS_UDP_LOOPBACK_PROFILE, FASTDDS_UDP_ONLY_PROFILE
-from swarm_up.args import RunConfig
 from swarm_up.children import (
     LOCALHOST_ONLY_ENV,
     PROFILES_ENV,
@@ -23,6 +22,7 @@ from swarm_up.children import (
     child_specs,
     shm_free_env,
 )
+from swarm_up.run_config import RunConfig
 from tests.support.ros import ros_context, spin_until
 from tests.swarm_up.test_params_files import cfg  # noqa: F401 - the RunConfig fixture
 

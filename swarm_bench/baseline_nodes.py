@@ -1,0 +1,636 @@
+"""The ROS processes of the messaging baseline (:mod:`swarm_bench.baseline` says what it mirrors).
+
+Three roles, each one process (``python -m swarm_bench.baseline_nodes ROLE --config PATH``)
+started by :func:`swarm_bench.baseline.run_baseline`:
+
+- :class:`BaselineSimNode` (``sim``): the simulator's lockstep loop of ``swarm_sim/node.py`` with
+  the physics, the ray casting and the collision checks taken out: every control tick ``/clock``,
+  every robot's ``odom`` and ``ground_truth`` and, on lidar ticks, a ``scan`` with fixed ranges;
+  then it waits for every active robot's ``cmd_vel`` stamped with that tick, and steps time.
+- :class:`BaselineNavigatorNode` and :class:`BaselineCommanderNode` (``group``): a navigator's
+  and a commander's topics, types, QoS and rates (``swarm_nav/node.py``,
+  ``swarm_commander/robot_navigator.py``), answering each tick at once instead of navigating.
+- :class:`BaselineListenerNode` (``listener``): the subscriptions of ``swarm-up``'s metrics node.
+
+Every process loops on ``spin_once`` of an ``EventsExecutor``, as the real nodes do
+(docs/ARCHITECTURE.md "Executors").
+"""
+
+from __future__ import annotations
+
+import array
+import json
+import math
+import signal
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import rclpy
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PoseStamped, TwistStamped
+from nav_msgs.msg import OccupancyGrid, Odometry
+from rclpy.clock import Clock as RclpyClock
+from rclpy.clock import ClockType
+from rclpy.experimental import EventsExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.signals import SignalHandlerOptions
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import LaserScan
+from std_srvs.srv import Trigger
+
+from swarm_bench.baseline import BaselineConfig
+from swarm_common import cli, topics
+from swarm_common.cdr import (
+    LaserScanWriter,
+    OdometryWriter,
+    PathWriter,
+    TwistStampedWriter,
+    diagnostic_status,
+    odom_pose,
+    scan_ranges,
+    twist_stamped,
+)
+from swarm_common.errors import InputError, run_cli
+from swarm_common.nav_status import TERMINAL
+from swarm_common.stamps import NS_PER_S
+from swarm_nav.goal_wait import GoalWait
+from swarm_ros.navigator import navigator_interface
+from swarm_ros.qos import publisher, subscription
+from swarm_ros.session import node_session, spin_forever
+from swarm_up.clock import SharedClock
+
+STATUS_PERIOD_NS = NS_PER_S // 2  # nav_status at 2 Hz simulated and on every change (as nav)
+PROGRESS_EVERY_S = 5.0  # [s] wall between the baseline simulator's progress lines
+
+class _Cpu:
+    """This process's CPU time since its traffic began (its first tick, status or clock)."""
+
+    start_s: float | None = None
+
+    @classmethod
+    def begin(cls) -> None:
+        """Note the start (only the first call counts)."""
+        if cls.start_s is None:
+            cls.start_s = time.process_time()
+
+    @classmethod
+    def line(cls) -> str:
+        """``baseline: cpu_s X`` (0 if the traffic never began), parsed by ``run_baseline``."""
+        used = 0.0 if cls.start_s is None else time.process_time() - cls.start_s
+        return f"baseline: cpu_s {used:.3f}"
+
+
+def _time_msg(t_ns: int) -> Time:
+    return Time(sec=t_ns // NS_PER_S, nanosec=t_ns % NS_PER_S)
+
+
+def _stamp_ns(stamp) -> int:
+    return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
+
+
+def _stamp_text(t_ns: int) -> str:
+    sec, nsec = divmod(t_ns, NS_PER_S)
+    return f"{sec}.{nsec:09d}"
+
+
+def _sim_time() -> list[Parameter]:
+    return [Parameter("use_sim_time", value=True)]
+
+
+# ------------------------------------------------------------------------------------ simulator
+class BaselineSimNode(Node):
+    """The simulator's lockstep loop without physics, ray casting or collision checks.
+
+    Args:
+        cfg: the baseline's settings.
+    """
+
+    def __init__(self, cfg: BaselineConfig):
+        super().__init__("swarm_sim_baseline")
+        # State.
+        self.cfg = cfg
+        self.n = len(cfg.robots)
+        self.period_ns = round(NS_PER_S / cfg.control_rate_hz)
+        self.lidar_every = cfg.lidar_every
+        self.t_ns = 0
+        self.ticks = 0
+        self.answers: set[int] = set()
+        self.active = np.zeros(self.n, dtype=bool)
+        self.late_ticks = 0
+        self.cpu_s = 0.0  # [s] CPU of this process from the gate's opening to the end
+        self.stop_requested = False
+        # A fixed scan: the real one is cast per tick; here the same ranges every time.
+        self._ranges = np.full(cfg.beams, 0.5 * (cfg.range_min + cfg.range_max), np.float32)
+        # Publishers and subscribers (names, types and QoS of swarm_sim.node).
+        self.clock_pub = publisher(self, Clock, topics.CLOCK)
+        self.map_pub = publisher(self, OccupancyGrid, topics.MAP)
+        self.events_pub = publisher(self, DiagnosticArray, topics.EVENTS)
+        self.odom_pubs, self.truth_pubs, self.scan_pubs = [], [], []
+        for i, ns in enumerate(cfg.robots):
+            self.odom_pubs.append(publisher(self, Odometry, topics.ODOM, ns))
+            self.truth_pubs.append(publisher(self, Odometry, topics.GROUND_TRUTH, ns))
+            self.scan_pubs.append(publisher(self, LaserScan, topics.SCAN, ns))
+            subscription(self, TwistStamped, topics.CMD_VEL,
+                         lambda buf, i=i: self._on_cmd_vel(i, buf), ns,
+                         topics.CMD_VEL_READER_QOS, raw=True)  # read raw, as the simulator does
+        # Written as CDR bytes, as the simulator does (swarm_common.cdr).
+        self._odom_writers = [OdometryWriter(f"{ns}/odom", f"{ns}/base_footprint")
+                              for ns in cfg.robots]
+        self._truth_writers = [OdometryWriter("map", f"{ns}/base_footprint")
+                               for ns in cfg.robots]
+        self._scan_writers = [LaserScanWriter(
+            f"{ns}/{cfg.lidar_frame}", cfg.angle_min, cfg.angle_max,
+            (cfg.angle_max - cfg.angle_min) / max(cfg.beams - 1, 1), 1.0 / cfg.lidar_rate_hz,
+            cfg.range_min, cfg.range_max) for ns in cfg.robots]
+        # Robots stand on a 1 m grid; the poses never change (no physics).
+        self._poses = np.array([(i % 10, i // 10, 0.0) for i in range(self.n)], dtype=float)
+        self.map_pub.publish(self._map_msg())
+        self.events_pub.publish(DiagnosticArray(status=[
+            DiagnosticStatus(name="spawn", message=f"spawned {ns}", hardware_id=ns,
+                             values=[KeyValue(key="robot", value=ns)])
+            for ns in cfg.robots]))
+
+    def _map_msg(self) -> OccupancyGrid:
+        from swarm_common.map_io import load_map
+
+        occ = load_map(self.cfg.map_yaml)
+        msg = OccupancyGrid()
+        msg.header.frame_id = "map"
+        msg.info.resolution = float(occ.resolution)
+        msg.info.width, msg.info.height = occ.width, occ.height
+        msg.info.origin.position.x = float(occ.origin[0])
+        msg.info.origin.position.y = float(occ.origin[1])
+        msg.info.origin.orientation.w = 1.0
+        msg.data = array.array("b", np.ascontiguousarray(occ.data, dtype=np.int8).tobytes())
+        return msg
+
+    def _on_cmd_vel(self, i: int, buf: bytes) -> None:
+        try:
+            stamp, _, v, w = twist_stamped(buf)
+        except ValueError:
+            return
+        if not (math.isfinite(v) and math.isfinite(w)):
+            return
+        if stamp == self.t_ns:
+            self.answers.add(i)
+            self.active[i] = True
+
+    def publish_tick(self) -> None:
+        """``/clock``, every robot's odometry and ground truth, and scans on lidar ticks."""
+        stamp = _time_msg(self.t_ns)
+        self.clock_pub.publish(Clock(clock=stamp))
+        if (self.t_ns // self.period_ns) % self.lidar_every == 0:
+            for i, pub in enumerate(self.scan_pubs):
+                pub.publish(self._scan_writers[i].write(self.t_ns, self._ranges))
+        for i in range(self.n):
+            x, y, yaw = self._poses[i].tolist()
+            qz, qw = math.sin(yaw / 2.0), math.cos(yaw / 2.0)
+            self.odom_pubs[i].publish(self._odom_writers[i].write(self.t_ns, x, y, qz, qw,
+                                                                  0.0, 0.0))
+            if self.truth_pubs[i].get_subscription_count():  # as the simulator: only if heard
+                self.truth_pubs[i].publish(self._truth_writers[i].write(self.t_ns, x, y, qz, qw,
+                                                                        0.0, 0.0))
+
+    def collect(self, executor) -> bool:
+        """Wait for this tick's answers of the active robots (or ``command_timeout``).
+
+        Returns:
+            False if a stop was requested meanwhile.
+        """
+        deadline = time.monotonic() + self.cfg.command_timeout_s
+        while True:
+            if self.stop_requested:
+                return False
+            waiting = [i for i in np.flatnonzero(self.active) if i not in self.answers]
+            if not waiting:
+                break
+            remaining = deadline - time.monotonic()
+            if remaining <= 0.0:
+                self.late_ticks += len(waiting)
+                self.active[waiting] = False
+                break
+            executor.spin_once(timeout_sec=min(remaining, 0.05))
+        self.answers.clear()
+        return True
+
+    def step(self) -> None:
+        """Advance simulated time by one tick (nothing moves)."""
+        self.t_ns += self.period_ns
+        self.ticks += 1
+
+    def wait_for_robots(self, executor) -> bool:
+        """The start gate: hold the first tick until every robot answered it.
+
+        Returns:
+            False if a stop was requested or ``ready_timeout`` passed.
+        """
+        until_ready = time.monotonic() + self.cfg.ready_timeout_s
+        while rclpy.ok() and not self.stop_requested and int(self.active.sum()) < self.n:
+            if time.monotonic() > until_ready:
+                print(f"baseline: only {int(self.active.sum())}/{self.n} robots answered within "
+                      f"{self.cfg.ready_timeout_s:g} s", file=sys.stderr, flush=True)
+                return False
+            self.publish_tick()
+            until = time.monotonic() + 0.5
+            while (time.monotonic() < until and int(self.active.sum()) < self.n
+                   and not self.stop_requested):
+                executor.spin_once(timeout_sec=0.05)
+        return not self.stop_requested
+
+    def run(self, executor) -> tuple[float, bool]:
+        """Tick unpaced until ``duration`` simulated seconds.
+
+        Returns:
+            ``(wall seconds from the gate's opening to the end, whether the gate opened)``.
+        """
+        self.step()  # tick 0 is stepped silently, as the simulator does
+        if not self.wait_for_robots(executor):
+            return 0.0, False
+        end_ns = round(self.cfg.duration_s * NS_PER_S)
+        wall0 = time.monotonic()
+        cpu0 = time.process_time()
+        last_line = wall0
+        print(f"baseline: all {self.n} robots answering; running {self.cfg.duration_s:g} "
+              "simulated s", flush=True)
+        while rclpy.ok() and not self.stop_requested and self.t_ns < end_ns:
+            self.publish_tick()
+            if not self.collect(executor):
+                break
+            self.step()
+            executor.spin_once(timeout_sec=0.0)
+            now = time.monotonic()
+            if now - last_line >= PROGRESS_EVERY_S:
+                last_line = now
+                sim_s = self.t_ns / NS_PER_S
+                print(f"baseline: t = {sim_s:.0f} / {self.cfg.duration_s:g} s simulated, "
+                      f"RTF {sim_s / (now - wall0):.2f}", flush=True)
+        self.cpu_s = time.process_time() - cpu0
+        return time.monotonic() - wall0, True
+
+    def request_stop(self, signum=None, frame=None) -> None:
+        """Signal handler: end the loop at its next check."""
+        self.stop_requested = True
+
+    def summary(self, wall_s: float, started: bool) -> dict:
+        """The baseline's figures (see :mod:`swarm_bench.baseline`)."""
+        sim_s = self.t_ns / NS_PER_S
+        return {
+            "robots": self.n,
+            "ticks": self.ticks,
+            "sim_time_s": round(sim_s, 3),
+            "wall_time_s": round(wall_s, 3),
+            "rtf": round(sim_s / wall_s, 3) if wall_s > 0 else None,
+            "robot_ticks_per_s": round(self.n * self.ticks / wall_s, 1) if wall_s > 0 else None,
+            "late_ticks": self.late_ticks,
+            "sim_cpu_s": round(self.cpu_s, 3),
+            "started": started,
+            "interrupted": self.stop_requested,
+        }
+
+
+def run_sim(cfg: BaselineConfig) -> int:
+    """The ``sim`` process: run the loop and write ``cfg.summary_path``.
+
+    Returns:
+        0 when the run reached its duration, 130 when stopped, 1 when the gate never opened.
+    """
+    wall_s, started = 0.0, False
+    with node_session(["baseline_sim"], signal_handler_options=SignalHandlerOptions.NO) as nodes:
+        node = BaselineSimNode(cfg)
+        nodes.append(node)
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, node.request_stop)
+        executor = EventsExecutor()
+        executor.add_node(node)
+        try:
+            wall_s, started = node.run(executor)
+        finally:
+            summary = node.summary(wall_s, started)
+            Path(cfg.summary_path).write_text(json.dumps(summary, indent=2) + "\n")
+            print(f"baseline: simulated {summary['sim_time_s']:.1f} s in {wall_s:.1f} s wall "
+                  f"(RTF {summary['rtf']}), late ticks {summary['late_ticks']}", flush=True)
+            executor.shutdown()
+    if node.stop_requested:
+        return 130
+    return 0 if started else 1
+
+
+# ------------------------------------------------------------------------------------ navigator
+class BaselineNavigatorNode(Node):
+    """A navigator's traffic: answers every tick at once, with a stand-in goal lifecycle.
+
+    A goal becomes ``DRIVING`` at the first tick after its stamp (one ``plan`` of
+    ``plan_poses`` poses is published) and ``SUCCEEDED`` ``goal_period_s`` simulated seconds
+    later. As the real navigator, the first answer waits for a commander to connect, the answer
+    on the first tick after a goal ended waits (up to ``goal_wait_timeout_s`` wall) for the
+    commander's next goal, and a lidar tick is answered only once its scan arrived.
+
+    Args:
+        ns: the robot's namespace without ``/``.
+        cfg: the baseline's settings.
+    """
+
+    def __init__(self, ns: str, cfg: BaselineConfig):
+        super().__init__("navigator", namespace=f"/{ns}", parameter_overrides=_sim_time())
+        # State.
+        self.ns = ns
+        self._cmd_writer = TwistStampedWriter(f"{ns}/base_footprint")
+        self._plan_writer = PathWriter("map")
+        self.cfg = cfg
+        self.tick_ns = round(NS_PER_S / cfg.control_rate_hz)
+        self.goal_period_ns = round(cfg.goal_period_s * NS_PER_S)
+        self.has_map = False
+        self.answered = False
+        self.state = "IDLE"
+        self.goal_id = ""
+        self.goal_start_ns = 0
+        self.path_version = 0
+        self.goals_taken = 0
+        self.goal_wait = GoalWait(  # the real navigator's handshake
+            cfg.goal_wait_timeout_s, self._steady_timer, self.destroy_timer)
+        self._published_path = 0
+        self._scan_stamp = -1
+        self._ranges = None
+        self._pending: Odometry | None = None
+        self._goals: list[tuple[int, str]] = []  # (stamp, id) awaiting a tick
+        self._goal_topic = f"/{ns}/goal_pose"
+        self._last_status: tuple | None = None
+        self._last_status_ns = -STATUS_PERIOD_NS
+        self._now_ns = 0
+        # Publishers, subscribers, service (swarm_nav.node's).
+        self.cmd_pub, self.plan_pub, self.status_pub = navigator_interface(
+            self, self._on_map, self._on_scan, self._on_odom, self._on_goal_pose, self._on_cancel)
+
+    def _on_map(self, msg: OccupancyGrid) -> None:
+        np.asarray(msg.data, dtype=np.int8)  # the conversion the real navigator makes
+        self.has_map = True
+
+    def _on_scan(self, buf: bytes) -> None:
+        self._scan_stamp, *_, self._ranges = scan_ranges(buf)
+        self._release()
+
+    def _on_odom(self, buf: bytes) -> None:
+        self._pending = odom_pose(buf)  # (stamp [ns], x, y, yaw, v, w)
+        self._release()
+
+    def _on_goal_pose(self, msg: PoseStamped) -> None:
+        stamp = msg.header.stamp
+        self._goals.append((_stamp_ns(stamp), _stamp_text(_stamp_ns(stamp))))
+        self._release()
+
+    def _on_cancel(self, request, response):
+        response.success = self.state not in TERMINAL
+        self.state = "CANCELED"
+        response.message = "canceled"
+        return response
+
+    def _release(self) -> None:
+        odom = self._pending
+        if odom is None:
+            return
+        t = odom[0]
+        if round(t / self.tick_ns) % self.cfg.lidar_every == 0 and self._scan_stamp != t:
+            return
+        if self.goal_wait.must_wait(t, self._awaits_goal(t), time.monotonic(),
+                                    self._on_goal_wait_poll, poll=self.answered):
+            return
+        self._pending = None
+        self._tick(odom)
+
+    def _awaits_goal(self, t: int) -> bool:
+        if not self.cfg.commanders:
+            return False
+        if not self.answered:  # the start gate waits for the commander to connect
+            return (not any(stamp < t for stamp, _ in self._goals)
+                    and not self._commander_connected())
+        return self.goal_wait.needed(t, bool(self._goals), self._commander_connected)
+
+    def _commander_connected(self) -> bool:
+        return self.count_publishers(self._goal_topic) > 0
+
+    def _on_goal_wait_poll(self, t: int) -> None:
+        if self.goal_wait.poll(t, time.monotonic(), self._commander_connected()):
+            self._release()
+
+    def _steady_timer(self, period_s: float, callback):
+        return self.create_timer(period_s, callback,
+                                 clock=RclpyClock(clock_type=ClockType.STEADY_TIME))
+
+    def _tick(self, odom: tuple) -> None:
+        _Cpu.begin()
+        t = odom[0]
+        self._now_ns = t
+        self.answered = True
+        due = [g for g in self._goals if g[0] < t]
+        if due:
+            self._goals = [g for g in self._goals if g[0] >= t]
+            self.goal_id = due[-1][1]
+            self.goal_start_ns = t
+            self.state = "DRIVING"
+            self.path_version += 1
+            self.goals_taken += 1
+        elif self.state == "DRIVING" and t - self.goal_start_ns >= self.goal_period_ns:
+            self.state = "SUCCEEDED"
+        self.cmd_pub.publish(self._cmd_writer.write(t, 0.0, 0.0))  # bytes, as swarm_nav.node
+        self.goal_wait.answered(t, self.state in TERMINAL)
+        if self.has_map:
+            self._publish_status()
+            self._publish_plan()
+
+    def _publish_status(self) -> None:
+        key = (self.state, self.goal_id)
+        if key == self._last_status and self._now_ns - self._last_status_ns < STATUS_PERIOD_NS:
+            return
+        self._last_status = key
+        self._last_status_ns = self._now_ns
+        kv = {"state": self.state, "goal_id": self.goal_id,
+              "stamp": _stamp_text(self._now_ns), "goal_x": "1.000", "goal_y": "2.000",
+              "goal_yaw": "0.0000", "distance_remaining_m": "1.000",
+              "navigation_time_s": f"{(self._now_ns - self.goal_start_ns) / NS_PER_S:.3f}",
+              "recoveries": "0", "holding_time_s": "0.000",
+              "goal_wait_timeouts": str(self.goal_wait.timeouts), "reason": ""}
+        self.status_pub.publish(diagnostic_status(  # bytes, as swarm_nav.node
+            0, f"{self.ns}/navigator", self.state, self.ns, kv))
+
+    def _publish_plan(self) -> None:
+        if self.path_version == self._published_path:
+            return
+        if not self.plan_pub.get_subscription_count():  # as the navigator: only when read
+            return
+        self._published_path = self.path_version
+        n = self.cfg.plan_poses
+        self.plan_pub.publish(self._plan_writer.write(  # bytes, as swarm_nav.node
+            self._now_ns, np.column_stack((0.05 * np.arange(n), np.zeros(n)))))
+
+
+# ------------------------------------------------------------------------------------ commander
+class BaselineCommanderNode(Node):
+    """A commander's traffic: a next goal in answer to each ended goal, stamped as the real one.
+
+    Args:
+        ns: the robot's namespace without ``/``.
+    """
+
+    def __init__(self, ns: str):
+        super().__init__("commander", namespace=f"/{ns}", parameter_overrides=_sim_time())
+        self._sent: str | None = None
+        self._goals = 0
+        # Publishers, subscribers, client and the runner's poll timer (swarm_commander's).
+        self._goal_pub = publisher(self, PoseStamped, topics.GOAL_POSE)
+        subscription(self, DiagnosticStatus, topics.NAV_STATUS, self._on_nav_status,
+                     qos=topics.NAV_STATUS_COMMANDER_READER_QOS)
+        self._cancel_client = self.create_client(Trigger, topics.CANCEL_SERVICE)
+        self.create_timer(0.1, self._on_timer, clock=RclpyClock(clock_type=ClockType.STEADY_TIME))
+
+    def _on_timer(self) -> None:
+        pass  # the runner's poll: nothing to retry here
+
+    def _on_nav_status(self, msg: DiagnosticStatus) -> None:
+        _Cpu.begin()
+        values = {kv.key: kv.value for kv in msg.values}
+        state = values.get("state") or msg.message
+        if self._sent is not None and values.get("goal_id") != self._sent:
+            return  # our goal is not taken yet
+        if state not in TERMINAL:
+            return
+        sec, _, nsec = values.get("stamp", "0.0").partition(".")
+        goal = PoseStamped()
+        goal.header.frame_id = "map"
+        goal.header.stamp = Time(sec=int(sec), nanosec=int(nsec or 0))
+        self._goals += 1
+        goal.pose.position.x = float(self._goals % 7)
+        goal.pose.orientation.w = 1.0
+        self._sent = _stamp_text(_stamp_ns(goal.header.stamp))
+        self._goal_pub.publish(goal)
+
+
+# ------------------------------------------------------------------------------------- listener
+class BaselineListenerNode(Node):
+    """The subscriptions of ``swarm-up``'s metrics node, with callbacks that only unpack.
+
+    Args:
+        cfg: the baseline's settings.
+    """
+
+    def __init__(self, cfg: BaselineConfig):
+        super().__init__("swarm_up_metrics")
+        self.statuses = 0
+        for ns in cfg.robots:
+            subscription(self, DiagnosticStatus, topics.NAV_STATUS, self._on_status, ns,
+                         topics.NAV_STATUS_METRICS_READER_QOS)
+        subscription(self, DiagnosticArray, topics.EVENTS, self._on_events)
+        subscription(self, Clock, topics.CLOCK, self._on_clock,
+                     qos=topics.CLOCK_METRICS_READER_QOS)
+
+    def _on_status(self, msg: DiagnosticStatus) -> None:
+        {kv.key: kv.value for kv in msg.values}  # noqa: B018 - the unpacking the real one does
+        self.statuses += 1
+
+    def _on_events(self, msg: DiagnosticArray) -> None:
+        for status in msg.status:
+            {kv.key: kv.value for kv in status.values}  # noqa: B018
+
+    def _on_clock(self, msg: Clock) -> None:
+        _Cpu.begin()
+
+
+# ------------------------------------------------------------------------------------ processes
+def _spin(nodes: list[Node]) -> None:
+    """Spin ``nodes`` until SIGINT/SIGTERM (rclpy's own handlers end the spin), then print the
+    navigators' goals and this process's CPU line."""
+    executor = EventsExecutor()
+    for node in nodes:
+        executor.add_node(node)
+    try:
+        spin_forever(executor, nodes[0].context)
+    finally:
+        executor.shutdown()
+        for node in nodes:
+            if isinstance(node, BaselineNavigatorNode):
+                print(f"baseline: {node.ns} took {node.goals_taken} goals, "
+                      f"{node.goal_wait.timeouts} goal-wait timeouts", flush=True)
+        print(_Cpu.line(), flush=True)
+
+
+def run_group(cfg: BaselineConfig, namespaces: list[str], navigators: bool,
+              commanders: bool) -> int:
+    """The ``group`` process: baseline navigators and/or commanders of ``namespaces``.
+
+    Returns:
+        0 (stopped by SIGINT/SIGTERM).
+    """
+    with node_session(["baseline_group"]) as nodes:
+        for ns in namespaces:
+            if navigators:
+                nodes.append(BaselineNavigatorNode(ns, cfg))
+            if commanders:
+                nodes.append(BaselineCommanderNode(ns))
+        if len(nodes) > 1:  # a group process: one /clock subscription, as swarm_up.group
+            clock = SharedClock(f"/{namespaces[0]}")
+            for node in nodes:
+                clock.adopt(node)
+            nodes.append(clock.node)
+        _spin(nodes)
+    return 0
+
+
+def run_listener(cfg: BaselineConfig) -> int:
+    """The ``listener`` process: the metrics node's subscriptions.
+
+    Returns:
+        0 (stopped by SIGINT/SIGTERM).
+    """
+    with node_session(["baseline_listener"]) as nodes:
+        nodes.append(BaselineListenerNode(cfg))
+        _spin(nodes)
+    return 0
+
+
+# ------------------------------------------------------------------------------------- command
+PROG = "swarm_bench.baseline_nodes"
+
+
+def build_parser():
+    """``python -m swarm_bench.baseline_nodes {sim,group,listener} --config PATH ...``."""
+    p = cli.ArgumentParser(prog=f"python -m {PROG}", allow_abbrev=False,
+                           description="One process of the messaging baseline (started by "
+                           "swarm_bench.baseline.run_baseline).")
+    sub = p.add_subparsers(dest="role", required=True)
+    for role in ("sim", "listener", "group"):
+        sub.add_parser(role).add_argument("--config", type=Path, required=True)
+    group = sub.choices["group"]
+    group.add_argument("--namespaces", required=True)
+    group.add_argument("--navigators", action="store_true")
+    group.add_argument("--commanders", action="store_true")
+    return p
+
+
+def _read_config(path: Path) -> BaselineConfig:
+    try:
+        return BaselineConfig.decode(path.read_text())
+    except OSError as exc:
+        raise InputError(f"--config: cannot read '{path}' ({exc.strerror})") from None
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``python -m swarm_bench.baseline_nodes``."""
+
+    def body() -> int:
+        args = build_parser().parse_args(argv)
+        cfg = _read_config(args.config)
+        if args.role == "sim":
+            return run_sim(cfg)
+        if args.role == "listener":
+            return run_listener(cfg)
+        names = [n for n in args.namespaces.split(",") if n]
+        return run_group(cfg, names, args.navigators, args.commanders)
+
+    return run_cli(PROG, body)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

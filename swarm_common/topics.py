@@ -1,0 +1,162 @@
+"""Every topic between the swarm's processes: its name, its type and its QoS, written once.
+
+The simulator, the navigators, the commanders, the coordinator, the orchestrator's metrics
+listener and fault injection, the live view, the recorder and the benchmark's baseline (which
+mirrors the real nodes' traffic) all take their topic names and QoS from here; the recorder also
+writes :attr:`Topic.qos` into a recording's channel metadata (rosbag2's ``offered_qos_profiles``).
+
+QoS is plain data (:class:`Qos`, in rosbag2's policy names) so that this module stays pure; a
+node turns it into an ``rclpy`` profile with :func:`swarm_ros.qos.profile`.  :attr:`Topic.qos`
+is what the writers offer.  A reader may ask for less or keep more: where one does, its profile
+is named here too (``*_READER_QOS``), with the reason, and is compatible with the writer's
+(a reliable writer serves best-effort readers; a transient-local writer serves volatile ones).
+
+Names: absolute (``/clock``) or relative to the robot's namespace (``odom`` is
+``/<ns>/odom``, :func:`robot_topic`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+RELIABLE, BEST_EFFORT = "reliable", "best_effort"
+VOLATILE, TRANSIENT_LOCAL = "volatile", "transient_local"
+
+
+@dataclass(frozen=True)
+class Qos:
+    """A QoS profile, keep-last, the other policies at the middleware's defaults.
+
+    Attributes:
+        depth: history depth [messages].
+        reliability: :data:`RELIABLE` or :data:`BEST_EFFORT`.
+        durability: :data:`VOLATILE` or :data:`TRANSIENT_LOCAL` (a late-joining reader gets
+            up to ``depth`` messages sent before it matched).
+    """
+
+    depth: int
+    reliability: str = RELIABLE
+    durability: str = VOLATILE
+
+    def as_dict(self) -> dict:
+        """``history``, ``depth``, ``reliability``, ``durability`` in rosbag2's names."""
+        return {"history": "keep_last", "depth": self.depth, "reliability": self.reliability,
+                "durability": self.durability}
+
+
+@dataclass(frozen=True)
+class Topic:
+    """One topic.
+
+    Attributes:
+        name: absolute (``/clock``) or relative to a robot's namespace (``odom``).
+        type: the ROS 2 type name (``nav_msgs/msg/Odometry``).
+        qos: what its writers offer.
+    """
+
+    name: str
+    type: str
+    qos: Qos
+
+
+DEFAULT = Qos(10)
+"""rclpy's default profile (a publisher created with depth 10): reliable, volatile."""
+LATCHED = Qos(1, durability=TRANSIENT_LOCAL)
+"""The last message, also for readers that join later (``/map``, ``plan``)."""
+SENSOR_DATA = Qos(5, BEST_EFFORT)
+"""rclpy's ``qos_profile_sensor_data``: best effort, depth 5."""
+
+# --------------------------------------------------------------------------------- swarm-wide
+CLOCK = Topic("/clock", "rosgraph_msgs/msg/Clock", DEFAULT)
+CLOCK_METRICS_READER_QOS = Qos(1, BEST_EFFORT)
+"""The metrics listener wants only the latest simulated time, and never to slow the writer."""
+MAP = Topic("/map", "nav_msgs/msg/OccupancyGrid", LATCHED)
+EVENTS = Topic("/swarm/events", "diagnostic_msgs/msg/DiagnosticArray",
+               Qos(1000, durability=TRANSIENT_LOCAL))
+"""The simulator's spawns, collisions and faults; the metrics listener and fault injection read
+it with this same profile.  Transient local on every side: a writer can match a reader before
+the reader has matched the writer, and a volatile reader drops what the writer sent in between
+(a fault's start lost so, once in 8 runs of tests/test_e2e_faults.py); a transient-local reader
+asks for the writer's history when it matches."""
+EVENTS_COORDINATOR_WRITER_QOS = Qos(100, durability=TRANSIENT_LOCAL)
+"""The coordinator's writer of ``/swarm/events`` (a few events per task, reservations and its
+"up"): transient local for the reason :data:`EVENTS` gives, with a shorter history."""
+POSES = Topic("/swarm/poses", "geometry_msgs/msg/PoseArray", Qos(1))
+"""The whole fleet's ground-truth poses in one message a tick.  The simulator publishes it, only
+while someone subscribes, in ``map``: ``poses[i]`` is robot ``i`` (0-based) of the simulator's
+namespaces, ``/<prefix>1`` ... ``/<prefix>N`` in that order; ``header.stamp`` is the tick's
+simulated time.  A whole-fleet view (the dashboard) reads this one message instead of ``N``
+odometry topics: one write and one wake-up a tick instead of ``N`` (docs/ARCHITECTURE.md, "The
+live view").  The writer is reliable (it serves best-effort readers too, without
+acknowledgements)."""
+POSES_READER_QOS = Qos(POSES.qos.depth, BEST_EFFORT)
+"""A live view reads the poses best effort: a late tick is replaced by the next one."""
+MARKERS = Topic("/swarm/markers", "visualization_msgs/msg/MarkerArray", Qos(1))
+FAULT_ACKS = Topic("/swarm/fault_acks", "diagnostic_msgs/msg/DiagnosticStatus",
+                   Qos(100, durability=TRANSIENT_LOCAL))
+"""Transient local on both sides (the simulator's reader too): an acknowledgement published
+before the simulator's reader had matched its writer is delivered when it matches."""
+
+# ------------------------------------------------------------------- the coordinator's topics
+COORDINATOR_REQUEST = Topic("/swarm/coordinator/request", "std_msgs/msg/String",
+                            Qos(10, durability=TRANSIENT_LOCAL))
+"""The commanders' requests (:mod:`swarm_common.coordination`).  Transient local: a reader that
+matches late (the metrics listener counting the communication load) still gets the last ones."""
+COORDINATOR_REQUEST_READER_QOS = Qos(100)
+"""The coordinator reads the requests volatile (no stale request) and keeps a burst of them."""
+COORDINATOR_STATE = Topic("/swarm/coordinator/state", "std_msgs/msg/String", LATCHED)
+ASSIGNMENT = Topic("coordinator/assignment", "std_msgs/msg/String",
+                   Qos(10, durability=TRANSIENT_LOCAL))
+"""The coordinator's answer to one robot (relative: ``/<ns>/coordinator/assignment``).
+Transient local writer: a late-matching metrics reader still counts the first answers."""
+ASSIGNMENT_READER_QOS = Qos(10)
+"""The commanders read volatile, so a restarted commander gets no stale assignment."""
+COMM_METRICS_READER_QOS = Qos(100, durability=TRANSIENT_LOCAL)
+"""The metrics listener's reader of the requests and assignments (it counts their sizes):
+transient local, so requests and answers published before it matched are delivered from the
+writers' history when it matches."""
+
+# --------------------------------------------------------------------------- a robot's topics
+ODOM = Topic("odom", "nav_msgs/msg/Odometry", DEFAULT)
+GROUND_TRUTH = Topic("ground_truth", "nav_msgs/msg/Odometry", DEFAULT)
+SCAN = Topic("scan", "sensor_msgs/msg/LaserScan", SENSOR_DATA)
+CMD_VEL = Topic("cmd_vel", "geometry_msgs/msg/TwistStamped",
+                Qos(300, durability=TRANSIENT_LOCAL))
+"""The navigator's writer: reliable and transient-local with 300 messages (30 s simulated at
+10 Hz), like ``/rosout``, so that a reader that asks for transient-local (the recorder) gets the
+commands sent before it matched.  A writer matches a reader before the reader matches the
+writer; what the writer sends in between, a volatile reader drops (23 ticks of one robot in one
+CI run, the navigator's start gate passed on the writer's side)."""
+CMD_VEL_READER_QOS = DEFAULT
+"""The simulator reads ``cmd_vel`` volatile: it wants each tick's command, not a history."""
+PLAN = Topic("plan", "nav_msgs/msg/Path", LATCHED)
+NAV_STATUS = Topic("nav_status", "diagnostic_msgs/msg/DiagnosticStatus",
+                   Qos(100, durability=TRANSIENT_LOCAL))
+"""The navigator's writer: reliable and transient-local with 100 messages (50 s simulated at
+2 Hz), for the reason :data:`CMD_VEL` has one: a reader whose side matched late still gets every
+status, not the last alone, and so every goal, even one that ended, or whose navigator was
+killed, before the reader matched."""
+NAV_STATUS_COMMANDER_READER_QOS = Qos(10, durability=TRANSIENT_LOCAL)
+"""The commander's reader: 10, so no transition is lost in a burst."""
+NAV_STATUS_METRICS_READER_QOS = Qos(100, durability=TRANSIENT_LOCAL)
+"""The metrics listener's reader keeps 100 per robot, 50 simulated seconds of statuses at 2 Hz,
+so a listener thread that falls behind under load still sees every SUCCEEDED before the next
+goal's status (tests/swarm_metrics/test_listener.py)."""
+GOAL_POSE = Topic("goal_pose", "geometry_msgs/msg/PoseStamped", DEFAULT)
+CANCEL_SERVICE = "navigator/cancel"
+"""The navigator's ``std_srvs/srv/Trigger`` service (relative to the robot's namespace)."""
+
+ROBOT_TOPICS = (SCAN, ODOM, GROUND_TRUTH, CMD_VEL, PLAN, NAV_STATUS)
+"""A robot's topics that a recording holds, in its order."""
+
+
+def robot_topic(ns: str, topic: Topic | str) -> str:
+    """The absolute name of a robot's topic (``robot_topic("Srobot3", ODOM)`` is
+    ``/Srobot3/odom``)."""
+    name = topic.name if isinstance(topic, Topic) else topic
+    return f"/{ns.strip('/')}/{name}"
+
+
+def assignment_topic(ns: str) -> str:
+    """The absolute assignment topic of robot ``ns`` (``/Srobot3/coordinator/assignment``)."""
+    return robot_topic(ns, ASSIGNMENT)

@@ -1,0 +1,49 @@
+"""A navigator's ROS interface, written once: what :class:`swarm_nav.node.NavigatorNode` and the
+benchmark's mirror navigator (:class:`swarm_bench.baseline_nodes.BaselineNavigatorNode`) publish,
+subscribe to and serve, with the names and QoS of :mod:`swarm_common.topics`."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import NamedTuple
+
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import PoseStamped, TwistStamped
+from nav_msgs.msg import OccupancyGrid, Odometry, Path
+from sensor_msgs.msg import LaserScan
+from std_srvs.srv import Trigger
+
+from swarm_common import topics
+from swarm_ros.qos import publisher, subscription
+
+
+class NavigatorPublishers(NamedTuple):
+    """The navigator's publishers (``cmd_vel`` and ``plan`` are written as CDR bytes)."""
+
+    cmd_vel: object
+    plan: object
+    nav_status: object
+
+
+def navigator_interface(node, on_map: Callable, on_scan: Callable, on_odom: Callable,
+                        on_goal_pose: Callable, on_cancel: Callable) -> NavigatorPublishers:
+    """Create a navigator's publishers, subscriptions and service on ``node`` (its namespace is
+    the robot's).
+
+    ``scan`` and ``odom`` come every tick and are read raw (``on_scan(bytes)``,
+    ``on_odom(bytes)``, decoded with :mod:`swarm_common.cdr`: rclpy built 15 message objects per
+    odometry message, 10 % of a group process's CPU); ``/map`` and ``goal_pose`` as messages;
+    ``on_cancel`` serves ``navigator/cancel`` (``std_srvs/Trigger``).
+
+    Returns:
+        The publishers of ``cmd_vel``, ``plan`` and ``nav_status``.
+    """
+    pubs = NavigatorPublishers(publisher(node, TwistStamped, topics.CMD_VEL),
+                               publisher(node, Path, topics.PLAN),
+                               publisher(node, DiagnosticStatus, topics.NAV_STATUS))
+    subscription(node, OccupancyGrid, topics.MAP, on_map)
+    subscription(node, LaserScan, topics.SCAN, on_scan, raw=True)
+    subscription(node, Odometry, topics.ODOM, on_odom, raw=True)
+    subscription(node, PoseStamped, topics.GOAL_POSE, on_goal_pose)
+    node.create_service(Trigger, topics.CANCEL_SERVICE, on_cancel)
+    return pubs

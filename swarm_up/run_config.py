@@ -1,0 +1,79 @@
+"""What every part of the orchestrator agrees on about a run: :class:`RunConfig`, built and
+checked by :func:`swarm_up.args.validate` and read by :mod:`swarm_up.rundir`,
+:mod:`swarm_up.children` and :mod:`swarm_up.orchestrator` (a module of its own, so that none of
+them imports another for it)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+PER_ROBOT = "per-robot"
+"""``--processes per-robot``: one navigator (and commander) process per robot."""
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """Everything a run needs, validated.
+
+    Attributes:
+        robots: namespaces without ``/`` (``Srobot1`` ...).
+        name_prefix: their common prefix (``Srobot``).
+        world_path: the world file.
+        world_name: its stem, for reports.
+        robot: ``--robot`` as the simulator gets it: the robot's name or absolute path, or a
+            mix ``NAME:COUNT,...`` in the order given (a fleet file's entries so; paths
+            absolute).
+        map_path: map YAML (None: rasterise or let the simulator do it).
+        poi_path: points-of-interest YAML beside the world (None: there is none).
+        seed: seed.
+        rtf: real-time factor (0 = as fast as possible).
+        duration: simulated seconds, or None (until Ctrl-C) [s].
+        commanders: start commanders.
+        coordination: ``decentralized`` | ``centralized`` (with commanders).
+        metrics_path: ``--metrics`` file or None.
+        groups: None for one process per robot, else the robots of every group process.
+        gui: open the PyBullet window.
+        run_dir: absolute run directory.
+        ready_timeout: [s] wall.
+        nav_template: navigator parameter template.
+        faults: the ``--faults`` schedule (:func:`swarm_common.faults.parse_faults`); empty:
+            none.
+        record_path: ``--record`` MCAP file (None: no recording).
+        record_topics: ``--record-topics`` regular expression (None: every topic).
+        dashboard_port: serve the dashboard on this port of 127.0.0.1 (None: no dashboard).
+        markers: publish ``/swarm/markers`` (also on with the dashboard).
+        fleet: the model of every robot (name or absolute path), index-aligned with
+            ``robots`` (:func:`swarm_common.fleet.fleet_models`); empty: every robot is
+            ``robot``.
+    """
+
+    robots: tuple[str, ...]
+    name_prefix: str
+    world_path: Path
+    world_name: str
+    robot: str
+    map_path: Path | None
+    poi_path: Path | None
+    seed: int
+    rtf: float
+    duration: float | None
+    commanders: bool
+    coordination: str
+    metrics_path: Path | None
+    groups: tuple[tuple[str, ...], ...] | None
+    gui: bool
+    run_dir: Path
+    ready_timeout: float
+    nav_template: Path
+    faults: tuple = ()
+    record_path: Path | None = None
+    record_topics: str | None = None
+    dashboard_port: int | None = None
+    markers: bool = False
+    fleet: tuple[str, ...] = ()
+
+    @property
+    def models(self) -> tuple[str, ...]:
+        """The model (name or absolute path) of every robot, index-aligned with ``robots``."""
+        return self.fleet if self.fleet else (self.robot,) * len(self.robots)
