@@ -55,9 +55,9 @@ from swarm_common.cdr import (
     twist_stamped,
 )
 from swarm_common.errors import InputError, run_cli
+from swarm_common.lockstep import COMING, POLL_S, GoalHandshake
 from swarm_common.nav_status import TERMINAL
 from swarm_common.stamps import NS_PER_S
-from swarm_nav.goal_wait import GoalWait
 from swarm_ros.navigator import navigator_interface
 from swarm_ros.qos import publisher, subscription
 from swarm_ros.session import node_session, spin_forever
@@ -326,8 +326,9 @@ class BaselineNavigatorNode(Node):
     A goal becomes ``DRIVING`` at the first tick after its stamp (one ``plan`` of
     ``plan_poses`` poses is published) and ``SUCCEEDED`` ``goal_period_s`` simulated seconds
     later. As the real navigator, the first answer waits for a commander to connect, the answer
-    on the first tick after a goal ended waits (up to ``goal_wait_timeout_s`` wall) for the
-    commander's next goal, and a lidar tick is answered only once its scan arrived.
+    on the first tick after a goal ended waits for the commander's next goal (the same
+    :class:`swarm_common.lockstep.GoalHandshake`; its commanders are in the lockstep), and a lidar
+    tick is answered only once its scan arrived.
 
     Args:
         ns: the robot's namespace without ``/``.
@@ -350,8 +351,9 @@ class BaselineNavigatorNode(Node):
         self.goal_start_ns = 0
         self.path_version = 0
         self.goals_taken = 0
-        self.goal_wait = GoalWait(  # the real navigator's handshake
-            cfg.goal_wait_timeout_s, self._steady_timer, self.destroy_timer)
+        self.handshake = GoalHandshake(  # the real navigator's handshake
+            lockstep=cfg.commanders, timeout_s=cfg.goal_wait_timeout_s)
+        self._wait_timer = None
         self._published_path = 0
         self._scan_stamp = -1
         self._ranges = None
@@ -363,7 +365,8 @@ class BaselineNavigatorNode(Node):
         self._now_ns = 0
         # Publishers, subscribers, service (swarm_nav.node's).
         self.cmd_pub, self.plan_pub, self.status_pub = navigator_interface(
-            self, self._on_map, self._on_scan, self._on_odom, self._on_goal_pose, self._on_cancel)
+            self, self._on_map, self._on_scan, self._on_odom, self._on_goal_pose, self._on_cancel,
+            self._on_goal_coming)
 
     def _on_map(self, msg: OccupancyGrid) -> None:
         np.asarray(msg.data, dtype=np.int8)  # the conversion the real navigator makes
@@ -380,12 +383,18 @@ class BaselineNavigatorNode(Node):
     def _on_goal_pose(self, msg: PoseStamped) -> None:
         stamp = msg.header.stamp
         self._goals.append((_stamp_ns(stamp), _stamp_text(_stamp_ns(stamp))))
+        self.handshake.goal_arrived()
         self._release()
 
     def _on_cancel(self, request, response):
         response.success = self.state not in TERMINAL
         self.state = "CANCELED"
         response.message = "canceled"
+        return response
+
+    def _on_goal_coming(self, request, response):
+        response.success = self.handshake.said(COMING)
+        self._release()
         return response
 
     def _release(self) -> None:
@@ -395,9 +404,15 @@ class BaselineNavigatorNode(Node):
         t = odom[0]
         if round(t / self.tick_ns) % self.cfg.lidar_every == 0 and self._scan_stamp != t:
             return
-        if self.goal_wait.must_wait(t, self._awaits_goal(t), time.monotonic(),
-                                    self._on_goal_wait_poll, poll=self.answered):
+        if self._awaits_goal(t):
+            if self._wait_timer is None:  # polls the wait, as the real navigator
+                self._wait_timer = self.create_timer(
+                    POLL_S, lambda: self._on_wait_poll(t),
+                    clock=RclpyClock(clock_type=ClockType.STEADY_TIME))
             return
+        if self._wait_timer is not None:
+            self.destroy_timer(self._wait_timer)
+            self._wait_timer = None
         self._pending = None
         self._tick(odom)
 
@@ -407,18 +422,14 @@ class BaselineNavigatorNode(Node):
         if not self.answered:  # the start gate waits for the commander to connect
             return (not any(stamp < t for stamp, _ in self._goals)
                     and not self._commander_connected())
-        return self.goal_wait.needed(t, bool(self._goals), self._commander_connected)
+        return self.handshake.awaits_goal(t, bool(self._goals), self._commander_connected)
 
     def _commander_connected(self) -> bool:
         return self.count_publishers(self._goal_topic) > 0
 
-    def _on_goal_wait_poll(self, t: int) -> None:
-        if self.goal_wait.poll(t, time.monotonic(), self._commander_connected()):
-            self._release()
-
-    def _steady_timer(self, period_s: float, callback):
-        return self.create_timer(period_s, callback,
-                                 clock=RclpyClock(clock_type=ClockType.STEADY_TIME))
+    def _on_wait_poll(self, t: int) -> None:
+        self.handshake.poll(t, time.monotonic(), self._commander_connected())
+        self._release()
 
     def _tick(self, odom: tuple) -> None:
         _Cpu.begin()
@@ -436,7 +447,7 @@ class BaselineNavigatorNode(Node):
         elif self.state == "DRIVING" and t - self.goal_start_ns >= self.goal_period_ns:
             self.state = "SUCCEEDED"
         self.cmd_pub.publish(self._cmd_writer.write(t, 0.0, 0.0))  # bytes, as swarm_nav.node
-        self.goal_wait.answered(t, self.state in TERMINAL)
+        self.handshake.answered(t, self.state in TERMINAL, goal_set=bool(due))
         if self.has_map:
             self._publish_status()
             self._publish_plan()
@@ -452,7 +463,7 @@ class BaselineNavigatorNode(Node):
               "goal_yaw": "0.0000", "distance_remaining_m": "1.000",
               "navigation_time_s": f"{(self._now_ns - self.goal_start_ns) / NS_PER_S:.3f}",
               "recoveries": "0", "holding_time_s": "0.000",
-              "goal_wait_timeouts": str(self.goal_wait.timeouts), "reason": ""}
+              "goal_wait_timeouts": str(self.handshake.timeouts), "reason": ""}
         self.status_pub.publish(diagnostic_status(  # bytes, as swarm_nav.node
             0, f"{self.ns}/navigator", self.state, self.ns, kv))
 
@@ -552,7 +563,7 @@ def _spin(nodes: list[Node]) -> None:
         for node in nodes:
             if isinstance(node, BaselineNavigatorNode):
                 print(f"baseline: {node.ns} took {node.goals_taken} goals, "
-                      f"{node.goal_wait.timeouts} goal-wait timeouts", flush=True)
+                      f"{node.handshake.timeouts} goal-wait timeouts", flush=True)
         print(_Cpu.line(), flush=True)
 
 

@@ -287,6 +287,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--coordinated", action="store_true",
                    help="ask the coordinator (swarm-coordinator) for every task instead of "
                    "following --route (swarm-up --coordination centralized)")
+    p.add_argument("--faults", default=None, metavar="SPEC",
+                   help="with --coordinated: the run's fault schedule (swarm-up's --faults), "
+                   "whose kill-coordinator faults the commander waits out (default: none)")
     return p
 
 
@@ -340,10 +343,10 @@ def _run(argv: list[str]) -> int:
             _use_sim_time_by_default(node)
             node.get_logger().set_level(LoggingSeverity.WARN)  # the task lines say what happens
             if opts.coordinated:
-                from swarm_commander.coordinated import CoordinatedConfig, CoordinatedRunner
+                from swarm_commander.coordinated import CoordinatedRunner, coordinated_config
 
                 runner = CoordinatedRunner(
-                    node, CoordinatedConfig(wait_timeout=opts.wait_timeout), emit=_emit)
+                    node, coordinated_config(opts.faults, opts.wait_timeout), emit=_emit)
             else:
                 runner = CommanderRunner(node, route, cfg, emit=_emit)
             executor.add_node(node)

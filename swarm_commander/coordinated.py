@@ -11,21 +11,32 @@ the coordinator answers the first requests once every robot has asked. At a wait
 tells its navigator that no next goal is coming (a cancel with no goal running, so the
 navigator's next tick does not wait) and waits for the coordinator to hand it the workstation.
 
-**When the coordinator is silent** (the documented rule, tested in
-``tests/test_e2e_coordination.py``):
+**In the lockstep** (docs/ARCHITECTURE.md, "Coordination"; no wall-clock timeout decides
+anything simulated): its navigator holds the tick at which a goal ended (``hold_goal_end``) until
+the commander gives its word; for a ``done`` request the word is ``navigator/goal_coming``, said
+once the coordinator has acknowledged the request (``ack``), so the coordinator has every
+request of a tick before the simulator moves on, and answers them together. A workstation
+handed over unasked (``reply_to`` 0) is confirmed (``delivered``) once the navigator reports the
+goal pending (``pending_goal_id`` in ``nav_status``): the coordinator holds the answers the
+simulator waits for until then, so the hand-over takes effect at a fixed tick.
+
+**When the coordinator is down** (a ``kill-coordinator`` fault of the run's schedule,
+``CoordinatedConfig.outages``; tested in ``tests/test_e2e_coordination.py``):
 
 1. The robot finishes the goal it has; nothing on the way depends on the coordinator.
-2. Then it waits where it stands and sends its request again if no answer came within 1 s
-   (wall), then after 2, 4, 8, 8, ... s (exponential backoff, capped at 8 s), until an answer
-   comes. A robot waiting at a spot has nothing to ask and keeps waiting. (A robot's first
-   request, ``ready``, is first re-sent after 8 s: at the start the coordinator answers once
-   every robot is ready. Re-sends are not counted in the communication load.)
-3. Its navigator's next tick waits ``goal_wait_timeout`` (2.5 s wall) for a goal and then goes
-   on without one: the robot stands still, the rest of the swarm keeps moving, and the run is
-   marked not reproducible (``goal_wait_timeouts``).
-4. A coordinator that comes (back) up publishes a new epoch on ``/swarm/coordinator/state``;
+2. A goal that ends when the coordinator will not see the next tick (from one tick before the
+   kill to the restart) is reported to no one: the robot stays where it is, with a goal to its
+   own docking pose stamped with the restart (so it takes effect at a fixed tick), and reports
+   the task when that goal ends; without a restart it stops for good. A robot waiting at a spot
+   keeps waiting.
+3. A coordinator that comes (back) up publishes a new epoch on ``/swarm/coordinator/state``;
    every commander then reports what it holds and waits for (or re-sends its open request), and
-   the coordinator rebuilds its tables from these reports before it answers anyone.
+   the coordinator rebuilds its tables from these reports before it answers anyone; simulated
+   time waits at the restart until it serves.
+
+A request with no answer is sent again after 1 s (wall), then 2, 4, 8, 8, ... s (only a lost
+message or a crashed coordinator needs it: the copies change nothing simulated and are not
+counted in the communication load).
 """
 
 from __future__ import annotations
@@ -73,6 +84,11 @@ class CoordinatedConfig:
         retry_ready: [s] wall: first wait before the first request (``ready``) is sent again:
             the coordinator answers it only once every robot is ready.
         poll_period: [s] wall: period of the runner's timer.
+        outages: the run's ``kill-coordinator`` windows, ``(start_ns, end_ns)`` [ns] simulated
+            (:func:`swarm_common.faults.coordinator_outages`; end None: not restarted).
+        period_ns: [ns] the simulator's control tick.
+        resend_goal: [s] wall: an unconfirmed hand-over is given to the navigator again after
+            this long (a navigator restarted meanwhile lost it).
     """
 
     wait_timeout: float = 30.0
@@ -80,6 +96,9 @@ class CoordinatedConfig:
     retry_max: float = 8.0
     retry_ready: float = 8.0
     poll_period: float = 0.1
+    outages: tuple[tuple[int, int | None], ...] = ()
+    period_ns: int = NS_PER_S // 10
+    resend_goal: float = 3.0
 
 
 class CoordinatedRunner:
@@ -115,6 +134,10 @@ class CoordinatedRunner:
         self._applied = 0  # highest assignment seq applied in this epoch
         self._resync = False  # a new coordinator is to be told what we hold
         self._first_start_ns: int | None = None
+        self._acked = False  # the coordinator has the open request (navigator told)
+        self._deferred: tuple[str, str] | None = None  # (outcome, target) of an unsent done
+        self._staying = False  # a goal that holds the robot through a coordinator outage runs
+        self._deliver: tuple[int, str, float] | None = None  # (seq, goal id, wall) unconfirmed
         navigator.on_task_complete = self._on_task_complete
         self._req_pub = publisher(navigator, String, topics.COORDINATOR_REQUEST)
         self._assignment_sub = subscription(navigator, String, topics.ASSIGNMENT,
@@ -123,6 +146,7 @@ class CoordinatedRunner:
         self._state_sub = subscription(navigator, String, topics.COORDINATOR_STATE,
                                        self._on_state)
         self._decline = navigator.create_client(Trigger, topics.CANCEL_SERVICE)
+        self._coming = navigator.create_client(Trigger, topics.GOAL_COMING_SERVICE)
         self._timer = navigator.create_timer(
             cfg.poll_period, self._on_timer, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
@@ -186,6 +210,7 @@ class CoordinatedRunner:
             self._resync_now()
         if self._unsent is not None:
             self._drive(self._unsent)
+        self._check_delivery(now)
         if self._pending is not None and now >= self._next_send:
             self.retries += 1
             self.emit(f"[{self.label}] no answer from the coordinator to request "
@@ -228,6 +253,13 @@ class CoordinatedRunner:
             return
         if a.robot != self.label:
             return
+        if a.kind == "ack":  # the coordinator has the request: the navigator may go on
+            req = self._pending
+            if req is not None and a.reply_to == req.seq and req.kind == "done" \
+                    and not self._acked:
+                self._acked = True
+                self._coming.call_async(Trigger.Request())
+            return
         if a.epoch != self._epoch:  # its state message may still be on the way
             self._epoch, self._applied = a.epoch, 0
         if a.seq <= self._applied:
@@ -238,10 +270,19 @@ class CoordinatedRunner:
         if self._first_start_ns is None:
             self._first_start_ns = a.task_start_ns
         self._drive(a)
+        if a.reply_to == 0:  # unasked: the coordinator waits for its delivery
+            self._deliver = (a.seq, self.nav.current_goal_id(), time.monotonic())
+            self._check_delivery(time.monotonic())
 
     def _on_task_complete(self, result: TaskResult) -> None:
         cur = self._current
         if cur is None:
+            return
+        if self._staying:  # the coordinator is back: report the task that ended meanwhile
+            self._staying = False
+            outcome, target = self._deferred
+            self._deferred = None
+            self._request("done", outcome, target)
             return
         if cur.kind == "wait":
             # At the spot (or not reachable): no next goal until the coordinator hands over.
@@ -263,7 +304,22 @@ class CoordinatedRunner:
             else:
                 self.failed += 1
             self.emit(f"{head} failed to reach {cur.target} after {took:.1f} s (sim): {reason}")
-        self._request("done", _OUTCOME.get(result, "failed"), cur.target)
+        outcome = _OUTCOME.get(result, "failed")
+        restart = self._outage(now)
+        if restart is False:
+            self._request("done", outcome, cur.target)
+            return
+        # the coordinator will not see the next tick: tell no one, stay until it is back
+        self._deferred = (outcome, cur.target)
+        if restart is None:  # not restarted: no next goal, ever
+            self.emit(f"[{self.label}] the coordinator is down for good; stopping here")
+            if self._decline.service_is_ready():
+                self._decline.call_async(Trigger.Request())
+            return
+        self.emit(f"[{self.label}] the coordinator is down until t = {restart / NS_PER_S:g} s; "
+                  "staying here")
+        self._staying = True
+        self.nav.go_to_pose_at(_pose_msg(cur.pose), restart)
 
     # -- helpers ----------------------------------------------------------------------------
     def _drive(self, a: Assignment) -> None:
@@ -291,18 +347,46 @@ class CoordinatedRunner:
         return (spot_resource(a.target),), a.waits_for, self._wait_since_ns
 
     def _make(self, kind: str, outcome: str = "", target: str = "",
-              seq: int | None = None) -> Request:
-        if seq is None:
+              seq: int | None = None, delivered: int = 0) -> Request:
+        if seq is None and kind != "delivered":
             self._seq += 1
             seq = self._seq
+        seq = self._seq if seq is None else seq
         holds, waits_for, since = self._holdings()
         a = self._current
         return Request(robot=self.label, seq=seq, kind=kind,
                        stamp_ns=self.nav.status_stamp_ns or 0, outcome=outcome, target=target,
                        holds=holds, waits_for=waits_for, since_ns=since,
-                       task_start_ns=a.task_start_ns if a is not None else 0)
+                       task_start_ns=a.task_start_ns if a is not None else 0,
+                       delivered=delivered)
+
+    def _outage(self, t_ns: int):
+        """Whether a goal that ended at ``t_ns`` falls in a coordinator outage: False if not
+        (the coordinator will see tick ``t_ns + period``); else the outage's end [ns], or None
+        if it never ends. The coordinator is killed before the simulator publishes the kill's
+        tick, so a request of the tick before it would never be answered either."""
+        for start, end in self.cfg.outages:
+            if t_ns + self.cfg.period_ns >= start and (end is None or t_ns < end):
+                return end
+        return False
+
+    def _check_delivery(self, now: float) -> None:
+        """Confirm an unasked assignment once the navigator reports its goal pending (or
+        running); give it to the navigator again after ``resend_goal`` s without."""
+        if self._deliver is None:
+            return
+        seq, goal_id, since = self._deliver
+        status = self.nav.last_status
+        if goal_id and status is not None and goal_id in (status.pending_goal_id,
+                                                          status.goal_id):
+            self._deliver = None
+            self._send(self._make("delivered", delivered=seq))
+        elif now - since >= self.cfg.resend_goal and self._current is not None:
+            self._drive(self._current)
+            self._deliver = (seq, self.nav.current_goal_id(), now)
 
     def _request(self, kind: str, outcome: str = "", target: str = "") -> None:
+        self._acked = False
         self._pending = self._make(kind, outcome, target)
         self._send(self._pending)
         self._backoff = self.cfg.retry_first
@@ -319,6 +403,25 @@ class CoordinatedRunner:
 
     def _send(self, req: Request) -> None:
         self._req_pub.publish(String(data=encode_request(req)))
+
+
+def coordinated_config(faults: str | None, wait_timeout: float = 30.0) -> CoordinatedConfig:
+    """The settings of a coordinated commander of a run whose fault schedule is the file (or
+    inline SPEC) ``faults`` (None: no faults): the coordinator's outages come from it.
+
+    Raises:
+        InputError: the schedule is malformed (names ``--faults``).
+    """
+    outages = ()
+    if faults:
+        from swarm_common.errors import InputError
+        from swarm_common.faults import coordinator_outages
+
+        try:
+            outages = coordinator_outages(faults)
+        except InputError as exc:
+            raise InputError(f"--faults: {exc}") from None
+    return CoordinatedConfig(wait_timeout=wait_timeout, outages=outages)
 
 
 def _pose_msg(pose: tuple[float, float, float]) -> PoseStamped:

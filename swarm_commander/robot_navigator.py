@@ -193,6 +193,7 @@ class BasicNavigator(Node):
         self._nav_status_received = False
         self._last_stamp_ns = 0
         self._status_stamp_ns: int | None = None  # simulated time of the latest nav_status
+        self._last_status: NavStatusRecord | None = None
         self._sent_ids: deque[str] = deque(maxlen=64)
         self._own_executor: SingleThreadedExecutor | None = None
         # publishers, subscribers, clients
@@ -412,6 +413,16 @@ class BasicNavigator(Node):
         """
         return self._start_task("goToPose", [pose], not_before_ns=int(not_before_ns))
 
+    def current_goal_id(self) -> str:
+        """The id of the goal last sent for the current task (``""`` without one)."""
+        with self._cond:
+            return self._task.goal_id if self._task is not None else ""
+
+    @property
+    def last_status(self) -> NavStatusRecord | None:
+        """The latest ``nav_status``, decoded (None before the first)."""
+        return self._last_status
+
     def task_complete(self) -> bool:
         """``isTaskComplete`` without waiting or spinning, for use inside callbacks."""
         with self._cond:
@@ -496,6 +507,7 @@ class BasicNavigator(Node):
             if status.stamp_ns is not None:
                 self._status_stamp_ns = status.stamp_ns
             self.last_nav_status = msg
+            self._last_status = status
             self._nav_status_received = True
             task = self._task
             if task is not None and task.result is None:
@@ -503,7 +515,7 @@ class BasicNavigator(Node):
             if task is not None and task.result is None:
                 if goal_id == task.goal_id and state != NavState.IDLE:
                     self._on_own_status(task, status)
-                elif state == NavState.IDLE:
+                elif state == NavState.IDLE and status.pending_goal_id != task.goal_id:
                     self._on_idle(task)
                 elif task.seen and goal_id not in self._sent_ids:
                     reason = f"goal {task.goal_id} was replaced by goal {goal_id!r}"
@@ -541,7 +553,8 @@ class BasicNavigator(Node):
         Once the navigator has taken our goal (``task.seen``), an ``IDLE`` can only come from a
         restarted navigator: the goal is sent again at once, stamped with that status, so the
         same run gives the same goal at the same tick. Before, a stale ``IDLE`` (published before
-        the goal arrived) is told apart by waiting :attr:`resend_after` wall seconds."""
+        the goal arrived) is told apart by waiting :attr:`resend_after` wall seconds; an ``IDLE``
+        that names our goal as pending (``pending_goal_id``) says it is there."""
         if task.cancel_requested:
             self._finish(task, TaskResult.CANCELED)
         elif task.seen or time.monotonic() - task.sent_wall > self.resend_after:

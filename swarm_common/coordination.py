@@ -34,9 +34,9 @@ from swarm_common.stamps import format_stamp_ns, parse_stamp
 COORDINATOR_NODE = "swarm_coordinator"  # the coordinator's node name
 METRICS_NODE = "swarm_up_metrics"  # swarm-up's node that records /swarm/events for the metrics
 
-REQUEST_KINDS = ("ready", "done", "report")
+REQUEST_KINDS = ("ready", "done", "report", "delivered")
 OUTCOMES = ("succeeded", "failed", "canceled", "")
-ASSIGNMENT_KINDS = ("go", "wait")
+ASSIGNMENT_KINDS = ("go", "wait", "ack")
 EVENT_RESERVATION = "reservation"
 EVENT_TASK = "task"
 EVENT_COORDINATOR = "coordinator"
@@ -64,8 +64,10 @@ class Request:
         robot: namespace without ``/``.
         seq: the robot's request number (1, 2, ...); a re-sent request keeps its number, so the
             coordinator answers it once and repeats that answer.
-        kind: ``ready`` (first task), ``done`` (a task's goal ended: ``outcome`` says how), or
-            ``report`` (tells a new coordinator what it holds; no answer expected).
+        kind: ``ready`` (first task), ``done`` (a task's goal ended: ``outcome`` says how),
+            ``report`` (tells a new coordinator what it holds; no answer expected), or
+            ``delivered`` (an unsolicited assignment, number ``delivered``, is with the robot's
+            navigator, waiting for its tick; no answer expected).
         stamp_ns: [ns] simulated time of the robot's latest ``nav_status`` (the tick the goal
             ended at, for ``done``).
         outcome: for ``done``: ``succeeded`` | ``failed`` | ``canceled``.
@@ -74,6 +76,7 @@ class Request:
         waits_for: the workstation it waits for at a spot, else ``""``.
         since_ns: [ns] when it began waiting (its place in the queue), else 0.
         task_start_ns: [ns] when its current task began (its first assignment to it).
+        delivered: for ``delivered``: the assignment's ``seq``.
     """
 
     robot: str
@@ -86,6 +89,7 @@ class Request:
     waits_for: str = ""
     since_ns: int = 0
     task_start_ns: int = 0
+    delivered: int = 0
 
 
 @dataclass(frozen=True)
@@ -97,8 +101,9 @@ class Assignment:
         seq: the coordinator's assignment number for this robot (1, 2, ...); a robot applies
             each number once.
         reply_to: the request it answers (0: unsolicited, e.g. a workstation freed up).
-        kind: ``go`` (to a workstation, reserved for the robot) or ``wait`` (at a spot, reserved
-            for the robot, until ``waits_for`` frees up).
+        kind: ``go`` (to a workstation, reserved for the robot), ``wait`` (at a spot, reserved
+            for the robot, until ``waits_for`` frees up), or ``ack`` (request ``reply_to`` has
+            arrived; its answer follows once the simulator has passed its tick: no goal).
         target: the workstation's name (``go``) or the spot's id (``wait``).
         pose: (x [m], y [m], yaw [rad]) in ``map``.
         stamp_ns: [ns] the goal's stamp: the navigator applies the goal at its first tick after
@@ -200,6 +205,7 @@ def encode_request(req: Request) -> str:
         "stamp": format_stamp_ns(req.stamp_ns), "outcome": req.outcome, "target": req.target,
         "holds": list(req.holds), "waits_for": req.waits_for,
         "since": format_stamp_ns(req.since_ns), "task_start": format_stamp_ns(req.task_start_ns),
+        "delivered": req.delivered,
     }, separators=(",", ":"))
 
 
@@ -223,7 +229,8 @@ def decode_request(text: str) -> Request:
                    target=_text(d, "target", ""), holds=tuple(holds),
                    waits_for=_text(d, "waits_for", ""),
                    since_ns=_stamp(d.get("since", "0.000000000"), "since"),
-                   task_start_ns=_stamp(d.get("task_start", "0.000000000"), "task_start"))
+                   task_start_ns=_stamp(d.get("task_start", "0.000000000"), "task_start"),
+                   delivered=_int(d, "delivered", 0))
 
 
 def encode_assignment(a: Assignment) -> str:

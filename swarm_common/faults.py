@@ -314,6 +314,33 @@ def parse_faults(spec: str, robots: tuple[str, ...], name_prefix: str = "Srobot"
     return tuple(faults)
 
 
+def coordinator_outages(spec: str) -> tuple[tuple[int, int | None], ...]:
+    """The ``kill-coordinator`` windows of a schedule (inline SPEC or YAML file, as
+    :func:`parse_faults` reads it; its other faults are not checked: a commander knows no robot
+    but its own): ``(start_ns, end_ns)`` pairs of simulated time [ns], ``end_ns`` None when the
+    coordinator is not restarted. A coordinated commander asks no coordinator inside one
+    (:mod:`swarm_commander.coordinated`).
+
+    Raises:
+        InputError: a malformed ``kill-coordinator`` item or file.
+    """
+    text = spec.strip()
+    if text.endswith((".yaml", ".yml")) or Path(text).is_file():
+        try:
+            data = yaml.safe_load(Path(text).read_text()) or {}
+        except (OSError, yaml.YAMLError) as exc:
+            raise InputError(f"{text}: cannot read ({exc})") from None
+        entries = data.get("faults") or [] if isinstance(data, dict) else data
+        faults = [_make(i, KILL_COORDINATOR, at=e["at"], duration=e.get("for"), robots=(),
+                        prefix="")
+                  for i, e in enumerate(entries or [], start=1)
+                  if isinstance(e, dict) and e.get("kind") == KILL_COORDINATOR and "at" in e]
+    else:
+        faults = [_parse_item(i, item, (), "") for i, item in enumerate(text.split(","), 1)
+                  if item.strip().startswith(KILL_COORDINATOR)]
+    return tuple((f.at_ns, f.end_ns) for f in faults)
+
+
 def dump_faults(faults, path: Path) -> None:
     """Write a schedule as a faults YAML file (what :func:`parse_faults` reads back)."""
     path.write_text(yaml.safe_dump({"faults": [f.to_yaml() for f in faults]}, sort_keys=False))

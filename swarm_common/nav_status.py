@@ -23,6 +23,9 @@ key                           value
 ``recoveries``                recovery behaviours run for this goal (integer)
 ``holding_time_s``            [s] spent holding for this goal, 3 decimals
 ``goal_wait_timeouts``        goal-wait timeouts since the navigator started (integer)
+``pending_goal_id``           the id of a goal that has arrived and awaits its tick (only then):
+                              the navigator says so at once, so that a commander knows its goal
+                              is there (the coordinator's hand-over, docs/ARCHITECTURE.md)
 ``reason``                    why the goal was aborted (or a note on success), else ``""``;
                               on success at another workstation than the goal sent (the
                               navigator's ``swap_range``) it begins with :data:`TOOK_ANOTHER`
@@ -116,6 +119,8 @@ class NavStatusRecord:
         holding_time: [s] spent holding for this goal.
         goal_wait_timeouts: ticks answered without the commander's next goal because the wait
             ran out, since the navigator started, >= 0.
+        pending_goal_id: the id of the last goal that has arrived and awaits its tick; ``""``
+            when none does.
         reason: why the goal was aborted (or a note on success); ``""`` otherwise.
     """
 
@@ -128,6 +133,7 @@ class NavStatusRecord:
     recoveries: int | None = None
     holding_time: float | None = None
     goal_wait_timeouts: int | None = None
+    pending_goal_id: str = ""
     reason: str = ""
 
 
@@ -158,6 +164,8 @@ def encode(record: NavStatusRecord) -> dict[str, str]:
     ):
         if value is not None:
             out[key] = f"{value:.3f}" if kind == "f" else str(int(value))
+    if record.pending_goal_id:
+        out["pending_goal_id"] = record.pending_goal_id
     out["reason"] = record.reason
     return out
 
@@ -185,6 +193,7 @@ def decode(values: Mapping[str, str], message: str = "") -> NavStatusRecord:
         recoveries=_count(values.get("recoveries")),
         holding_time=_float(values.get("holding_time_s")),
         goal_wait_timeouts=_count(values.get("goal_wait_timeouts")),
+        pending_goal_id=_text(values.get("pending_goal_id")).strip(),
         reason=_text(values.get("reason")),
     )
 

@@ -67,7 +67,12 @@ SENSOR_DATA = Qos(5, BEST_EFFORT)
 """rclpy's ``qos_profile_sensor_data``: best effort, depth 5."""
 
 # --------------------------------------------------------------------------------- swarm-wide
-CLOCK = Topic("/clock", "rosgraph_msgs/msg/Clock", DEFAULT)
+CLOCK = Topic("/clock", "rosgraph_msgs/msg/Clock", Qos(10, durability=TRANSIENT_LOCAL))
+"""Transient local, so that a reader that joins mid-run learns the simulated time at once, even
+while the simulator holds a tick (a restarted coordinator batches requests by it); volatile
+readers (every ``use_sim_time`` node) are served as before."""
+CLOCK_COORDINATOR_READER_QOS = Qos(10, durability=TRANSIENT_LOCAL)
+"""The coordinator answers a tick's requests once the simulator has published a later tick."""
 CLOCK_METRICS_READER_QOS = Qos(1, BEST_EFFORT)
 """The metrics listener wants only the latest simulated time, and never to slow the writer."""
 MAP = Topic("/map", "nav_msgs/msg/OccupancyGrid", LATCHED)
@@ -92,6 +97,11 @@ acknowledgements)."""
 POSES_READER_QOS = Qos(POSES.qos.depth, BEST_EFFORT)
 """A live view reads the poses best effort: a late tick is replaced by the next one."""
 MARKERS = Topic("/swarm/markers", "visualization_msgs/msg/MarkerArray", Qos(1))
+SUPERVISION = Topic("/swarm/supervision", "diagnostic_msgs/msg/DiagnosticStatus",
+                    Qos(100, durability=TRANSIENT_LOCAL))
+"""swarm-up's supervisor names robots whose navigator process is gone
+(:mod:`swarm_common.supervision`); the simulator stops waiting for them.  Transient local on both
+sides: a word sent before the reader matched is still delivered."""
 FAULT_ACKS = Topic("/swarm/fault_acks", "diagnostic_msgs/msg/DiagnosticStatus",
                    Qos(100, durability=TRANSIENT_LOCAL))
 """Transient local on both sides (the simulator's reader too): an acknowledgement published
@@ -145,6 +155,10 @@ goal's status (tests/swarm_metrics/test_listener.py)."""
 GOAL_POSE = Topic("goal_pose", "geometry_msgs/msg/PoseStamped", DEFAULT)
 CANCEL_SERVICE = "navigator/cancel"
 """The navigator's ``std_srvs/srv/Trigger`` service (relative to the robot's namespace)."""
+GOAL_COMING_SERVICE = "navigator/goal_coming"
+"""The navigator's ``std_srvs/srv/Trigger`` service: the commander has taken in the goal that
+ended and its next goal is coming (:mod:`swarm_common.lockstep`; the coordinated commander
+calls it once the coordinator has its request)."""
 
 ROBOT_TOPICS = (SCAN, ODOM, GROUND_TRUTH, CMD_VEL, PLAN, NAV_STATUS)
 """A robot's topics that a recording holds, in its order."""

@@ -20,10 +20,11 @@ first to ask gets it, later askers are queued and parked at a waiting spot until
   No two robots are ever sent to one spot. When a holding spot of W frees up, the first robot
   of W's queue that waits at a parking spot moves up to it (the next hand-over is short).
 - A robot that reports ``done`` at W leaves it: W is released at the request's stamp t, and the
-  first robot of W's queue gets W (its spot is released) with a goal stamped ``t + 2 period``
-  (``handover_ticks``), so it moves off its spot at tick ``t + 3 period``, whatever the
-  wall-clock latency, as long as the message arrives before that tick (it is sent before the
-  answer that lets the simulator go on, and the simulator must then complete two more ticks).
+  first robot of W's queue that lives gets W (its spot is released) with a goal stamped
+  ``t + period`` (``handover_ticks``), the tick at which the batch is handled, so it moves off
+  its spot at tick ``t + 2 period``, whatever the wall-clock latency: the node sends the batch's
+  answers, which the simulator waits for at ``t + period``, only once that robot's navigator
+  has the goal (:mod:`swarm_coordinator.node`).
 - A goal that failed or was canceled releases its workstation too; the robot moves on to the next
   stop of its route (as the decentralized commander does).
 - A robot the core has not heard from (a coordinator restarted with empty tables) is taken at its
@@ -88,13 +89,13 @@ class CoordinatorConfig:
     Attributes:
         period_ns: [ns] the simulator's control tick.
         handover_ticks: a goal handed to a waiting robot is stamped this many ticks after the
-            release (so it takes effect one tick later still, see the module doc); 2 leaves the
-            message two whole simulator ticks to arrive (1 was late once in a 300 s run of 20
-            robots on a loaded machine).
+            release, the tick at which the batch is handled (so it takes effect one tick later
+            still, see the module doc): the simulator cannot pass that tick before the robot has
+            the goal (the node holds the batch's answers until it is delivered).
     """
 
     period_ns: int = NS_PER_S // 10
-    handover_ticks: int = 2  # [ticks] a handed-over goal's stamp after the release
+    handover_ticks: int = 1  # [ticks] a handed-over goal's stamp after the release
 
 
 def spots_from_poi(poi, parking: np.ndarray | None = None) -> tuple[Spot, ...]:
@@ -171,6 +172,7 @@ class CoordinatorCore:
         self.cfg = cfg
         self.epoch = epoch
         self._next_stop = next_stop
+        self._alive: Callable[[str, int], bool] = lambda ns, t: True
         self.holder: dict[str, str] = {}  # resource -> robot
         self.queues: dict[str, list[str]] = {name: [] for name in self.stations}
 
@@ -196,18 +198,23 @@ class CoordinatorCore:
             r.stamp_ns, self.robots[r.robot].index if r.robot in self.robots else big,
             r.robot, r.seq))
 
-    def handle(self, requests: Sequence[Request]) -> tuple[list[Assignment],
-                                                           list[CoordinatorEvent]]:
+    def handle(self, requests: Sequence[Request],
+               alive: Callable[[str, int], bool] | None = None
+               ) -> tuple[list[Assignment], list[CoordinatorEvent]]:
         """Handle one batch of requests.
 
         Args:
             requests: decoded requests, in any order; unknown robots are ignored.
+            alive: ``alive(robot, t_ns)`` says whether a robot is alive at simulated time
+                ``t_ns`` (a ``kill-robot`` fault kills it): a workstation is never handed to a
+                dead robot, which is dropped from its queue. None: every robot lives.
 
         Returns:
             ``(assignments, events)`` in the order they must be sent: a workstation handed
             over to a waiting robot comes before the answer to the robot that freed it.
         """
         out = _Out()
+        self._alive = alive or (lambda ns, t: True)
         ordered = self.order(requests)
         self._adopt_batch(ordered, out)
         answered = set()
@@ -339,12 +346,15 @@ class CoordinatorCore:
         self._send(ns, rob, "wait", spot.id, (*spot.xy, spot.yaw), t, reply_to, name, out)
 
     def _hand_over(self, name: str, t: int, out: _Out) -> None:
-        """Give a free workstation to the first robot of its queue (goal one tick later)."""
+        """Give a free workstation to the first robot of its queue that lives (goal one tick
+        later); dead ones are dropped from the queue."""
+        start = t + self.cfg.handover_ticks * self.cfg.period_ns
+        while self.queues[name] and not self._alive(self.queues[name][0], start):
+            self.queues[name].pop(0)
         if not self.queues[name]:
             return
         ns = self.queues[name].pop(0)
         rob = self.robots[ns]
-        start = t + self.cfg.handover_ticks * self.cfg.period_ns
         freed = self.spots.get(rob.spot)
         if rob.spot:
             self._release(ns, spot_resource(rob.spot), start, out)
@@ -360,7 +370,7 @@ class CoordinatorCore:
         the workstation's freed holding spot, so the next hand-over is a short drive."""
         for ns in self.queues[name]:
             rob = self.robots[ns]
-            if rob.spot and self.spots[rob.spot].near != name:
+            if rob.spot and self.spots[rob.spot].near != name and self._alive(ns, t):
                 self._release(ns, spot_resource(rob.spot), t, out)
                 self._reserve(ns, spot_resource(freed.id), t, out)
                 rob.spot = freed.id

@@ -3,8 +3,8 @@
 ::
 
     swarm-coordinator --swarm-size N [--name-prefix Srobot] [--world NAME|PATH] [--seed S]
-                      [--robot NAME|PATH] [--batch-window SEC] [--start-timeout SEC]
-                      [--restart-timeout SEC] [--ros-args ...]
+                      [--robot NAME|PATH] [--control-period SEC] [--faults FILE]
+                      [--stall-report SEC] [--ros-args ...]
 
 A thin ROS 2 shell (node ``/swarm_coordinator``) around
 :class:`swarm_coordinator.core.CoordinatorCore`; the contract (topics, JSON records, events) is
@@ -12,17 +12,21 @@ A thin ROS 2 shell (node ``/swarm_coordinator``) around
 robot's ``/<ns>/coordinator/assignment``, its latched ``/swarm/coordinator/state`` and the
 reservation and task events on ``/swarm/events``.
 
-When a batch is complete (docs/ARCHITECTURE.md, "Coordination"):
+When a batch is complete (docs/ARCHITECTURE.md, "Coordination"); no wall-clock timeout decides
+it, so the same seed gives the same answers on a busy machine too:
 
-- *sync*: right after (re)starting it answers nothing until every robot has been heard from
-  (its ``ready``, ``done`` or ``report``), or ``--start-timeout`` wall seconds after the first
-  ``ready`` (a fresh start: robots come up one by one), or ``--restart-timeout`` after the first
-  other request (a restart: every commander reports at once when it sees the new ``state``). The
-  whole first batch is then handled in (stamp, robot) order, whatever the arrival order.
-- *then*: a request opens a batch that is closed ``--batch-window`` wall seconds later; requests
-  stamped with the same simulated tick normally arrive within that window, and a batch is
-  handled in (stamp, robot) order. The window costs the simulator that much wall time whenever
-  a goal ends (the robot's navigator holds its next tick until the answer is there).
+- *sync*: right after (re)starting it answers nothing until every robot alive has been heard
+  from (its ``ready``, ``done`` or ``report``; a robot a ``kill-robot`` fault of ``--faults`` has
+  killed is not waited for), and the metrics' reader of ``/swarm/events`` is matched. The whole
+  first batch is then handled in (stamp, robot) order, whatever the arrival order.
+- *then*: every request is acknowledged at once (an ``ack`` assignment); the navigator of a robot
+  whose goal ended holds that tick until its commander has the acknowledgement
+  (``hold_goal_end``), so once the simulator publishes a later tick on ``/clock`` every request
+  stamped up to it is here: they are handled together, in (stamp, robot) order.
+- a workstation handed to a robot waiting at a spot (or a move up to a freed holding spot) goes
+  out first; the answers of the batch, which the simulator waits for, follow only once every
+  such robot's commander says its navigator has the goal (``delivered``), so it takes effect at a
+  fixed tick.
 """
 
 from __future__ import annotations
@@ -33,10 +37,12 @@ import uuid
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy._rclpy_pybind11 import RCLInvalidROSArgsError
-from rclpy.clock import Clock, ClockType
+from rclpy.clock import Clock as RclpyClock
+from rclpy.clock import ClockType
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.utilities import remove_ros_args
+from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
 from swarm_common import cli, topics
@@ -44,6 +50,7 @@ from swarm_common.coordination import (
     COORDINATOR_NODE,
     EVENT_COORDINATOR,
     METRICS_NODE,
+    Assignment,
     ContractError,
     CoordinatorEvent,
     decode_request,
@@ -58,8 +65,11 @@ from swarm_ros.session import node_session, spin_forever
 
 PROG = "swarm-coordinator"
 NODE_NAME = COORDINATOR_NODE
-SYNC_POLL_S = 0.05  # [s] wall
+SYNC_POLL_S = 0.05  # [s] wall: how often the sync checks discovery (the graph has no callback)
 METRICS_MATCH_GRACE_S = 2.0  # [s] wall: discovery matches a reader well within this
+# [s] wall: without swarm-up (no metrics node at all) the first answers go out this long after
+# every robot was heard; only what is recorded depends on it, not what is simulated
+METRICS_ABSENT_S = 10.0
 # [s] wall: the writer may match a reader before that reader has matched the writer; a volatile
 # reader drops what a writer sent before it knew the writer (a restarted coordinator's "up" event
 # lost once in CI, when the metrics' reader was volatile). Discovery completes both sides in this.
@@ -71,28 +81,31 @@ class CoordinatorNode(Node):
 
     Args:
         core: the assignment and reservation logic.
-        batch_window: [s] wall a batch stays open after its first request.
-        start_timeout: [s] wall the first sync waits after the first ``ready``.
-        restart_timeout: [s] wall the first sync waits after the first other request.
+        dead: robot -> [ns] simulated time a ``kill-robot`` fault kills it (from ``--faults``).
+        stall_report: [s] wall: a sync or a hand-over that has waited this long is reported.
         **kwargs: passed to :class:`rclpy.node.Node`.
     """
 
-    def __init__(self, core: CoordinatorCore, batch_window: float = 0.03,
-                 start_timeout: float = 120.0, restart_timeout: float = 5.0, **kwargs):
+    def __init__(self, core: CoordinatorCore, dead: dict[str, int] | None = None,
+                 stall_report: float = 10.0, metrics_absent_s: float = METRICS_ABSENT_S,
+                 **kwargs):
         super().__init__(NODE_NAME, **kwargs)
         # state
         self.core = core
-        self._batch_window = batch_window
-        self._start_timeout = start_timeout
-        self._restart_timeout = restart_timeout
+        self._dead = dict(dead or {})
+        self._stall_report = stall_report
+        self._metrics_absent_s = metrics_absent_s
+        self._heard_all: float | None = None  # time.monotonic() every robot was heard
         self._pending = []
         self._syncing = True
-        self._sync_deadline: float | None = None
+        self._clock_ns: int | None = None  # the latest simulated time on /clock
+        self._awaiting: dict[str, int] = {}  # robot -> the unsolicited assignment not delivered
+        self._held: tuple[list, list] = ([], [])  # a batch's answers and events, until delivered
+        self._waiting_since: float | None = None  # time.monotonic() a sync or hand-over began
+        self._reported = 0
         self._metrics_seen: float | None = None  # time.monotonic() the metrics' reader appeared
         self._matched_since: float | None = None  # time.monotonic() every reader was matched
-        self._batch_timer = None
         self._warned = 0.0
-        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         # publishers, subscribers
         self._assign_pubs = {ns: publisher(self, String, topics.ASSIGNMENT, ns)
                              for ns in core.robots}
@@ -101,8 +114,11 @@ class CoordinatorNode(Node):
         self._state_pub = publisher(self, String, topics.COORDINATOR_STATE)
         subscription(self, String, topics.COORDINATOR_REQUEST, self._on_request,
                      qos=topics.COORDINATOR_REQUEST_READER_QOS)
+        subscription(self, Clock, topics.CLOCK, self._on_clock,
+                     qos=topics.CLOCK_COORDINATOR_READER_QOS)
         # timers
-        self._sync_timer = self.create_timer(SYNC_POLL_S, self._on_sync_poll, clock=self._steady)
+        self._poll_timer = self.create_timer(
+            SYNC_POLL_S, self._on_poll, clock=RclpyClock(clock_type=ClockType.STEADY_TIME))
         self._state_pub.publish(String(data=encode_state(core.epoch, len(core.robots))))
         # Announced on /swarm/events with the first batch: a message published now, before
         # discovery has matched the readers of a volatile topic, would be lost.
@@ -121,55 +137,128 @@ class CoordinatorNode(Node):
         if req.robot not in self.core.robots:
             self._warn(f"dropped a request of unknown robot {req.robot!r}")
             return
-        self._pending.append(req)
-        if self._syncing:
-            if self._sync_deadline is None:
-                wait = self._start_timeout if req.kind == "ready" else self._restart_timeout
-                self._sync_deadline = time.monotonic() + wait
-            self._on_sync_poll()
-        elif self._batch_timer is None:
-            self._batch_timer = self.create_timer(self._batch_window, self._on_batch_timer,
-                                                  clock=self._steady)
-
-    def _on_sync_poll(self) -> None:
-        if not self._syncing:
+        if req.kind == "delivered":
+            if self._awaiting.get(req.robot, req.delivered + 1) <= req.delivered:
+                del self._awaiting[req.robot]
+                self._release_held()
             return
-        heard = self.core.heard | {r.robot for r in self._pending}
-        late = self._sync_deadline is not None and time.monotonic() >= self._sync_deadline
-        watched = self._metrics_matched()
-        heard_all = heard >= set(self.core.robots)
-        if (heard_all and watched) or late:
-            if not heard_all:
-                missing = sorted(set(self.core.robots) - heard)
-                self.get_logger().warning(f"sync: no word from {len(missing)} robot(s) "
-                                          f"({', '.join(missing[:5])}); going on without them")
-            if not watched:
-                self.get_logger().warning(f"sync: the metrics' reader of {topics.EVENTS.name} "
-                                          "is not matched; this start and the first answers may "
-                                          "go unrecorded")
+        if req.kind in ("ready", "done"):  # it is here: the robot's navigator may go on
+            self._assign_pubs[req.robot].publish(String(data=encode_assignment(Assignment(
+                robot=req.robot, seq=0, reply_to=req.seq, kind="ack", target="",
+                pose=(0.0, 0.0, 0.0), stamp_ns=req.stamp_ns, epoch=self.core.epoch))))
+        self._pending.append(req)
+        self._handle_due()
+
+    def _on_clock(self, msg: Clock) -> None:
+        t = msg.clock.sec * NS_PER_S + msg.clock.nanosec
+        if self._clock_ns is None or t > self._clock_ns:
+            self._clock_ns = t
+            self._handle_due()
+
+    def _on_poll(self) -> None:
+        if self._syncing:
+            self._handle_due()
+        if self._waiting_since is None:
+            return
+        waited = time.monotonic() - self._waiting_since
+        if waited >= (self._reported + 1) * self._stall_report:
+            self._reported += 1
+            unheard = self._unheard()
+            if not self._syncing:
+                what = f"the delivery of hand-overs to {', '.join(sorted(self._awaiting))}"
+            elif unheard:
+                what = f"every robot's first word (missing: {', '.join(unheard[:5])})"
+            else:
+                what = f"the metrics' reader of {topics.EVENTS.name} to be matched"
+            self.get_logger().warning(f"waited {waited:.0f} s (wall) for {what}; still waiting "
+                                      "(simulated time waits too)")
+
+    # -- batches -----------------------------------------------------------------------------
+    def _alive(self, ns: str, t_ns: int) -> bool:
+        """Whether robot ``ns`` is alive at simulated time ``t_ns`` (not killed by the faults)."""
+        return self._dead.get(ns, t_ns + 1) > t_ns
+
+    def _unheard(self) -> list[str]:
+        now = self._clock_ns or 0
+        return [ns for ns in self.core.robots if ns not in self.core.heard
+                and ns not in {r.robot for r in self._pending} and self._alive(ns, now)]
+
+    def _handle_due(self) -> None:
+        """Handle the requests whose batch is complete (see the module doc), unless a batch's
+        hand-overs are still on their way."""
+        if self._awaiting:
+            return
+        if self._syncing:
+            if self._waiting_since is None:
+                self._waiting_since, self._reported = time.monotonic(), 0
+            if self._unheard():
+                return
+            if self._heard_all is None:
+                self._heard_all = time.monotonic()
+            if not self._metrics_matched():
+                return
             self._syncing = False
-            self.destroy_timer(self._sync_timer)
-            self._flush()
+            self._waiting_since = None
+            batch, self._pending = self._pending, []
+        else:
+            if self._clock_ns is None:
+                return
+            batch = [r for r in self._pending if r.stamp_ns < self._clock_ns]
+            self._pending = [r for r in self._pending if r.stamp_ns >= self._clock_ns]
+        if not batch:
+            return
+        assignments, events = self.core.handle(batch, alive=self._alive)
+        if self._up_event is not None:
+            t = min(r.stamp_ns for r in batch)
+            events.insert(0, CoordinatorEvent(EVENT_COORDINATOR, "", t, self._up_event.fields,
+                                              self.core.epoch))
+            self._up_event = None
+        unsolicited = [a for a in assignments if a.reply_to == 0]
+        for a in unsolicited:
+            self._assign_pubs[a.robot].publish(String(data=encode_assignment(a)))
+            self._awaiting[a.robot] = a.seq
+        self._held = ([a for a in assignments if a.reply_to != 0], events)
+        if self._awaiting:
+            self._waiting_since, self._reported = time.monotonic(), 0
+        self._release_held()
+
+    def _release_held(self) -> None:
+        """Send the held answers and events once every hand-over of their batch is delivered,
+        then handle whatever has become due meanwhile."""
+        if self._awaiting:
+            return
+        self._waiting_since = None
+        answers, events = self._held
+        self._held = ([], [])
+        for a in answers:
+            self._assign_pubs[a.robot].publish(String(data=encode_assignment(a)))
+        self._publish_events(events)
+        if answers or events:
+            self._handle_due()
 
     def _metrics_matched(self) -> bool:
         """Whether the metrics' reader of ``/swarm/events`` is discovered and matched.
 
         The first batch carries the "up" event and the reservations rebuilt after a restart;
-        the metrics' reader is transient local and gets from the writer's history (depth 100)
-        what went out before it matched, but a reader that never matches loses it (and its
-        conflict check would see releases of unknown reservations). Other readers (the fault
-        nodes of the group processes, a recorder) may match first, so the metrics node is looked
-        for by name, and every reader the graph knows must be matched; a reader that never
-        matches (incompatible QoS, e.g. a ``ros2 topic echo`` asking for deadline or liveliness
-        this writer does not offer) is given up on :data:`METRICS_MATCH_GRACE_S` after the
-        metrics' reader appeared.
+        the metrics' reader is transient local and gets from the writer's history what went out
+        before it matched, but a reader that never matches loses it (and its conflict check
+        would see releases of unknown reservations). Other readers (the fault nodes of the group
+        processes, a recorder) may match first, so the metrics node is looked for by name, and
+        every reader the graph knows must be matched; a reader that never matches (incompatible
+        QoS, e.g. a ``ros2 topic echo`` asking for deadline or liveliness this writer does not
+        offer) is given up on :data:`METRICS_MATCH_GRACE_S` after the metrics' reader appeared;
+        with no metrics node at all (a coordinator without swarm-up) the first answers go out
+        ``metrics_absent_s`` after every robot was heard.
         The writer's side of a match comes first; the readers' side is given
-        :data:`METRICS_SETTLE_S` more.
+        :data:`METRICS_SETTLE_S` more. (Only when the first answers go out depends on this, not
+        what they are: simulated time waits for them.)
         """
         readers = self.get_subscriptions_info_by_topic(topics.EVENTS.name)
-        if not any(r.node_name == METRICS_NODE for r in readers):
-            return False
         now = time.monotonic()
+        if not any(r.node_name == METRICS_NODE for r in readers):
+            # no swarm-up (a coordinator started by hand): go on after METRICS_ABSENT_S
+            return (self._metrics_seen is None and self._heard_all is not None
+                    and now - self._heard_all >= self._metrics_absent_s)
         if self._metrics_seen is None:
             self._metrics_seen = now
         if self._events_pub.get_subscription_count() < len(readers):
@@ -178,27 +267,6 @@ class CoordinatorNode(Node):
         if self._matched_since is None:
             self._matched_since = now
         return now - self._matched_since >= METRICS_SETTLE_S
-
-    def _on_batch_timer(self) -> None:
-        if self._batch_timer is not None:
-            self.destroy_timer(self._batch_timer)
-            self._batch_timer = None
-        self._flush()
-
-    # -- output -----------------------------------------------------------------------------
-    def _flush(self) -> None:
-        batch, self._pending = self._pending, []
-        if not batch:
-            return
-        assignments, events = self.core.handle(batch)
-        if self._up_event is not None:
-            t = min(r.stamp_ns for r in batch)
-            events.insert(0, CoordinatorEvent(EVENT_COORDINATOR, "", t, self._up_event.fields,
-                                              self.core.epoch))
-            self._up_event = None
-        for a in assignments:
-            self._assign_pubs[a.robot].publish(String(data=encode_assignment(a)))
-        self._publish_events(events)
 
     def _publish_events(self, events) -> None:
         if not events:
@@ -239,14 +307,13 @@ def build_parser() -> cli.ArgumentParser:
                    "spots' clearance (the largest model's) (default: %(default)s)")
     p.add_argument("--control-period", type=cli.positive_float, default=0.1, metavar="SEC",
                    help="the simulator's control tick [s] (default: %(default)s)")
-    p.add_argument("--batch-window", type=cli.non_negative_float, default=0.03, metavar="SEC",
-                   help="wall seconds a batch of requests stays open (default: %(default)s)")
-    p.add_argument("--start-timeout", type=cli.positive_float, default=120.0, metavar="SEC",
-                   help="wall seconds the first answers wait for every robot's ready "
-                   "(default: %(default)s)")
-    p.add_argument("--restart-timeout", type=cli.positive_float, default=5.0, metavar="SEC",
-                   help="after a restart, wall seconds to wait for every robot's report "
-                   "(default: %(default)s)")
+    p.add_argument("--faults", default=None, metavar="SPEC",
+                   help="the run's fault schedule (swarm-up's --faults, inline or a YAML file): "
+                   "robots a kill-robot fault kills are not waited for (default: none)")
+    p.add_argument("--stall-report", type=cli.positive_float, default=10.0, metavar="SEC",
+                   help="wall seconds the first answers (every robot's first word) or a "
+                   "hand-over's delivery may wait before it is reported; it goes on waiting, "
+                   "as simulated time does (default: %(default)s)")
     return p
 
 
@@ -302,9 +369,17 @@ def _run(argv: list[str]) -> int:
     robots = tuple(f"{opts.name_prefix}{i}" for i in range(1, opts.swarm_size + 1))
     epoch = uuid.uuid4().hex[:12]  # fixed length: message sizes do not depend on it
     core = build_core(opts.world, opts.seed, robots, opts.robot, opts.control_period, epoch)
+    dead = {}
+    if opts.faults:
+        from swarm_common.faults import KILL_ROBOT, parse_faults
+
+        try:
+            faults = parse_faults(opts.faults, robots, opts.name_prefix)
+        except InputError as exc:
+            raise InputError(f"--faults: {exc}") from None
+        dead = {f.robot: f.at_ns for f in faults if f.kind == KILL_ROBOT}
     with node_session([PROG, *argv]) as nodes:
-        node = CoordinatorNode(core, opts.batch_window, opts.start_timeout,
-                               opts.restart_timeout)
+        node = CoordinatorNode(core, dead, opts.stall_report)
         nodes.append(node)
         print(f"{PROG}: up (epoch {epoch}): {len(robots)} robots, {len(core.stations)} "
               f"workstations, {len(core.spots)} waiting spots", flush=True)

@@ -14,11 +14,17 @@ Definitions (``docs/ARCHITECTURE.md``, ``/<ns>/nav_status``):
   transition into the state.
 - *time to goal*: ``navigation_time_s`` of the first ``SUCCEEDED`` status of a goal [s].
 - *holding time*: the latest ``holding_time_s`` of every goal, summed [s].
+- *late ticks*: ticks an active robot did not answer because its navigator was gone (a crash
+  the supervisor reported, or no ``cmd_vel`` writer left: :mod:`swarm_common.supervision`); the
+  robot stands still until its successor answers. The lockstep has no wall-clock timeout, so a
+  slow or paused process makes no late tick.
 - *goal-wait timeouts*: ticks a navigator answered without its commander's next goal because
-  the wait (``goal_wait_timeout``) ran out, summed over restarts; see *reproducible*.
+  the wait (``goal_wait_timeout``) ran out, summed over restarts; only a commander outside the
+  lockstep (not started by ``swarm-up``) can cause one; see *reproducible*.
 - *reproducible*: the run's simulated figures depend on the seed alone, as far as the run can
-  tell: no late tick, no goal-wait timeout and no restart (each lets wall-clock timing decide
-  something the simulation then depends on); None when the late ticks are unknown.
+  tell: no late tick, no goal-wait timeout, no late goal and no restart but those the fault
+  schedule caused (each lets wall-clock timing decide something the simulation then depends
+  on); None when the late ticks are unknown.
 - *task*: one goal reached (every commander goal is one workstation visit), so
   ``tasks_completed == goals_reached`` and ``throughput_per_hour`` is tasks per simulated hour;
   ``task_times_s`` lists the simulated time of every task's first ``SUCCEEDED`` status, sorted
@@ -29,7 +35,7 @@ Definitions (``docs/ARCHITECTURE.md``, ``/<ns>/nav_status``):
   it applied), else from the ``/swarm/events`` announcements seen; ``fault_messages_dropped`` by
   ``drop`` faults. The simulator's own "stopped answering" events (a navigator that went silent)
   are ``unresponsive_events``. A restart caused by a fault does not make a run irreproducible
-  (the schedule decides it); a fault the simulator had to go on without acknowledging does.
+  (the schedule decides it, and the simulator holds the fault's tick until it is carried out).
 - *task*: one workstation visit. Decentralized: one goal reached (every commander goal is a
   workstation), so ``tasks_completed == goals_reached``. Centralized: one ``task`` event of the
   coordinator (a robot reported it reached its reserved workstation); goals to waiting spots are
@@ -729,7 +735,6 @@ def aggregate(
     for entry in fault_log:
         if isinstance(entry, Mapping) and entry.get("phase") == "start":
             by_kind[str(entry.get("kind"))] = by_kind.get(str(entry.get("kind")), 0) + 1
-    ack_timeouts = (sim_faults or {}).get("ack_timeouts") or 0
     wall_restarts = restarts - fault_restarts
     centralized = coordination == "centralized"
     tasks = task_records(recorder, centralized)
@@ -803,8 +808,7 @@ def aggregate(
         "goal_wait_timeouts": waits,
         "late_goals": late_goals,
         "reproducible": None if late is None else (
-            late == 0 and waits == 0 and wall_restarts == 0 and ack_timeouts == 0
-            and late_goals == 0),
+            late == 0 and waits == 0 and wall_restarts == 0 and late_goals == 0),
         "coordinator_wait_s": (_spot_wait_s(recorder.reservation_events, sim_time)
                                if centralized else None),
         "reservation_events": len(recorder.reservation_events),
@@ -823,7 +827,6 @@ def aggregate(
         "fault_log": fault_log,
         "fault_messages_dropped": sum(((sim_faults or {}).get("messages_dropped") or {}
                                        ).values()),
-        "fault_ack_timeouts": ack_timeouts,
         "unresponsive_events": recorder.fault_events,
         "per_robot": per_robot,
     }

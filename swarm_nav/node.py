@@ -35,13 +35,13 @@ from swarm_common.cdr import (
 )
 from swarm_common.errors import InputError
 from swarm_common.geometry import quaternion_to_yaw, transform_points
-from swarm_common.nav_status import TERMINAL, NavState, NavStatusRecord, encode, level_of
+from swarm_common.lockstep import COMING, NONE_COMING, POLL_S, GoalHandshake
+from swarm_common.nav_status import OUTCOMES, TERMINAL, NavState, NavStatusRecord, encode, level_of
 from swarm_common.occupancy import OccupancyMap
 from swarm_common.stamps import NS_PER_S, format_stamp
 from swarm_nav import jit
 from swarm_nav.config import NavigatorConfig, flat_defaults
 from swarm_nav.core import NavigatorCore
-from swarm_nav.goal_wait import GoalWait
 from swarm_nav.holding import holding_sites_from_poi, site_kinds_from_poi
 from swarm_ros.navigator import navigator_interface
 from swarm_ros.session import node_session, spin_forever
@@ -55,8 +55,13 @@ _CONTEXT_PARAMS = {
                  "spots); empty: hold near the goal"),
     "map_yaml_path": ("", "-", "a map_server YAML to use instead of /map; empty: /map"),
     "robot_name": ("", "-", "the robot's namespace without '/', for logs (default: the node's)"),
-    "wait_for_commander": (False, "-", "hold the first answer to the simulator until a goal_pose "
-                           "publisher (a commander) is connected (swarm-up --commanders)"),
+    "wait_for_commander": (False, "-", "the commander is a party of the lockstep (swarm-up "
+                           "--commanders): the first answer to the simulator waits for a "
+                           "goal_pose publisher to connect, and no wait for the commander has a "
+                           "wall-clock limit (swarm_common.lockstep)"),
+    "hold_goal_end": (False, "-", "the answer to the tick at which a goal ended waits for the "
+                      "commander's word: a goal, a cancel (no goal coming) or navigator/"
+                      "goal_coming (swarm-up --coordination centralized)"),
     "wait_for_status_readers": (0, "-", "hold the first answer to the simulator until nav_status "
                                 "has this many readers (swarm-up: its metrics listener and the "
                                 "commander), so that a restarted navigator's first statuses reach "
@@ -65,12 +70,13 @@ _CONTEXT_PARAMS = {
                                  "has this many readers (swarm-up: the simulator, and its "
                                  "recorder when it records cmd_vel), so that no reader misses "
                                  "the first commands"),
-    "goal_wait_timeout": (0.5, "s", "wall time the first tick after a goal ended may wait for a "
-                          "connected commander's next goal; a wait that times out makes the run "
-                          "irreproducible and is counted (nav_status goal_wait_timeouts); "
-                          "swarm-up --commanders sets 2.5"),
+    "goal_wait_timeout": (0.5, "s", "a commander outside the lockstep (wait_for_commander "
+                          "false, e.g. a user's route script): wall time the first tick after "
+                          "a goal ended may wait for its next goal; a wait that times out makes "
+                          "the run irreproducible and is counted (nav_status goal_wait_timeouts)"),
 }
-COMMANDER_WAIT_S = 60.0  # [s] wall: how long the first answer waits for a commander to connect
+
+
 def stamp_ns(stamp) -> int:
     """``builtin_interfaces/Time`` -> integer nanoseconds."""
     return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
@@ -154,9 +160,15 @@ class NavigatorNode(Node):
         if not (math.isfinite(goal_wait_timeout) and goal_wait_timeout >= 0.0):
             raise InputError(f"parameter goal_wait_timeout: must be a finite number >= 0 "
                              f"[s], got {goal_wait_timeout}")
-        self.goal_wait = GoalWait(goal_wait_timeout, self._steady_timer, self.destroy_timer)
+        self.handshake = GoalHandshake(
+            lockstep=bool(self.get_parameter("wait_for_commander").value),
+            hold_goal_end=bool(self.get_parameter("hold_goal_end").value),
+            timeout_s=goal_wait_timeout)
+        self._held: tuple[int, bytes] | None = None  # a computed answer awaiting its commander
+        self._last_t: int | None = None  # the last tick answered (a re-published one is not)
+        self._wait_timer = None  # polls a held tick (wall clock: it only reports and checks)
+        self._wait_t = 0
         self._answered = False
-        self._started = time.monotonic()
         self._goal_topic = f"{self.get_namespace().rstrip('/')}/goal_pose"
         self._last_status: tuple | None = None
         self._last_status_ns = -STATUS_PERIOD_NS
@@ -165,7 +177,8 @@ class NavigatorNode(Node):
         self._warned: dict[str, float] = {}
         # Publishers, subscribers, service.
         self.cmd_pub, self.plan_pub, self.status_pub = navigator_interface(
-            self, self._on_map, self._on_scan, self._on_odom, self._on_goal_pose, self._on_cancel)
+            self, self._on_map, self._on_scan, self._on_odom, self._on_goal_pose, self._on_cancel,
+            self._on_goal_coming)
         map_yaml = self.get_parameter("map_yaml_path").value
         if map_yaml:
             from swarm_common.map_io import load_map
@@ -265,95 +278,116 @@ class NavigatorNode(Node):
         except ValueError as exc:
             self._warn("odom", f"dropped a malformed odometry message ({exc})")
             return
+        if self._last_t is not None and odom[0] <= self._last_t:
+            return  # a tick re-published (the start gate, a rejoin) that was answered already
         self._pending = odom  # a newer tick replaces one still waiting (that one is late anyway)
         self._release()
 
     def _release(self) -> None:
-        """Answer the pending tick once it may be answered (docs/ARCHITECTURE.md):
+        """Answer what may be answered (docs/ARCHITECTURE.md, "Synchronous control loop"):
 
-        - the very first answer waits for the map (up to ``COMMANDER_WAIT_S``): a navigator
-          restarted mid-run (a fault) must not answer its first ticks blind, or when it becomes
-          ready would depend on the wall clock;
+        - a computed answer held for the commander's word on the goal that ended
+          (``hold_goal_end``, :mod:`swarm_common.lockstep` wait 1) goes once the word came;
+        - the very first answer waits for the map, and for what the start gate asks
+          (:meth:`_start_gate`): a navigator restarted mid-run (a fault) must not answer its
+          first ticks blind, or when it becomes ready would depend on the wall clock;
         - on a lidar tick, that tick's scan has arrived (a lost scan makes the tick late);
-        - on the first tick answered after the goal ended (or the first at all), with a commander
-          connected, its next goal has arrived, the commander left, or ``goal_wait_timeout`` wall
-          seconds passed (counted in ``goal_wait_timeouts``: the run is no longer reproducible);
-          with ``wait_for_commander``, the very first answer waits for a commander to connect,
-          and with ``wait_for_status_readers`` / ``wait_for_cmd_vel_readers`` for that many
-          readers of ``nav_status`` / ``cmd_vel``.
+        - the first tick answered after a goal ended waits for the commander's next goal
+          (:mod:`swarm_common.lockstep` wait 2).
+
+        No wait has a wall-clock limit, but for a commander outside the lockstep (wait 2 then
+        lasts ``goal_wait_timeout``); a wait is polled (:meth:`_on_wait_poll`) to notice a
+        commander that left and to report a stall.
         """
+        if self._held is not None:
+            t, cmd = self._held
+            if self.handshake.holds_end(t, bool(self._goals), self._commander_connected):
+                self._hold(t)
+                return
+            self._held = None
+            self.cmd_pub.publish(cmd)
         odom = self._pending
         if odom is None:
+            self._unhold()
             return
         t = odom[0]
-        if (not self._answered and not self.has_map
-                and time.monotonic() - self._started < COMMANDER_WAIT_S):
+        if not self._answered and self._start_gate(t):
+            self._hold(t)
             return
         if self._is_lidar_tick(t) and (self._scan is None or self._scan[0] != t):
             return
-        if self.goal_wait.must_wait(t, self._awaits_goal(t), time.monotonic(),
-                                    self._on_goal_wait_poll, poll=self._answered):
-            return  # the start gate is checked again with every message; a goal wait polled
+        if self._answered and self.handshake.awaits_goal(t, bool(self._goals),
+                                                         self._commander_connected):
+            self._hold(t)
+            return
+        self._unhold()
         self._pending = None
         self._tick(odom)
-
-    def _awaits_goal(self, t: int) -> bool:
-        if not self._answered:  # even with a goal there: a restarted navigator gets one at once
-            return self._start_gate_closed()
-        return self.goal_wait.needed(t, bool(self._goals), self._commander_connected)
 
     def _commander_connected(self) -> bool:
         return self.count_publishers(self._goal_topic) > 0
 
-    def _start_gate_closed(self) -> bool:
-        """Whether the first answer must still wait: for a commander to connect
-        (``wait_for_commander``), for ``wait_for_status_readers`` readers of ``nav_status`` and
-        for ``wait_for_cmd_vel_readers`` readers of ``cmd_vel``, up to ``COMMANDER_WAIT_S`` wall
-        seconds after the start (then warned, and answered).
+    def _start_gate(self, t: int) -> str:
+        """What the first answer still waits for (``""``: nothing): the map; a commander
+        (``wait_for_commander``); ``wait_for_status_readers`` readers of ``nav_status``;
+        ``wait_for_cmd_vel_readers`` readers of ``cmd_vel``. Without a wall-clock limit: the
+        simulator holds the tick meanwhile, so the wait costs wall time, not reproducibility.
 
         The gate holds even when a goal is already there: a navigator restarted mid-run (a
         kill-nav fault) is a new writer and gets its commander's goal again at once; a reader
-        that discovered it only after that goal ended would never see the goal.  Likewise a
-        recorder matched to ``cmd_vel`` only after the first answer had lost it while
-        ``cmd_vel`` was volatile: 1 tick in 2 of about 15 CI runs of
-        ``tests/swarm_record/test_recorder.py``, the first 8 simulated s of one robot of a
-        3-robot group run.  This gate counts the writer's matches only; the reader's side can lag
-        behind (23 ticks lost once more), which the histories of
-        :data:`swarm_common.topics.CMD_VEL` and :data:`~swarm_common.topics.NAV_STATUS` cover.
-        The simulator holds the tick until the navigator answers, so the wait costs wall time,
-        not reproducibility.
+        that discovered it only after that goal ended would never see the goal. This gate counts
+        the writer's matches only; the reader's side can lag behind, which the histories of
+        :data:`swarm_common.topics.CMD_VEL` and :data:`~swarm_common.topics.NAV_STATUS` cover
+        (why: docs/design/performance.md).
         """
-        waiting = []
+        waiting = [] if self.has_map else ["/map"]
         if (self.get_parameter("wait_for_commander").value
                 and self.count_publishers(self._goal_topic) == 0):
-            waiting.append(f"commander on {self._goal_topic}")
+            waiting.append(f"a commander on {self._goal_topic}")
         readers = int(self.get_parameter("wait_for_status_readers").value)
         if self.status_pub.get_subscription_count() < readers:
             waiting.append(f"{readers} readers of nav_status")
         readers = int(self.get_parameter("wait_for_cmd_vel_readers").value)
         if self.cmd_pub.get_subscription_count() < readers:
             waiting.append(f"{readers} readers of cmd_vel")
-        if not waiting:
-            return False
-        if time.monotonic() - self._started > COMMANDER_WAIT_S:
-            self._warn("start_gate", f"no {' and no '.join(waiting)} after "
-                       f"{COMMANDER_WAIT_S:g} s; starting without")
-            return False
-        return True
+        return " and ".join(waiting)
 
-    def _on_goal_wait_poll(self, t: int) -> None:
+    def _hold(self, t: int) -> None:
+        """Tick ``t`` waits: poll it on a wall-clock timer (one at a time)."""
+        self._wait_t = t
+        self.handshake.waiting(time.monotonic())
+        if self._wait_timer is None:
+            self._wait_timer = self.create_timer(
+                POLL_S, self._on_wait_poll, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def _unhold(self) -> None:
+        self.handshake.released()
+        if self._wait_timer is not None:
+            self.destroy_timer(self._wait_timer)
+            self._wait_timer = None
+
+    def _on_wait_poll(self) -> None:
+        t = self._wait_t
         commander = self._commander_connected()
-        if not self.goal_wait.poll(t, time.monotonic(), commander):
-            return
-        if commander:
+        over, stalled = self.handshake.poll(t, time.monotonic(), commander)
+        if over and commander:
             self._warn("goal_wait", f"the commander's next goal did not come within "
-                       f"{self.goal_wait.timeout_s:g} s (wall); tick {t / NS_PER_S:.3f} s "
+                       f"{self.handshake.timeout_s:g} s (wall); tick {t / NS_PER_S:.3f} s "
                        f"answered without it: this run is not reproducible "
-                       f"({self.goal_wait.timeouts} time(s) so far)")
+                       f"({self.handshake.timeouts} time(s) so far)")
+        elif stalled is not None:
+            self.get_logger().warning(
+                f"tick {t / NS_PER_S:.3f} s has waited {stalled:.0f} s (wall) for "
+                f"{self._awaited(t)}; still waiting (a stall costs wall time only)")
         self._release()
 
-    def _steady_timer(self, period_s: float, callback):
-        return self.create_timer(period_s, callback, clock=Clock(clock_type=ClockType.STEADY_TIME))
+    def _awaited(self, t: int) -> str:
+        """What a held tick ``t`` waits for, in words (for the stall report)."""
+        if self._held is not None:
+            return "the commander's word on the goal that ended"
+        if not self._answered:
+            return self._start_gate(t) or "its start"
+        return "the commander's next goal"
 
     def _on_goal_pose(self, msg: PoseStamped) -> None:
         p, q = msg.pose.position, msg.pose.orientation
@@ -368,6 +402,11 @@ class NavigatorNode(Node):
         yaw = quaternion_to_yaw(q.x, q.y, q.z, q.w)
         # Applied at the first tick after its stamp (a stamp in the past: the next tick).
         self._goals.append((stamp_ns(msg.header.stamp), np.array([p.x, p.y, yaw]), goal_id))
+        self.handshake.goal_arrived()
+        # say at once that it is here (pending_goal_id): a coordinated commander confirms a
+        # hand-over so (before the first tick too: a restarted navigator; the status then has
+        # no stamp)
+        self._publish_status()
         self._release()
 
     def _reject(self, goal_id: str, reason: str) -> None:
@@ -379,13 +418,22 @@ class NavigatorNode(Node):
         active = self.core.state not in TERMINAL
         self.core.cancel(self._now_ns / NS_PER_S)
         self._publish_status(force=True)
-        # A cancel with no goal running says "no next goal is coming": the first tick after the
-        # goal that ended need not wait for one (a coordinated commander whose robot reached its
+        # A cancel with no goal running says "no next goal is coming": the tick after the goal
+        # that ended need not wait for one (a coordinated commander whose robot reached its
         # waiting spot). Answered at that same tick: reproducible.
-        if not active and self.goal_wait.no_goal_coming():
+        if not active and self.handshake.said(NONE_COMING):
             self._release()
         response.success = active
         response.message = "canceled" if active else "no active goal"
+        return response
+
+    def _on_goal_coming(self, request, response):
+        """``navigator/goal_coming``: the commander has taken in the goal that ended, and its
+        next goal is coming (:mod:`swarm_common.lockstep` wait 1 ends, wait 2 begins)."""
+        response.success = self.handshake.said(COMING)
+        response.message = "waiting for the next goal" if response.success else "no goal ended"
+        if response.success:
+            self._release()
         return response
 
     # -- the control tick ----------------------------------------------------------------------
@@ -416,14 +464,21 @@ class NavigatorNode(Node):
             v, w = self.core.step(pose, odom_v, odom_w, now)
             if not (math.isfinite(v) and math.isfinite(w)):
                 v = w = 0.0
-        self.cmd_pub.publish(self._cmd_writer.write(t, float(v), float(w)))
-        self.goal_wait.answered(t, self.core.state in TERMINAL)
+        cmd = self._cmd_writer.write(t, float(v), float(w))
+        self._last_t = t
+        self.handshake.answered(t, self.core.state in TERMINAL, self.core.state in OUTCOMES,
+                                bool(due))
         if self.has_map and not self.ready:
             self.ready = True
             self.get_logger().info("ready: map and odometry received")
-        if self.ready:
+        if self.ready:  # before the answer: a goal's end reaches the commander first
             self._publish_status()
             self._publish_plan()
+        if self.handshake.holds_end(t, bool(self._goals), self._commander_connected):
+            self._held = (t, cmd)
+            self._hold(t)
+        else:
+            self.cmd_pub.publish(cmd)
 
     def _scan_points(self, pose: np.ndarray) -> np.ndarray:
         """(M, 2) end points in ``map`` of the valid beams of the tick's scan."""
@@ -440,7 +495,7 @@ class NavigatorNode(Node):
     # -- outputs -------------------------------------------------------------------------------
 
     def _publish_status(self, force: bool = False) -> None:
-        key = (*self.core.status_key, self.goal_wait.timeouts)
+        key = (*self.core.status_key, self.handshake.timeouts, self._pending_goal_id())
         if not force and key == self._last_status and (
                 self._now_ns - self._last_status_ns < STATUS_PERIOD_NS):
             return
@@ -449,16 +504,21 @@ class NavigatorNode(Node):
         self._last_status_ns = self._now_ns
         self._publish_raw(st.state, st.goal_id, st.goal, st.reason, st)
 
+    def _pending_goal_id(self) -> str:
+        return self._goals[-1][2] if self._goals else ""
+
     def _publish_raw(self, state: NavState, goal_id: str, goal, reason: str, st=None) -> None:
         """Publish a status (:mod:`swarm_common.nav_status`); ``st`` None: no goal figures."""
         record = NavStatusRecord(
-            state=state, goal_id=goal_id, stamp_ns=self._now_ns,
+            state=state, goal_id=goal_id,
+            stamp_ns=self._now_ns if self._last_t is not None else None,
             goal=None if goal is None else (float(goal[0]), float(goal[1]), float(goal[2])),
             distance_remaining=st.distance_remaining if st else 0.0,
             navigation_time=st.navigation_time if st else 0.0,
             recoveries=st.recoveries if st else 0,
             holding_time=st.holding_time if st else 0.0,
-            goal_wait_timeouts=self.goal_wait.timeouts, reason=reason)
+            goal_wait_timeouts=self.handshake.timeouts,
+            pending_goal_id=self._pending_goal_id(), reason=reason)
         self.status_pub.publish(diagnostic_status(  # CDR bytes: no 13 KeyValue objects
             level_of(state), f"{self.ns}/navigator", state.value, self.ns, encode(record)))
 

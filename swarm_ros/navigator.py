@@ -26,14 +26,16 @@ class NavigatorPublishers(NamedTuple):
 
 
 def navigator_interface(node, on_map: Callable, on_scan: Callable, on_odom: Callable,
-                        on_goal_pose: Callable, on_cancel: Callable) -> NavigatorPublishers:
+                        on_goal_pose: Callable, on_cancel: Callable,
+                        on_goal_coming: Callable) -> NavigatorPublishers:
     """Create a navigator's publishers, subscriptions and service on ``node`` (its namespace is
     the robot's).
 
     ``scan`` and ``odom`` come every tick and are read raw (``on_scan(bytes)``,
     ``on_odom(bytes)``, decoded with :mod:`swarm_common.cdr`: rclpy built 15 message objects per
     odometry message, 10 % of a group process's CPU); ``/map`` and ``goal_pose`` as messages;
-    ``on_cancel`` serves ``navigator/cancel`` (``std_srvs/Trigger``).
+    ``on_cancel`` serves ``navigator/cancel`` and ``on_goal_coming`` ``navigator/goal_coming``
+    (both ``std_srvs/Trigger``).
 
     Returns:
         The publishers of ``cmd_vel``, ``plan`` and ``nav_status``.
@@ -46,4 +48,5 @@ def navigator_interface(node, on_map: Callable, on_scan: Callable, on_odom: Call
     subscription(node, Odometry, topics.ODOM, on_odom, raw=True)
     subscription(node, PoseStamped, topics.GOAL_POSE, on_goal_pose)
     node.create_service(Trigger, topics.CANCEL_SERVICE, on_cancel)
+    node.create_service(Trigger, topics.GOAL_COMING_SERVICE, on_goal_coming)
     return pubs

@@ -53,6 +53,7 @@ from swarm_common.faults import (
 )
 from swarm_common.sim_summary import CollisionCounts, RobotSummary, SimSummary
 from swarm_common.stamps import NS_PER_S
+from swarm_common.supervision import LOST, RobotsLost
 from swarm_common.world import describe_skipped
 from swarm_ros.qos import publisher, subscription
 from swarm_ros.session import node_session
@@ -61,7 +62,8 @@ from swarm_sim.standstill import StandstillTracker
 # A manual (zero-stamp) command outranks the navigator's answers for this long after it arrived,
 # as teleop outranks navigation in twist_mux (its default timeout is 0.5 s).
 MANUAL_PRIORITY_S = 0.5  # [s] wall
-REJOIN_TIMEOUT_S = 60.0  # [s] wall: how long a tick waits for a killed navigator's successor
+RESEND_S = 0.5  # [s] wall: a tick not yet answered is published again this often
+WRITER_CHECK_S = 0.5  # [s] wall: how often a waiting tick checks its robots still have a writer
 READER_GRACE_S = 10.0  # [s] wall: how long the start gate waits for --wait-for-reader to match
 ACK_WAIT_S = 1.0  # [s] wall: how long the simulator waits at exit for its last ticks' acks
 
@@ -82,8 +84,8 @@ class SimSettings:
         map_path: map_server YAML to publish on ``/map``, or None for the world's map.
         summary: path of the JSON summary written at exit, or None.
         control_rate: control ticks per simulated second [Hz].
-        command_timeout: wall time to wait for a tick's commands before counting late [s].
-        inactive_after: consecutive late ticks after which a robot is no longer waited for [-].
+        stall_report: wall seconds a tick may wait before the robots it waits for are
+            reported (and again every as long); it goes on waiting [s].
         wait_for: robots that must have answered before simulated time starts (the start gate;
             ``swarm-up`` passes N) [-].
         wait_for_reader: a node (``name`` or ``/ns/name``) whose subscriptions to the
@@ -96,7 +98,6 @@ class SimSettings:
         gui: open PyBullet's window.
         faults: the ``--faults`` SPEC (inline syntax or YAML path, :mod:`swarm_common.faults`),
             or None.
-        fault_ack_timeout: wall time a tick waits for a fault's acknowledgement [s].
     """
 
     world: str = "slim_blockage"
@@ -109,14 +110,12 @@ class SimSettings:
     map_path: str | None = None
     summary: str | None = None
     control_rate: float = 10.0  # [Hz]
-    command_timeout: float = 3.0  # [s] wall
-    inactive_after: int = 1  # [ticks]
+    stall_report: float = 10.0  # [s] wall
     wait_for: int = 0  # [robots]
     wait_for_reader: str | None = None
     reader_subscriptions: int = 1  # [subscriptions]
     gui: bool = False
     faults: str | None = None
-    fault_ack_timeout: float = 10.0  # [s] wall
 
 
 def _time_msg(t_ns: int) -> Time:
@@ -169,8 +168,7 @@ class SimulatorNode(Node):
             ("seed", settings.seed), ("rtf", settings.rtf),
             ("duration", settings.duration if settings.duration is not None else -1.0),
             ("control_rate", settings.control_rate),
-            ("command_timeout", settings.command_timeout),
-            ("inactive_after", settings.inactive_after),
+            ("stall_report", settings.stall_report),
         ):
             self.declare_parameter(name, value)
         # State.
@@ -183,8 +181,11 @@ class SimulatorNode(Node):
         self.answers: dict[int, tuple[float, float]] = {}
         self.manual: dict[int, tuple[float, float, float]] = {}  # v, w, wall time received
         self.active = np.zeros(self.n, dtype=bool)
-        self.late_streak = np.zeros(self.n, dtype=int)
         self.late_ticks = np.zeros(self.n, dtype=int)
+        self.lost: set[int] = set()
+        """Robots whose navigator is gone (the supervisor's word, or no ``cmd_vel`` writer):
+        not waited for until they answer again."""
+        self._for_good: set[int] = set()  # lost robots whose navigator is not restarted
         self.dropped = 0
         self.stop_requested = False
         """Set by :meth:`request_stop` (SIGINT/SIGTERM): the loops end at their next check."""
@@ -203,7 +204,6 @@ class SimulatorNode(Node):
         self._silenced: set[int] = set()
         self._rejoin: set[int] = set()
         self._acks: set[tuple[int, str]] = set()
-        self.fault_ack_timeouts = 0
         self.fault_log: list[dict] = []  # every fault transition applied, in order
         self._last_cmd = np.zeros((self.n, 2))
         # Publishers and subscribers.
@@ -211,14 +211,15 @@ class SimulatorNode(Node):
         self.map_pub = publisher(self, OccupancyGrid, topics.MAP)
         self.events_pub = publisher(self, DiagnosticArray, topics.EVENTS)
         self.poses_pub = publisher(self, PoseArray, topics.POSES)
-        self.odom_pubs, self.truth_pubs, self.scan_pubs = [], [], []
+        self.odom_pubs, self.truth_pubs, self.scan_pubs, self._cmd_subs = [], [], [], []
         for i, ns in enumerate(namespaces):
             self.odom_pubs.append(publisher(self, Odometry, topics.ODOM, ns))
             self.truth_pubs.append(publisher(self, Odometry, topics.GROUND_TRUTH, ns))
             self.scan_pubs.append(publisher(self, LaserScan, topics.SCAN, ns))
-            subscription(self, TwistStamped, topics.CMD_VEL,
-                         lambda buf, i=i: self._on_cmd_vel(i, buf), ns,
-                         topics.CMD_VEL_READER_QOS, raw=True)  # read with swarm_common.cdr
+            self._cmd_subs.append(subscription(
+                self, TwistStamped, topics.CMD_VEL, lambda buf, i=i: self._on_cmd_vel(i, buf),
+                ns, topics.CMD_VEL_READER_QOS, raw=True))  # read with swarm_common.cdr
+        subscription(self, DiagnosticStatus, topics.SUPERVISION, self._on_supervision)
         if self.faults is not None:
             # transient local (as swarm-up's writers): an acknowledgement sent before this
             # reader matched its writer comes from the writer's history, not lost
@@ -271,6 +272,8 @@ class SimulatorNode(Node):
             self.manual[i] = (v, w, time.monotonic())
         elif stamp == self.t_ns and i not in self._silenced:
             self.answers[i] = (v, w)
+            self.lost.discard(i)  # (its successor) answers: waited for again
+            self._for_good.discard(i)
             if not self.active[i]:
                 self.active[i] = True
                 if self.engine.ticks > 1 and self.late_ticks[i]:
@@ -308,6 +311,29 @@ class SimulatorNode(Node):
         self._publish_events([self._status(name, i, message)])
 
     # -- faults (swarm_sim.faults, docs/ARCHITECTURE.md "Faults") ------------------------------
+
+    def _on_supervision(self, msg: DiagnosticStatus) -> None:
+        if msg.name != LOST:
+            return
+        word = RobotsLost.decode({kv.key: kv.value for kv in msg.values})
+        index = {ns: i for i, ns in enumerate(self.namespaces)}
+        for ns in word.robots if word is not None else ():
+            if ns in index and index[ns] not in self.answers:
+                self._lose(index[ns], word.reason, word.for_good)
+
+    def _lose(self, i: int, reason: str, for_good: bool = False) -> None:
+        """Robot ``i``'s navigator is gone: no tick waits for it until it answers again."""
+        if i not in self.lost:
+            self.get_logger().warning(f"{self.namespaces[i]}: navigator gone ({reason}); "
+                                      "not waited for until it answers again")
+        self.lost.add(i)
+        if for_good:
+            self._for_good.add(i)
+
+    def _report_stall(self, waited: float, what: str) -> None:
+        self.get_logger().warning(f"t = {self.t_ns / NS_PER_S:.1f} s: waited {waited:.0f} s "
+                                  f"(wall) for {what}; still waiting (a stall costs wall time "
+                                  "only)")
 
     def _on_fault_ack(self, msg: DiagnosticStatus) -> None:
         if msg.name != ACK_NAME:
@@ -355,7 +381,6 @@ class SimulatorNode(Node):
             if f.kind in (KILL_NAV, KILL_ROBOT) and phase == START:
                 self.active[i] = False  # not waited for; its answers are ignored from now
                 self.answers.pop(i, None)
-                self.late_streak[i] = 0
             elif f.kind == KILL_NAV and phase == END:
                 # The old navigator must be gone before its robot's odometry flows again, so
                 # that the answer the tick waits for comes from its successor.
@@ -368,40 +393,39 @@ class SimulatorNode(Node):
 
     def _hold_for_ack(self, executor, fault, phase: str) -> None:
         """Hold simulated time until fault ``fault``'s ``phase`` is acknowledged on
-        ``/swarm/fault_acks`` (or ``fault_ack_timeout`` wall seconds passed: warned, counted)."""
-        deadline = time.monotonic() + self.settings.fault_ack_timeout
+        ``/swarm/fault_acks``, however long that takes (a stall is reported)."""
+        since = time.monotonic()
+        reported = 0
         while (fault.index, phase) not in self._acks:
             if self.stop_requested or not rclpy.ok():
                 return
-            if time.monotonic() >= deadline:
-                self.fault_ack_timeouts += 1
-                self.get_logger().warning(
-                    f"fault {fault.index} ({fault.label()}): no acknowledgement of its {phase} "
-                    f"within {self.settings.fault_ack_timeout:g} s; going on (the run may not "
-                    "be reproducible)")
-                return
+            waited = time.monotonic() - since
+            if waited >= (reported + 1) * self.settings.stall_report:
+                reported += 1
+                self._report_stall(waited, f"the acknowledgement of fault {fault.index} "
+                                   f"({fault.label()}) {phase}")
             executor.spin_once(timeout_sec=0.05)
 
     def wait_for_rejoin(self, executor) -> None:
         """Hold this tick until every rejoining robot (a killed navigator's outage ended) has
-        answered it, re-publishing its odometry and scan every 0.5 s wall for a navigator that
-        subscribed late; after ``REJOIN_TIMEOUT_S`` it goes on (warned; the robot joins when it
-        answers, like a late one)."""
-        deadline = time.monotonic() + REJOIN_TIMEOUT_S
-        resend = time.monotonic() + 0.5
-        while self._rejoin - self.answers.keys():
+        answered it, re-publishing its odometry and scan every ``RESEND_S`` wall for a
+        navigator that subscribed late; a robot whose navigator the supervisor gave up on is not
+        waited for. However long it takes (a stall is reported)."""
+        since = time.monotonic()
+        resend = since + RESEND_S
+        reported = 0
+        while self._rejoin - self.answers.keys() - self._for_good:
             now = time.monotonic()
             if self.stop_requested or not rclpy.ok():
                 return
-            if now >= deadline:
-                names = ", ".join(self.namespaces[i] for i in sorted(self._rejoin))
-                self.get_logger().warning(f"{names}: no restarted navigator answered within "
-                                          f"{REJOIN_TIMEOUT_S:g} s; going on without it")
-                break
             if now >= resend:
-                resend = now + 0.5
+                resend = now + RESEND_S
                 for i in self._rejoin - self.answers.keys():
                     self._republish(i)
+            if now - since >= (reported + 1) * self.settings.stall_report:
+                reported += 1
+                names = ", ".join(self.namespaces[i] for i in sorted(self._rejoin))
+                self._report_stall(now - since, f"the restarted navigator of {names}")
             executor.spin_once(timeout_sec=0.05)
         self._rejoin.clear()
 
@@ -477,31 +501,56 @@ class SimulatorNode(Node):
         self.stop_requested = True
 
     def collect_commands(self, executor) -> tuple[np.ndarray, np.ndarray] | None:
-        """Wait for this tick's answers of the active robots, then build the command vectors;
-        None if a stop was requested meanwhile (the tick is neither stepped nor counted late)."""
-        deadline = time.monotonic() + self.settings.command_timeout
+        """Wait for this tick's answers of the active robots, however long that takes, then
+        build the command vectors; None if a stop was requested meanwhile (the tick is neither
+        stepped nor counted late).
+
+        No wall-clock timeout decides anything (docs/ARCHITECTURE.md, "Synchronous control
+        loop"): a robot is not waited for only once its navigator is known to be gone
+        (:mod:`swarm_common.supervision`: the supervisor's word, or its ``cmd_vel`` without a
+        writer, checked every ``WRITER_CHECK_S``); a wait of ``stall_report`` wall seconds is
+        reported, and goes on. The tick's scan and odometry are published again every
+        ``RESEND_S`` to a robot not yet answered: scans are best effort (sensor-data QoS), and a
+        navigator that was paused or busy may have lost one, which it waits for; a copy changes
+        nothing simulated (the navigator answers a tick once).
+        """
         excused = self._drops.excused if self.faults is not None else ()
         waiting: set[int] = set()
+        since = time.monotonic()
+        check = since + WRITER_CHECK_S
+        resend = since + RESEND_S
+        reported = 0
         while True:
             if self.stop_requested:
                 return None
             waiting.difference_update(self.answers.keys())  # cheap: C set operations
+            waiting.difference_update(self.lost)
             if not waiting:  # then check in full (a robot may have been activated meanwhile)
                 waiting = {i for i in np.flatnonzero(self.active).tolist()
-                           if i not in self.answers and i not in excused}
+                           if i not in self.answers and i not in excused and i not in self.lost}
                 if not waiting:
                     break
-            remaining = deadline - time.monotonic()
-            if remaining <= 0.0:
-                break
-            executor.spin_once(timeout_sec=min(remaining, 0.05))
+            now = time.monotonic()
+            if now >= resend:  # a scan is best effort: a paused navigator may have lost it
+                resend = now + RESEND_S
+                for i in waiting:
+                    self._republish(i)
+            if now >= check:
+                check = now + WRITER_CHECK_S
+                for i in waiting:
+                    if self._cmd_subs[i].get_publisher_count() == 0:
+                        self._lose(i, "its cmd_vel has no writer")
+                if now - since >= (reported + 1) * self.settings.stall_report:
+                    reported += 1
+                    self._report_stall(now - since, ", ".join(
+                        self.namespaces[i] for i in sorted(waiting - self.lost)))
+            executor.spin_once(timeout_sec=0.05)
         v = np.zeros(self.n)
         w = np.zeros(self.n)
         now = time.monotonic()
         for i, (vi, wi, _) in self.manual.items():
             v[i], w[i] = vi, wi
         for i, (vi, wi) in self.answers.items():
-            self.late_streak[i] = 0
             manual = self.manual.get(i)
             if manual is not None:
                 if now - manual[2] < MANUAL_PRIORITY_S:
@@ -517,17 +566,13 @@ class SimulatorNode(Node):
         for i in np.flatnonzero(self.active):
             if i in self.answers or i in excused:
                 continue
+            # gone: stopped for this tick and, until it answers again, not waited for
             self.late_ticks[i] += 1
-            self.late_streak[i] += 1
-            late.append(self._status("late", i, f"{self.namespaces[i]} late at "
-                                     f"t = {self.t_ns / NS_PER_S:.1f} s; stopped for this tick"))
-            if self.late_streak[i] >= self.settings.inactive_after:
-                self.active[i] = False
-                ns = self.namespaces[i]
-                self.get_logger().warning(
-                    f"{ns}: no command for {self.late_streak[i]} ticks; stopped and no longer "
-                    "waited for until it answers again")
-                self._event("fault", i, f"{ns} stopped answering; robot stopped")
+            self.active[i] = False
+            ns = self.namespaces[i]
+            late.append(self._status("late", i, f"{ns} late at t = {self.t_ns / NS_PER_S:.1f} "
+                                     "s (navigator gone); stopped"))
+            self._event("fault", i, f"{ns} stopped answering; robot stopped")
         self._publish_events(late)  # live late ticks (the dashboard's KPI), one message a tick
         self.answers.clear()
         return v, w
@@ -649,7 +694,6 @@ class SimulatorNode(Node):
             extras["faults"] = {
                 "injected": [f.label() for f in self.faults.faults],
                 "messages_dropped": {str(k): v for k, v in self.faults.dropped.items()},
-                "ack_timeouts": self.fault_ack_timeouts,
                 "log": self.fault_log,
             }
         per_robot = {
@@ -709,9 +753,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="write a JSON summary of the run here at exit")
     p.add_argument("--control-rate", type=cli.positive_float, default=10.0, metavar="HZ",
                    help="control ticks per simulated second [10]")
-    p.add_argument("--command-timeout", type=cli.positive_float, default=3.0, metavar="SEC",
-                   help="wall seconds to wait for a tick's commands before a robot is late and "
-                   "stopped; it is waited for again once it answers [3.0]")
+    p.add_argument("--stall-report", type=cli.positive_float, default=10.0, metavar="SEC",
+                   help="a tick that has waited this many wall seconds for its answers (or a "
+                   "fault's acknowledgement) says which; it goes on waiting: no wall-clock "
+                   "timeout decides anything simulated [10]")
     p.add_argument("--wait-for", type=cli.non_negative_int, default=0, metavar="K",
                    help="hold simulated time at the first tick until K robots answer it [0]")
     p.add_argument("--wait-for-reader", default=None, metavar="NODE",
@@ -724,9 +769,6 @@ def build_parser() -> argparse.ArgumentParser:
                    help="inject faults at simulated times: KIND[:TARGET]@TIME[+DURATION],... "
                    "or a YAML file (kinds kill-nav, kill-robot, freeze, drop, kill-coordinator; "
                    "see README, Faults) [none]")
-    p.add_argument("--fault-ack-timeout", type=cli.positive_float, default=10.0,
-                   metavar="SEC", help="wall seconds a tick waits for a fault's "
-                   "acknowledgement on /swarm/fault_acks [10]")
     p.add_argument("--gui", action="store_true",
                    help="open the PyBullet window (default headless)")
     p.add_argument("--headless", action="store_true", help="run without a window (the default)")
@@ -743,10 +785,9 @@ def parse_settings(argv: list[str]) -> SimSettings:
     return SimSettings(
         world=a.world, robot=a.robot, swarm_size=a.swarm_size, name_prefix=a.name_prefix,
         seed=a.seed, rtf=a.rtf, duration=a.duration, map_path=a.map, summary=a.summary,
-        control_rate=a.control_rate, command_timeout=a.command_timeout, wait_for=a.wait_for,
+        control_rate=a.control_rate, stall_report=a.stall_report, wait_for=a.wait_for,
         wait_for_reader=a.wait_for_reader, reader_subscriptions=a.reader_subscriptions,
         gui=a.gui, faults=a.faults,
-        fault_ack_timeout=a.fault_ack_timeout,
     )
 
 

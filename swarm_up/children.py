@@ -139,6 +139,8 @@ def child_specs(cfg: RunConfig):
                               "--wait-timeout", repr(cfg.ready_timeout)]
                 if coordinated:
                     argv.append("--coordinated")
+                    if cfg.faults:
+                        argv += ["--faults", str(faults_file(cfg))]
                 specs.append(ChildSpec(f"cmd_{ns}", tuple(argv), logs / f"cmd_{ns}.log",
                                        kind="cmd", robots=(ns,), env=robot_env[ns]))
     else:
@@ -150,7 +152,7 @@ def child_specs(cfg: RunConfig):
                 if coordinated:
                     argv += ["--coordinated", "--coordinator-timeout", repr(cfg.ready_timeout)]
             if cfg.faults:
-                argv.append("--faults")
+                argv += ["--faults", str(faults_file(cfg))]
             specs.append(ChildSpec(f"group_{g}", tuple(argv), logs / f"group_{g}.log",
                                    kind="group", robots=group, env=env))
     return specs
@@ -205,7 +207,8 @@ def coordinator_spec(cfg: RunConfig, env: dict):
 
     argv = command("swarm-coordinator", "swarm_coordinator.node") + [
         "--swarm-size", str(len(cfg.robots)), "--name-prefix", cfg.name_prefix,
-        "--world", str(cfg.world_path), "--seed", str(cfg.seed), "--robot", cfg.robot,
-        "--start-timeout", repr(cfg.ready_timeout)]
+        "--world", str(cfg.world_path), "--seed", str(cfg.seed), "--robot", cfg.robot]
+    if cfg.faults:
+        argv += ["--faults", str(faults_file(cfg))]
     return ChildSpec(COORDINATOR, tuple(argv), cfg.run_dir / "logs" / f"{COORDINATOR}.log",
                      kind="coord", env=shm_free_env(env))

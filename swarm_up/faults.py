@@ -43,6 +43,7 @@ from swarm_common.faults import (
     FaultAck,
     FaultEvent,
 )
+from swarm_common.supervision import LOST, RobotsLost
 from swarm_ros.qos import publisher, subscription
 
 GROUP_RESTART_DELAY_S = 0.5  # [s] wall: a group recreates a killed navigator this much later
@@ -55,20 +56,34 @@ def ack_status(ack: FaultAck) -> DiagnosticStatus:
                             values=[KeyValue(key=k, value=v) for k, v in ack.encode().items()])
 
 
-class AckPublisher:
-    """A publisher of acknowledgements for ``swarm-up``'s main thread: a node in a context of its
-    own that is never spun (publishing needs no executor, and publishing from the thread that
-    spins the metrics node's ``EventsExecutor`` is the known deadlock of these wheels)."""
+class Announcer:
+    """``swarm-up``'s words to the simulator from its main thread: fault acknowledgements
+    (``/swarm/fault_acks``) and the supervisor's word on robots whose navigator is gone
+    (``/swarm/supervision``, :mod:`swarm_common.supervision`).
+
+    A node in a context of its own that is never spun (publishing needs no executor, and
+    publishing from the thread that spins the metrics node's ``EventsExecutor`` is the known
+    deadlock of these wheels). Both topics are transient local: a word published before the
+    simulator's reader matched is delivered when it matches.
+    """
 
     def __init__(self):
         self._context = rclpy.Context()
         rclpy.init(context=self._context, signal_handler_options=SignalHandlerOptions.NO)
-        self._node = Node("swarm_up_faults", context=self._context)
-        self._pub = publisher(self._node, DiagnosticStatus, topics.FAULT_ACKS)
+        self._node = Node("swarm_up_announcer", context=self._context)
+        self._acks = publisher(self._node, DiagnosticStatus, topics.FAULT_ACKS)
+        self._lost = publisher(self._node, DiagnosticStatus, topics.SUPERVISION)
 
-    def __call__(self, ack: FaultAck) -> None:
-        """Publish one acknowledgement."""
-        self._pub.publish(ack_status(ack))
+    def ack(self, ack: FaultAck) -> None:
+        """Publish one fault acknowledgement."""
+        self._acks.publish(ack_status(ack))
+
+    def lost(self, word: RobotsLost) -> None:
+        """Say that these robots' navigator is gone."""
+        self._lost.publish(DiagnosticStatus(
+            level=DiagnosticStatus.WARN, name=LOST, message=word.reason,
+            hardware_id="swarm-up",
+            values=[KeyValue(key=k, value=v) for k, v in word.encode().items()]))
 
     def close(self) -> None:
         """Destroy the node and shut its context down (idempotent)."""
@@ -86,7 +101,7 @@ class ProcessFaults:
         supervisor: the run's :class:`swarm_up.supervisor.Supervisor`.
         per_robot: the robots whose navigator (``nav_<ns>``) and commander (``cmd_<ns>``) are
             processes of their own (robots in group processes are their group's business).
-        ack: publishes a :class:`FaultAck` (:class:`AckPublisher`).
+        ack: publishes a :class:`FaultAck` (:meth:`Announcer.ack`).
         say: prints one status line.
         serving: returns the epochs of the coordinators that have announced themselves
             serving (their ``coordinator`` event on ``/swarm/events``, sent with their first
@@ -94,25 +109,26 @@ class ProcessFaults:
             restarted coordinator's end of outage is acknowledged only once a new epoch is
             among them (:meth:`poll`), so the simulator holds that tick through the
             coordinator's start-up; None: acknowledged as soon as the process is started.
-        serving_timeout: [s] wall: acknowledge anyway after this long (the simulator's own
-            ``--fault-ack-timeout``, 10 s, has then warned and gone on).
+        stall_report: [s] wall: a restarted coordinator not serving after this long is
+            reported (and again every as long); the acknowledgement still waits for it.
     """
 
     def __init__(self, supervisor, per_robot: tuple[str, ...], ack: Callable[[FaultAck], None],
                  say: Callable[[str], None],
                  serving: Callable[[], frozenset[str]] | None = None,
-                 serving_timeout: float = 30.0):
+                 stall_report: float = 10.0):
         self.sup = supervisor
         self.per_robot = frozenset(per_robot)
         self.ack = ack
         self.say = say
         self.serving = serving
-        self.serving_timeout = serving_timeout
+        self.stall_report = stall_report
         self.fault_restarts = 0
         """Restarts caused by faults (decided by the schedule, not by the wall clock)."""
         self._done: set[tuple[int, str]] = set()
         # a restarted coordinator not yet serving: (event, epochs serving before, monotonic start)
         self._awaiting: tuple[FaultEvent, frozenset[str], float] | None = None
+        self._reported = 0  # stall reports of the current wait
 
     def handle(self, ev: FaultEvent) -> None:
         """Carry out one announced fault transition (each once; others are ignored)."""
@@ -166,28 +182,27 @@ class ProcessFaults:
 
     def poll(self) -> None:
         """Acknowledge a restarted coordinator's end of outage once it serves (a new epoch
-        announced), or after ``serving_timeout``; call it every supervision cycle.
+        announced), however long that takes; call it every supervision cycle.
 
         The simulator holds the fault's end tick until then, so the coordinator's start-up
         (process start, discovery, the sync with every robot's report) costs no simulated
-        time. Without it, the 3.0 wall seconds a restart took at 10 robots, unpaced, were the
-        whole rest of a 300 s run (restarted at 210 s; no task after it).
+        time (why: docs/design/performance.md). A wait of ``stall_report`` s is reported.
         """
         if self._awaiting is None:
             return
         ev, before, since = self._awaiting
         new = self.serving() - before
         waited = time.monotonic() - since
-        if not new and waited < self.serving_timeout:
+        if not new:
+            if waited >= (self._reported + 1) * self.stall_report:
+                self._reported += 1
+                self.say(f"fault {ev.fault}: the restarted coordinator does not serve yet after "
+                         f"{waited:.0f} s wall; simulated time waits at t = {ev.t:g} s")
             return
         self._awaiting = None
-        if new:
-            self.say(f"fault {ev.fault}: the restarted coordinator serves (epoch "
-                     f"{min(new)}) after {waited:.1f} s wall; simulated time goes on at "
-                     f"t = {ev.t:g} s")
-        else:
-            self.say(f"fault {ev.fault}: the restarted coordinator did not announce itself "
-                     f"within {self.serving_timeout:g} s wall")
+        self._reported = 0
+        self.say(f"fault {ev.fault}: the restarted coordinator serves (epoch {min(new)}) after "
+                 f"{waited:.1f} s wall; simulated time goes on at t = {ev.t:g} s")
         self.ack(FaultAck(ev.fault, ev.phase, "swarm-up"))
 
 

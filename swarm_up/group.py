@@ -47,9 +47,10 @@ def build_parser() -> cli.ArgumentParser:
     cli.add_shared(p, "--seed", help="seed of the commanders' routes")
     p.add_argument("--loops", type=cli.non_negative_int, default=0,
                    help="commander route loops, 0 = forever")
-    p.add_argument("--faults", action="store_true",
-                   help="carry out the kill-nav and kill-robot faults of /swarm/events for "
-                   "these robots in-process (swarm_up.faults.GroupFaults)")
+    p.add_argument("--faults", default=None, metavar="FILE",
+                   help="the run's fault schedule: carry out the kill-nav and kill-robot faults "
+                   "of /swarm/events for these robots in-process (swarm_up.faults.GroupFaults); "
+                   "coordinated commanders learn the coordinator's outages from it")
     p.add_argument("--coordinated", action="store_true",
                    help="the commanders ask the coordinator for their tasks "
                    "(swarm-up --coordination centralized)")
@@ -98,7 +99,7 @@ def _run(argv: list[str]) -> int:
                 navigators[ns] = node
             if opts.commanders and opts.coordinated:
                 _add_coordinated_commanders(names, executor, nodes, runners, commanders,
-                                            opts.coordinator_timeout)
+                                            opts.coordinator_timeout, opts.faults)
             elif opts.commanders:
                 from rclpy.logging import LoggingSeverity
 
@@ -173,14 +174,21 @@ def commander_node(ns: str, connect: bool = True):
 
 
 def _add_coordinated_commanders(names, executor, nodes, runners, commanders: dict,
-                                timeout_s: float) -> None:
+                                timeout_s: float, faults: str | None) -> None:
     """Wait (spinning the navigators) for the coordinator, then add a coordinated commander
     per robot: the navigators' start gate opens only once the coordinator is there.
-    ``commanders`` (ns -> (node, runner), what faults may kill) gets each."""
+    ``commanders`` (ns -> (node, runner), what faults may kill) gets each; ``faults``: the
+    schedule's file (the coordinator's outages), or None."""
     from rclpy.logging import LoggingSeverity
     from rclpy.node import Node
 
-    from swarm_commander.coordinated import CoordinatedRunner, wait_for_coordinator
+    from swarm_commander.coordinated import (
+        CoordinatedRunner,
+        coordinated_config,
+        wait_for_coordinator,
+    )
+
+    cfg = coordinated_config(faults)
 
     watch = Node("coordinator_watch", namespace=names[0])
     executor.add_node(watch)
@@ -195,7 +203,7 @@ def _add_coordinated_commanders(names, executor, nodes, runners, commanders: dic
     for ns in names:
         nav = commander_node(ns, connect=False)  # connects once it reaches the coordinator
         nav.get_logger().set_level(LoggingSeverity.WARN)
-        runners.append(CoordinatedRunner(nav, emit=lambda line: print(line, flush=True)))
+        runners.append(CoordinatedRunner(nav, cfg, emit=lambda line: print(line, flush=True)))
         executor.add_node(nav)
         nodes.append(nav)
         commanders[ns] = (nav, runners[-1])

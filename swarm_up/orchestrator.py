@@ -88,7 +88,7 @@ class Orchestrator:
         self._navigators = {s.name for s in self.specs if s.kind in ("nav", "group")}
         self._dead: dict[str, int] = {}  # exited, not to be restarted -> exit code
         self.faults = None  # swarm_up.faults.ProcessFaults, with --faults
-        self._acks = None
+        self._announcer = None  # swarm_up.faults.Announcer: made with --faults or at a crash
         self._faults_seen = 0  # fault events of the recorder's log handled so far
 
     def _log_of(self, name: str) -> Path:
@@ -106,11 +106,10 @@ class Orchestrator:
         """
         self.listener.start()
         if self.cfg.faults:
-            from swarm_up.faults import AckPublisher, ProcessFaults
+            from swarm_up.faults import ProcessFaults
 
-            self._acks = AckPublisher()
             per_robot = self.cfg.robots if self.cfg.groups is None else ()
-            self.faults = ProcessFaults(self.sup, per_robot, self._acks, say,
+            self.faults = ProcessFaults(self.sup, per_robot, self._announce().ack, say,
                                         serving=self._coordinators_serving)
         if self.live is not None:
             url = self.live.start()
@@ -165,6 +164,7 @@ class Orchestrator:
                 self._dead[ev.name] = ev.code
                 what = "keeps crashing, last exit code" if ev.gave_up else "exited with code"
                 warn(f"{ev.name} {what} {ev.code}; not restarted; logs: {self._log_of(ev.name)}")
+            self._say_lost(ev)
         if sim_code is not None:
             return self._sim_ended(sim_code)
         if self.faults is not None:
@@ -174,6 +174,26 @@ class Orchestrator:
         self.sampler.maybe_sample()
         self._report_progress()
         return None
+
+    def _announce(self):
+        """The :class:`swarm_up.faults.Announcer`, made when first needed."""
+        if self._announcer is None:
+            from swarm_up.faults import Announcer
+
+            self._announcer = Announcer()
+        return self._announcer
+
+    def _say_lost(self, ev) -> None:
+        """A navigator process that crashed (not one a fault killed): tell the simulator that
+        its robots are gone, so that no tick waits for them until they answer again (the
+        lockstep has no wall-clock timeout; :mod:`swarm_common.supervision`)."""
+        spec = self.sup.children[ev.name].spec
+        if ev.planned or self.sup.stopping or spec.kind not in ("nav", "group"):
+            return
+        from swarm_common.supervision import RobotsLost
+
+        self._announce().lost(RobotsLost(spec.robots, f"{ev.name} exited with code {ev.code}",
+                                         for_good=not ev.restarted))
 
     def _handle_faults(self) -> None:
         """Carry out the process side of the faults the simulator announced since last time."""
@@ -265,8 +285,8 @@ class Orchestrator:
         if self.live is not None:
             self.live.stop()
         self.listener.stop()
-        if self._acks is not None:
-            self._acks.close()
+        if self._announcer is not None:
+            self._announcer.close()
         return wall
 
     def _map_deliveries(self, summary) -> dict[str, int]:

@@ -14,16 +14,11 @@ from swarm_common.rasterize import rasterize_world
 from swarm_common.world import load_world
 from swarm_up.run_config import RunConfig
 
-# [s] wall: the navigators' goal_wait_timeout with --commanders; below the simulator's
-# command_timeout (3 s), so a commander slower than this is a goal-wait timeout, not a late tick.
-COMMANDER_GOAL_WAIT_S = 2.5
-
-
 # Template keys that are not navigator algorithm parameters (swarm_nav.config): ROS's own
 # use_sim_time and the node's context parameters (swarm_nav.node), which swarm-up sets per robot
 # in navigator_params.  tests/swarm_up/test_validate.py holds this list to the node's.
 CONTEXT_KEYS = frozenset({"use_sim_time", "robot", "poi_file", "map_yaml_path", "robot_name",
-                          "wait_for_commander", "wait_for_status_readers",
+                          "wait_for_commander", "hold_goal_end", "wait_for_status_readers",
                           "wait_for_cmd_vel_readers", "goal_wait_timeout"})
 
 
@@ -176,16 +171,16 @@ def navigator_params(template: dict, ns: str, index: int, cfg: RunConfig,
         map_yaml_path="",
         robot=name,
         # With commanders, simulated time starts once each robot's commander is connected, and
-        # each goal takes effect at a fixed tick: the same seed gives the same run.
+        # each goal takes effect at a fixed tick, however long the commander takes: the same
+        # seed gives the same run (swarm_common.lockstep).
         wait_for_commander=bool(cfg.commanders),
+        # Centralized: the coordinator answers a tick's requests together, once it has them all
+        hold_goal_end=bool(cfg.commanders) and cfg.coordination == "centralized",
         # swarm-up's metrics listener, the commander and the recorder must hear every status,
         # and the simulator and the recorder every command: the first answer (also of a
         # navigator restarted by a fault) waits for them
         wait_for_status_readers=1 + int(bool(cfg.commanders)) + int("nav_status" in recorded),
         wait_for_cmd_vel_readers=1 + int("cmd_vel" in recorded),
-        # Our commanders answer every ended goal at once; a loaded machine may delay that answer
-        # by seconds of wall time, and a wait that times out would make the run irreproducible.
-        goal_wait_timeout=COMMANDER_GOAL_WAIT_S if cfg.commanders else 0.5,
     )
     if cfg.coordination == "centralized":
         params.update(CENTRALIZED_OVERRIDES)

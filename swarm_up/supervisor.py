@@ -68,6 +68,7 @@ class ChildState:
     exit_code: int | None = None  # last exit code, once it exited and was not restarted
     given_up: bool = False
     retired: bool = False  # killed on purpose (a fault) and not to be restarted by poll
+    planned: bool = False  # killed on purpose (a fault) and restarted by poll: not a crash
 
 
 @dataclass(frozen=True)
@@ -79,12 +80,14 @@ class ChildExit:
         code: its exit code (negative: killed by that signal).
         restarted: whether it was started again.
         gave_up: whether it will not be restarted any more because it crashed too often.
+        planned: it was killed on purpose (:meth:`Supervisor.kill`, a fault), not a crash.
     """
 
     name: str
     code: int
     restarted: bool
     gave_up: bool = False
+    planned: bool = False
 
 
 @dataclass
@@ -170,8 +173,9 @@ class Supervisor:
                 continue
             state.exit_code = code
             spec = state.spec
+            planned, state.planned = state.planned, False
             if self.stopping or not spec.restart or code in NO_RESTART_CODES:
-                exits.append(ChildExit(spec.name, code, restarted=False))
+                exits.append(ChildExit(spec.name, code, restarted=False, planned=planned))
                 continue
             lived = time.monotonic() - state.started_at
             state.fast_crashes = state.fast_crashes + 1 if lived < self.fast_crash_s else 0
@@ -186,7 +190,7 @@ class Supervisor:
                 state.given_up = True
                 exits.append(ChildExit(spec.name, code, restarted=False, gave_up=True))
                 continue
-            event = ChildExit(spec.name, code, restarted=True)
+            event = ChildExit(spec.name, code, restarted=True, planned=planned)
             exits.append(event)
             if self.on_restart is not None:
                 self.on_restart(event)
@@ -215,6 +219,7 @@ class Supervisor:
             return None
         if not restart:
             state.retired = True
+        state.planned = restart
         try:
             os.killpg(state.proc.pid, signal.SIGKILL)
         except (ProcessLookupError, PermissionError):

@@ -67,7 +67,6 @@ def test_each_fault_takes_effect_at_its_simulated_time(fault_run):
                                    "kill-coordinator": 1}, msg
     # 50 lidar ticks in 10 s at 5 Hz, half lost; 50 control ticks in 5 s, 30 % lost: ~40.
     assert 25 <= m["fault_messages_dropped"] <= 60, msg
-    assert m["fault_ack_timeouts"] == 0, msg
     assert m["late_ticks"] == 0 and m["goal_wait_timeouts"] == 0, msg
     assert m["reproducible"] is True, msg
 

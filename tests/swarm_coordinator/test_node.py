@@ -31,9 +31,14 @@ def test_first_answers_wait_for_a_reader_of_the_events():
         robot = Node("fake_robots", context=ctx)
         events: list[DiagnosticArray] = []
         answers: list[str] = []
+        acks: list[str] = []
+
+        def on_assignment(msg):
+            (acks if json.loads(msg.data)["kind"] == "ack" else answers).append(msg.data)
+
         requests = publisher(robot, String, topics.COORDINATOR_REQUEST)
         for ns in ("r1", "r2"):
-            subscription(robot, String, topics.ASSIGNMENT, lambda m: answers.append(m.data), ns)
+            subscription(robot, String, topics.ASSIGNMENT, on_assignment, ns)
         for node in (coordinator, robot):
             executor.add_node(node)
         spin_until(executor, lambda: requests.get_subscription_count() > 0, 10.0,
@@ -45,6 +50,8 @@ def test_first_answers_wait_for_a_reader_of_the_events():
         subscription(robot, DiagnosticArray, topics.EVENTS, lambda m: None)
         _spin_for(executor, 1.5)
         assert answers == []
+        # each request is acknowledged at once all the same: it is there
+        assert sorted(json.loads(a)["robot"] for a in acks) == ["r1", "r2"]
         metrics = Node(METRICS_NODE, context=ctx)
         subscription(metrics, DiagnosticArray, topics.EVENTS, events.append)
         executor.add_node(metrics)
@@ -58,9 +65,13 @@ def test_first_answers_wait_for_a_reader_of_the_events():
             node.destroy_node()
 
 
-def test_without_a_reader_of_the_events_the_sync_deadline_still_answers():
+def test_without_swarm_ups_metrics_the_first_answers_still_go_out():
+    """A coordinator started by hand (no metrics node): the first answers go out
+    ``metrics_absent_s`` after every robot was heard (what is recorded depends on it, not what
+    is simulated: the navigators wait for their first goals)."""
     with ros_context() as (ctx, executor):
-        coordinator = CoordinatorNode(make_core({"r1": ["A"]}), start_timeout=1.0, context=ctx)
+        coordinator = CoordinatorNode(make_core({"r1": ["A"]}), metrics_absent_s=1.0,
+                                      context=ctx)
         robot = Node("fake_robot", context=ctx)
         answers: list[str] = []
         requests = publisher(robot, String, topics.COORDINATOR_REQUEST)
@@ -70,8 +81,9 @@ def test_without_a_reader_of_the_events_the_sync_deadline_still_answers():
         spin_until(executor, lambda: requests.get_subscription_count() > 0, 10.0,
                    "the coordinator's request reader")
         requests.publish(String(data=encode_request(Request("r1", 1, "ready", 0))))
-        spin_until(executor, lambda: answers, 10.0, "the answer after the deadline")
-        assert json.loads(answers[0])["robot"] == "r1"
+        spin_until(executor, lambda: any(json.loads(a)["kind"] != "ack" for a in answers), 10.0,
+                   "the answer")
+        assert [json.loads(a)["robot"] for a in answers] == ["r1", "r1"]  # the ack, the answer
         for node in (coordinator, robot):
             executor.remove_node(node)
             node.destroy_node()

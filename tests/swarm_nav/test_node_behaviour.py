@@ -127,7 +127,7 @@ class Swarm:
                                  lambda m: self.events.extend(m.status), EVENTS_QOS)
         n = str(len(self.names))
         self.sim = start(["swarm-sim", "--world", self.world, "--swarm-size", n, "--rtf", "0",
-                          "--seed", "3", "--wait-for", n, "--command-timeout", "5",
+                          "--seed", "3", "--wait-for", n,
                           "--summary", str(self.summary_path)],
                          self.dir / "sim.log")
         self.nav = start(["python", "-m", "swarm_up.group", "--namespaces",

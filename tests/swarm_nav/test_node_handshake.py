@@ -5,8 +5,11 @@ publishes odometry and scans tick by tick and reads the stamped ``cmd_vel`` answ
 commander (``goal_pose``).  The map comes from the bundled ``empty`` world's file, so no simulator
 process is needed.  What is checked: on the first tick after the start (or after a goal ended)
 the navigator withholds its answer until a connected commander's goal arrives, the goal then takes
-effect on that tick, and a commander that never answers costs ``goal_wait_timeout`` wall seconds
-once, counted in ``nav_status``.
+effect on that tick; a commander outside the lockstep that never answers costs
+``goal_wait_timeout`` wall seconds once, counted in ``nav_status``, while inside the lockstep
+(``wait_for_commander``, as swarm-up sets it) no wait ends by the wall clock; with
+``hold_goal_end`` the tick at which a goal ends is answered only on the commander's word
+(``navigator/goal_coming``).
 """
 
 from __future__ import annotations
@@ -41,7 +44,7 @@ class Probe:
     """The simulator and the commander of one robot ``/hs``, at (0, 0) facing +x."""
 
     def __init__(self, goal_wait_timeout: float, status_readers: int = 0,
-                 cmd_vel_readers: int = 0):
+                 cmd_vel_readers: int = 0, lockstep: bool = False, hold_goal_end: bool = False):
         self.ctx = rclpy.Context()
         rclpy.init(context=self.ctx)
         self.executor = SingleThreadedExecutor(context=self.ctx)
@@ -52,6 +55,8 @@ class Probe:
                 Parameter("goal_wait_timeout", value=goal_wait_timeout),
                 Parameter("wait_for_status_readers", value=status_readers),
                 Parameter("wait_for_cmd_vel_readers", value=cmd_vel_readers),
+                Parameter("wait_for_commander", value=lockstep),
+                Parameter("hold_goal_end", value=hold_goal_end),
             ])
         self.node = rclpy.create_node("probe", context=self.ctx)
         self.answers: dict[int, tuple[float, float]] = {}  # tick [ns] -> (v, w)
@@ -338,3 +343,87 @@ def test_a_cancel_with_no_goal_running_says_no_next_goal_is_coming(probe):
     assert probe.answer(t1, 5.0) < 0.5, "the tick waited for a goal after all"
     assert probe.answers[t1] == (0.0, 0.0)
     assert probe.status["goal_wait_timeouts"] == "0"
+
+
+def _reach_a_goal(probe, t0: int) -> int:
+    """Start, send a goal within the goal tolerance and tick until it is reached; the tick at
+    which it ended."""
+    probe.tick(t0)
+    probe.answer(t0, 10.0)
+    spin_until(probe.executor, lambda: probe.status.get("stamp") == format_stamp_ns(t0), 5.0,
+               "the status of the first tick")
+    probe.send_goal(t0, 0.1, 0.0)  # within the goal tolerance: reached at once
+    t = t0
+    while probe.status.get("state") != "SUCCEEDED":
+        t += TICK_NS
+        assert t < t0 + 20 * TICK_NS, "the goal was not reached"
+        probe.tick(t)
+        probe.answer(t, 5.0)
+        probe.silent_for(-1, 0.2)  # its status, if it changed, arrives meanwhile
+    return t
+
+
+@pytest.mark.parametrize("probe", [(0.3, 0, 0, True)], indirect=True)
+def test_in_the_lockstep_the_wait_for_the_next_goal_has_no_wall_clock_limit(probe):
+    """swarm-up's commanders are in the lockstep (``wait_for_commander``): a commander that is
+    alive but slow (paused, descheduled) costs wall time, never a goal-wait timeout, so the goal
+    still takes effect at the tick it was due (swarm_common.lockstep)."""
+    t_end = _reach_a_goal(probe, 10 * TICK_NS)
+    t1 = t_end + TICK_NS
+    probe.tick(t1)
+    assert probe.silent_for(t1, 1.5), "the tick after the goal ended did not wait (or timed out)"
+    probe.send_goal(t_end, 3.0, 0.0)  # stamped with the status time, as BasicNavigator does
+    probe.answer(t1, 5.0)
+    assert probe.answers[t1][0] > 0.0, "the late goal did not take effect on the tick it was due"
+    spin_until(probe.executor, lambda: probe.status.get("state") == "DRIVING", 5.0, "driving")
+    assert probe.status["goal_wait_timeouts"] == "0"
+
+
+@pytest.mark.parametrize("probe", [(0.3, 0, 0, True, True)], indirect=True)
+def test_the_end_of_a_goal_is_answered_on_the_commanders_word(probe):
+    """``hold_goal_end`` (centralized runs): the status of the tick at which a goal ended goes
+    out, its answer waits for ``navigator/goal_coming``; the next tick then waits for the goal,
+    which arrives pending (``pending_goal_id``) and takes effect at the tick after its stamp."""
+    from std_srvs.srv import Trigger
+
+    coming = probe.node.create_client(Trigger, "/hs/navigator/goal_coming")
+    spin_until(probe.executor, coming.service_is_ready, 10.0, "the goal_coming service")
+    t0 = 10 * TICK_NS
+    probe.tick(t0)
+    probe.answer(t0, 10.0)
+    spin_until(probe.executor, lambda: probe.status.get("stamp") == format_stamp_ns(t0), 5.0,
+               "the status of the first tick")
+    probe.send_goal(t0, 0.1, 0.0)
+    t = t0 + TICK_NS
+    probe.tick(t)
+    spin_until(probe.executor, lambda: probe.status.get("state") == "SUCCEEDED", 5.0,
+               "the goal reached")
+    t_end = t
+    while t_end not in probe.answers and probe.status.get("stamp") != format_stamp_ns(t_end):
+        probe.executor.spin_once(timeout_sec=0.05)
+    assert probe.status.get("stamp") == format_stamp_ns(t_end)
+    assert probe.silent_for(t_end, 1.5), "the tick at which the goal ended was answered"
+    future = coming.call_async(Trigger.Request())
+    spin_until(probe.executor, future.done, 5.0, "the goal_coming answer")
+    assert future.result().success
+    probe.answer(t_end, 5.0)
+    t1 = t_end + TICK_NS
+    probe.tick(t1)
+    assert probe.silent_for(t1, 1.0), "the tick after the goal ended did not wait for the goal"
+    probe.send_goal(t_end + 3 * TICK_NS, 3.0, 0.0)  # stamped ahead, as a hand-over is
+    spin_until(probe.executor, lambda: probe.status.get("pending_goal_id")
+               == format_stamp_ns(t_end + 3 * TICK_NS), 5.0, "the pending goal's status")
+    probe.answer(t1, 5.0)
+    assert probe.answers[t1] == (0.0, 0.0)
+
+
+@pytest.mark.parametrize("probe", [5.0], indirect=True)
+def test_a_tick_published_again_is_not_answered_again(probe):
+    """The simulator publishes a held tick again (the start gate, a rejoining robot); a
+    navigator that answered it already does not step it a second time."""
+    t0 = 10 * TICK_NS
+    probe.tick(t0)
+    probe.answer(t0, 10.0)
+    probe.answers.clear()
+    probe.tick(t0)
+    assert probe.silent_for(t0, 1.0), "an answered tick was answered again"

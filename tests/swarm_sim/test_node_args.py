@@ -12,7 +12,7 @@ from swarm_sim.node import parse_settings
 def test_defaults_are_typed():
     s = parse_settings([])
     assert (s.swarm_size, s.name_prefix, s.seed, s.rtf, s.duration) == (5, "Srobot", 0, 1.0, None)
-    assert (s.control_rate, s.command_timeout, s.wait_for) == (10.0, 3.0, 0)
+    assert (s.control_rate, s.stall_report, s.wait_for) == (10.0, 10.0, 0)
     assert type(s.swarm_size) is int and type(s.rtf) is float
 
 

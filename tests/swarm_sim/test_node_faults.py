@@ -91,7 +91,7 @@ def test_sim_executes_faults_at_their_ticks(tmp_path):
         (2, "drop", "start", "Srobot2", 2.0), (2, "drop", "end", "Srobot2", 2.5),
         (3, "kill-robot", "start", "Srobot2", 3.0)], log
     s = json.loads(summary.read_text())
-    assert s["late_ticks"] == 0 and s["faults"]["ack_timeouts"] == 0, log
+    assert s["late_ticks"] == 0 and "ack_timeouts" not in s["faults"], log
     assert s["faults"]["messages_dropped"] == {"2": 5}, log
     assert wall < 20.0, f"the simulator waited for lost messages ({wall:.1f} s)\n{log}"
     # Frozen: the steps of ticks 1.0 .. 1.9 are held (odometry of 1.1 .. 2.0 shows a zero

@@ -74,18 +74,30 @@ def test_one_file_per_namespace_rooted_at_ns_navigator(cfg, template):
         assert params["poi_file"] == str(cfg.poi_path)
         assert params["map_yaml_path"] == ""  # navigators take the map from /map
         assert params["robot"] == "turtlebot3_waffle"
-        assert params["wait_for_commander"] is True and params["goal_wait_timeout"] == 2.5
+        # the commanders are in the lockstep: no wait for them has a wall-clock limit
+        assert params["wait_for_commander"] is True and params["hold_goal_end"] is False
+        assert "goal_wait_timeout" not in params  # only for a commander outside the lockstep
         assert params["wait_for_status_readers"] == 2  # the metrics listener and the commander
         assert params["wait_for_cmd_vel_readers"] == 1  # the simulator
 
 
-def test_without_commanders_no_start_gate_and_the_short_goal_wait(cfg, template):
+def test_without_commanders_no_start_gate_and_no_lockstep_commander(cfg, template):
     """With commanders (above) a loaded machine must not turn a late goal into a different run;
-    without, a user's commander may have nothing more to send, so ticks wait 0.5 s at most."""
+    without, a user's commander may have nothing more to send: the navigator's own
+    goal_wait_timeout (0.5 s) bounds its wait."""
     params = yaml.safe_load(write_params_files(replace(cfg, commanders=False), template)[0]
                             .read_text())["/Srobot1/navigator"]["ros__parameters"]
-    assert params["wait_for_commander"] is False and params["goal_wait_timeout"] == 0.5
+    assert params["wait_for_commander"] is False and params["hold_goal_end"] is False
     assert params["wait_for_status_readers"] == 1  # the metrics listener
+
+
+def test_centralized_commanders_hold_the_end_of_each_goal(cfg, template):
+    """Under --coordination centralized the tick at which a goal ends waits for the
+    commander's word: the coordinator then has every request of that tick."""
+    params = yaml.safe_load(write_params_files(replace(cfg, coordination="centralized"),
+                                               template)[0].read_text())[
+        "/Srobot1/navigator"]["ros__parameters"]
+    assert params["wait_for_commander"] is True and params["hold_goal_end"] is True
 
 
 @pytest.mark.parametrize(("topics", "status_readers", "cmd_vel_readers"), [
