@@ -129,8 +129,7 @@ def static_costmaps(occ: OccupancyMap, cfg: CostmapConfig, keepout: np.ndarray,
         occ: the occupancy map.
         cfg: the costmap settings.
         keepout: (K, 2) x, y [m] in ``map`` of the keep-out discs' centres.
-        radius: the discs' radius [m].
-        cost: the discs' cost.
+        radius, cost: the discs' radius [m] and cost.
     """
     data = np.ascontiguousarray(occ.data)
     h = hashlib.blake2b(data.tobytes(), digest_size=16)
@@ -306,8 +305,7 @@ class NavigatorCore:
 
         Args:
             pose: (3,) the robot's x [m], y [m], yaw [rad] in ``map``.
-            v: its current forward speed [m/s].
-            w: its current rotational speed [rad/s].
+            v, w: its current forward [m/s] and rotational [rad/s] speeds.
             now: time [s].
 
         Returns:
@@ -455,12 +453,9 @@ class NavigatorCore:
             self._end(NavState.ABORTED, self._now, res.reason)
 
     def _at_goal(self, pose: np.ndarray) -> bool:
-        tol = self.cfg.goal.xy_goal_tolerance
-        if np.hypot(*(pose[:2] - self._goal[:2])) <= tol:
-            return True
-        if self._adjusted_goal is not None and np.hypot(*(pose[:2] - self._adjusted_goal)) <= tol:
-            return True
-        return False
+        tol, adjusted = self.cfg.goal.xy_goal_tolerance, self._adjusted_goal
+        return bool(np.hypot(*(pose[:2] - self._goal[:2])) <= tol or (
+            adjusted is not None and np.hypot(*(pose[:2] - adjusted)) <= tol))
 
     def _rotate_to_goal(self, pose: np.ndarray, now: float) -> tuple[float, float]:
         err = wrap_angle(self._goal[2] - pose[2])

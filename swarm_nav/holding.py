@@ -1,7 +1,7 @@
 """What a holding robot judges from its own scan: is the goal taken, and where to hold.
 
 No communication: a robot judges its goal from the other robots it sees in its own scan
-(:func:`swarm_nav.perception.perceive_robots`: clusters of the points the static map does not
+(:func:`swarm_nav.perception.perceive`: clusters of the points the static map does not
 explain, with their velocities). The goal is occupied when a robot has enough points in the disc
 of ``goal_occupied_radius`` about it and is not seen leaving. First come, first served among robots
 that see each other: a robot yields when it sees another robot within ``yield_radius`` of its goal,
@@ -91,7 +91,7 @@ def goal_occupied(robots: Sequence[SeenRobot], goal_xy, cfg: HoldingConfig) -> b
     """Whether another robot stands on the goal (or is driving onto it, and not off it).
 
     Args:
-        robots: the robots seen (:func:`~swarm_nav.perception.perceive_robots`).
+        robots: the robots seen (:func:`~swarm_nav.perception.perceive`).
         goal_xy: (2,) the goal x, y [m].
         cfg: ``goal_occupied_radius`` [m], ``goal_occupied_min_points``, ``moving_speed`` [m/s].
 
@@ -115,9 +115,8 @@ def someone_came_first(robots: Sequence[SeenRobot], robot_xy, goal_xy,
     """First come, first served: another robot heading for our goal and nearer to it than we are.
 
     Args:
-        robots: the robots seen (:func:`~swarm_nav.perception.perceive_robots`).
-        robot_xy: (2,) our position x, y [m].
-        goal_xy: (2,) the goal x, y [m].
+        robots: the robots seen (:func:`~swarm_nav.perception.perceive`).
+        robot_xy, goal_xy: (2,) our position and the goal, x, y [m].
         cfg: ``yield_radius`` [m], ``yield_margin`` [m] and ``moving_speed`` [m/s].
 
     Returns:
@@ -147,9 +146,8 @@ def goal_crowded(robots: Sequence[SeenRobot], robot_xy, goal_xy, cfg: HoldingCon
     docs/design/navigator.md#queue-rule).
 
     Args:
-        robots: the robots seen (:func:`~swarm_nav.perception.perceive_robots`).
-        robot_xy: (2,) our position x, y [m].
-        goal_xy: (2,) the goal x, y [m].
+        robots: the robots seen (:func:`~swarm_nav.perception.perceive`).
+        robot_xy, goal_xy: (2,) our position and the goal, x, y [m].
         cfg: ``crowd_radius`` [m], ``crowd_limit``, ``moving_speed`` [m/s] and
             ``holding_arrive_tolerance`` [m].
         elsewhere: (J, 2) x, y [m] of the other workstations and their holding points (not the

@@ -279,7 +279,8 @@ def test_a_robot_predicted_into_our_footprint_does_not_unlock_driving_into_anoth
     us is predicted *inside* our footprint. DWA relaxes its padding to the current gap when the
     robot already is that near (so that it can leave a tight spot); a predicted point there
     relaxed it against the real robot standing 6.5 cm in front, and we drove into it."""
-    from swarm_nav.dwa import Footprint, footprint_gaps, rollout
+    from swarm_nav.dwa import Footprint, footprint_gaps
+    from tests.swarm_nav.helpers import rollout
 
     pose = np.array([2.0, 3.0, 0.0])
     core = NavigatorCore(NavigatorConfig(), WAFFLE_FOOTPRINT)

@@ -14,7 +14,6 @@ from swarm_nav.traffic import (
     YieldStep,
     keep_right,
     must_yield,
-    oncoming,
     oncoming_centres,
     plan_retreat,
     retreat_candidates,
@@ -85,6 +84,15 @@ def test_retreat_candidates_are_off_the_line_and_not_beyond_the_other():
 
 def seen(x, y, vx, vy):
     return SeenRobot(np.array([x, y]), np.array([[x, y]]), np.array([vx, vy]))
+
+
+def oncoming(robots, robot_xy, moving_speed):
+    """oncoming_centres of SeenRobot objects (the rule read robot by robot)."""
+    if not robots:
+        return np.zeros((0, 2))
+    return oncoming_centres(np.array([r.centre for r in robots], dtype=float),
+                            np.array([r.velocity for r in robots], dtype=float),
+                            robot_xy, moving_speed)
 
 
 def test_oncoming_counts_robots_driving_toward_us():
