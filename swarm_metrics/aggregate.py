@@ -2,7 +2,8 @@
 
 Pure: no ROS import.  :class:`RunRecorder` is fed plain dicts (the metrics node converts
 ``diagnostic_msgs`` messages into them) and :func:`aggregate` turns its state, the simulator's
-``--summary`` JSON and the orchestrator's own figures into the ``--metrics`` dict (SPEC §6).
+``--summary`` JSON and the orchestrator's own figures into the ``--metrics`` dict
+(docs/reference/contract.md#s6).
 
 Definitions (``docs/ARCHITECTURE.md``, ``/<ns>/nav_status``):
 
@@ -671,7 +672,7 @@ def aggregate(
     holding: Mapping[str, list[tuple[float, float]]] | None = None,
     models: Sequence[str] | None = None,
 ) -> dict:
-    """The ``--metrics`` dict of a run (SPEC §6).
+    """The ``--metrics`` dict of a run (docs/reference/contract.md#s6).
 
     Simulator figures (``sim_time_s``, ``rtf``, ticks, collisions, separation, late ticks,
     distances) come from the simulator's summary; where it lacks them, from the recorder's
@@ -700,7 +701,8 @@ def aggregate(
             ``per_robot`` entry's ``robot``; None: neither.
 
     Returns:
-        A JSON-serialisable dict with the keys of SPEC §6 (None where unknown).
+        A JSON-serialisable dict with the keys of docs/reference/contract.md#s6 (None where
+        unknown).
     """
     sim = sim_summary
     robots = recorder.robots

@@ -378,8 +378,9 @@ class HoldingBehaviour:
         move: at every judgement in that time the goal was in sight and taken, and no robot was
         seen moving (faster than ``moving_speed``) within 2 x ``goal_occupied_radius`` of it. A
         queue at a workstation moves whenever a robot docks or leaves; a robot that died on it
-        never does. The goal is then unreachable, and given up (SPEC §5: aborted with the
-        reason) rather than held for ever (why: docs/design/navigator.md#occupied-timeout).
+        never does. The goal is then unreachable, and given up (aborted with the reason:
+        docs/reference/contract.md#s5-navigation) rather than held for ever (why:
+        docs/design/navigator.md#occupied-timeout).
 
         Args:
             occupied: this tick's judgement (None: not judged, out of sight or no fresh scan).
@@ -409,7 +410,8 @@ class HoldingBehaviour:
         :func:`~swarm_nav.holding.goal_occupied`, :func:`~swarm_nav.holding.someone_came_first`,
         :func:`~swarm_nav.holding.goal_crowded`). The goal becomes that workstation's docking pose
         (``nav_status`` reports it; the goal id stays), the holding pattern starts afresh for it.
-        Our design: SPEC §5 has the robot hold until its own goal is free (why:
+        Our design: the contract has the robot hold until its own goal is free
+        (docs/reference/contract.md#s5-navigation; why:
         docs/design/navigator.md#taking-another-workstation).
 
         Returns:

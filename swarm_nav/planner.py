@@ -88,10 +88,10 @@ def plan_path(costmap: Costmap, start, goal, cfg: PlannerConfig) -> PlanResult:
     A start inside the inscribed zone (e.g. a robot pushed against a wall, or a robot seen in the
     scan overlaid on the costmap) first escapes to the nearest traversable cell within
     ``start_escape_radius``.  A goal in a lethal cell (inside an obstacle) is ``"goal in
-    obstacle"``, as SPEC §5 wants; a goal in the inflation (inscribed or unknown, not lethal) is
-    replaced by the nearest reachable traversable cell within ``tolerance``, as NavFn does, and
-    is ``"goal in obstacle"`` when there is none; a goal in a free cell that is not reachable is
-    ``"no path"``, never moved across a wall.
+    obstacle"``, as docs/reference/contract.md#s5-navigation wants; a goal in the inflation
+    (inscribed or unknown, not lethal) is replaced by the nearest reachable traversable cell
+    within ``tolerance``, as NavFn does, and is ``"goal in obstacle"`` when there is none; a goal
+    in a free cell that is not reachable is ``"no path"``, never moved across a wall.
 
     Args:
         costmap: the costmap (usually :func:`~swarm_nav.costmap.build_costmap`'s).

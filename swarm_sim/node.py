@@ -1,4 +1,4 @@
-"""``swarm-sim``: the simulator node ``/swarm_sim`` (SPEC §2, §3, §5).
+"""``swarm-sim``: the simulator node ``/swarm_sim`` (docs/reference/contract.md#s2, #s3, #s5).
 
 Loads a Gazebo world and a URDF robot, spawns exactly N robots, and runs the synchronous control
 loop of docs/ARCHITECTURE.md: each control tick it publishes ``/clock``, every robot's ``odom``
@@ -723,7 +723,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--faults", default=None, metavar="SPEC",
                    help="inject faults at simulated times: KIND[:TARGET]@TIME[+DURATION],... "
                    "or a YAML file (kinds kill-nav, kill-robot, freeze, drop, kill-coordinator; "
-                   "see README, Faults) [none]")
+                   "see docs/guides/faults.md) [none]")
     p.add_argument("--fault-ack-timeout", type=cli.positive_float, default=10.0,
                    metavar="SEC", help="wall seconds a tick waits for a fault's "
                    "acknowledgement on /swarm/fault_acks [10]")

@@ -539,7 +539,7 @@ def test_a_holding_robot_takes_the_free_workstation_beside_its_taken_goal(occ, k
     loader3 free within ``swap_range`` (2.5 m), docks there instead: SUCCEEDED, with loader3 as
     the goal in its status and a note naming both. Without kinds (``kinds`` "none"), with every
     loader but loader4 of another kind ("other") or with ``swap_range`` 0 ("off") it holds for
-    loader4, as SPEC §5 says."""
+    loader4, as docs/reference/contract.md#s5-navigation says."""
     sites, site_kinds, ws = _loaders()
     if kinds == "none":
         site_kinds = []
