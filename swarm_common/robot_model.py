@@ -135,7 +135,7 @@ DEFAULT_LIMITS = RobotLimits()
 
 @dataclass(frozen=True, eq=False)
 class RobotModel:
-    """Everything the simulator and the navigator need to know about one robot type.
+    """Everything the simulator and the navigator need to know about one robot model.
 
     Compared and hashed by identity (it holds arrays); :func:`load_robot` returns the same
     object for the same unchanged file, so it can key a cache.

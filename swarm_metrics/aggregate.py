@@ -155,8 +155,8 @@ class RobotRecord:
     late_events: int = 0
     goal_wait_timeouts: int = 0  # the navigator's counter, as last published
     goal_wait_timeouts_before: int = 0  # the counters of earlier (restarted) navigator processes
-    task_times: list[float] = field(default_factory=list)  # [s] sim time of each first SUCCEEDED
-    reached_at: dict[str, float] = field(default_factory=dict)  # goal id -> sim time [s] reached
+    task_times: list[float] = field(default_factory=list)  # simulated [s]: each first SUCCEEDED
+    reached_at: dict[str, float] = field(default_factory=dict)  # goal id -> simulated [s] reached
     goal_xy: dict[str, tuple[float, float]] = field(default_factory=dict)  # goal id -> x, y [m]
     applied: set[str] = field(default_factory=set)  # goal ids seen applied
     late_goals: int = 0  # goals applied after the first tick after their stamp
@@ -688,7 +688,7 @@ def aggregate(
             simulator's own ``wall_time_s`` is missing).
         resources: ``cpu_percent`` [%] and ``peak_rss_mb_per_robot`` [MB] (ResourceSampler).
         restarts: restarts of navigators/commanders/groups.
-        extra: more keys to add (run dir, process layout, ...).
+        extra: more keys to add (run directory, process layout, ...).
         fault_restarts: those of ``restarts`` that injected faults caused.
         map_deliveries: ``/map`` copies each robot's navigator received (one per process
             start); None: one each.

@@ -202,7 +202,7 @@ class HoldingConfig:
                                  "along its path", check=">0")
     holding_arrive_tolerance: float = _p(0.35, "m", "a holding point counts as reached within "
                                          "this", check=">0")
-    holding_target_check_range: float = _p(2.5, "m", "a holding target this close is checked for "
+    holding_target_check_range: float = _p(2.5, "m", "a holding point this close is checked for "
                                            "another robot standing on it (a taken loop point is "
                                            "skipped, a taken spot replaced by a staging point)",
                                            check=">=0")

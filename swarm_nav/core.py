@@ -15,7 +15,7 @@ is taken: holding spot or loop), RECOVERING, SUCCEEDED, ABORTED (with the reason
 Per tick in DRIVING/HOLDING: goal reached? (within ``xy_goal_tolerance``, latched, then an in-place
 rotation to the goal yaw) -> holding pattern (:meth:`HoldingBehaviour.step
 <swarm_nav.holding_behaviour.HoldingBehaviour.step>` decides: drive on, hold, wait, replan to a
-new holding target, take another workstation, or give the goal up) -> replan if the robot left
+new holding point, take another workstation, or give the goal up) -> replan if the robot left
 its path by more than ``max_path_deviation``, or something blocks the path ahead (a robot standing
 on it for ``stationary_replan_time``, anything else for ``blocked_replan_time``; the replan then
 plans around the robots seen) -> DWA on the local stretch of the path, shifted to the right while
@@ -32,7 +32,7 @@ turn (:func:`~swarm_nav.recovery.escape_command`). The other robots are known on
 
 Paths are planned on the static costmap plus keep-out discs about the workstations and holding
 points (robots stop there, so paths to elsewhere keep to the lanes).  Plans are made only on a new
-goal or holding target, a blocked path, a path left behind, or a recovery.
+goal or holding point, a blocked path, a path left behind, or a recovery.
 """
 
 from __future__ import annotations

@@ -203,8 +203,8 @@ class HoldingKind(StrEnum):
     """What the navigator is to do after a tick of the holding behaviour."""
 
     DRIVE = "drive"        # drive to the goal (replan: the holding just ended, plan to it again)
-    HOLD = "hold"          # drive to the holding target (replan: the target moved)
-    WAIT = "wait"          # stand at the holding target (replan: as HOLD), no motion
+    HOLD = "hold"          # drive to the holding point (replan: the point moved)
+    WAIT = "wait"          # stand at the holding point (replan: as HOLD), no motion
     NEW_GOAL = "new_goal"  # another workstation was taken: ``goal``, planned as ``plan``
     ABORT = "abort"        # give the goal up, for ``reason``
 
@@ -216,7 +216,7 @@ class HoldingDecision:
     Attributes:
         kind: what to do.
         replan: DRIVE, HOLD, WAIT: plan again from the robot to the target (the goal, or the
-            holding target) and restart the progress checker.
+            holding point) and restart the progress checker.
         goal: NEW_GOAL: (3,) x, y [m], yaw [rad] in ``map`` of the other workstation's docking
             pose, the new goal (the goal id stays).
         plan: NEW_GOAL: the plan to it.

@@ -111,7 +111,7 @@ class NavigatorNode(Node):
         **kwargs: passed to :class:`rclpy.node.Node` (``context``, ``cli_args``, ...).
 
     Raises:
-        InputError: a parameter value is invalid, or the robot or POI file cannot be loaded.
+        InputError: a parameter value is invalid, or the robot or points of interest do not load.
     """
 
     def __init__(self, namespace: str | None = None, **kwargs):

@@ -209,7 +209,7 @@ def share_cost_to_go(robots: int) -> None:
 
     A field is a whole-map search from a goal cell, asked for by every plan and replan toward
     that goal. The targets are the workstations, their holding spots and each robot's own
-    staging and retreat points, so fewer fields than robots let the staging points push the
+    staging points and retreat places, so fewer fields than robots let the staging points push the
     workstations' fields out (measured: docs/design/navigator.md#replanning). The fields are the
     same either way; only when they are searched changes.
 

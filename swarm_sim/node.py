@@ -759,7 +759,7 @@ def prepare(settings: SimSettings):
         ``skipped`` names what of it is not simulated.
 
     Raises:
-        InputError: an unknown or malformed world, robot, map or POI file, a bad name prefix, or
+        InputError: a missing or malformed world, robot, map or points of interest, bad prefix, or
             more robots than fit.
     """
     from swarm_common.fleet import describe_fleet, fleet_models
