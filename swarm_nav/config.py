@@ -396,13 +396,8 @@ _SUBCONFIGS = {
 
 @dataclass(frozen=True)
 class ParamInfo:
-    """One flat navigator parameter as the node declares it.
-
-    Attributes:
-        default: the default value; its type is the parameter's type (bool, int, float).
-        unit: the unit, e.g. ``"m/s"``; ``"-"`` for counts, flags and ratios.
-        description: one line, for the ParameterDescriptor.
-    """
+    """One flat navigator parameter as the node declares it: its default (whose type is the
+    parameter's), unit and one-line description, as :func:`_p` gave them."""
 
     default: Any
     unit: str

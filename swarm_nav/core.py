@@ -96,9 +96,9 @@ class NavStatus:
         goal: (3,) x [m], y [m], yaw [rad] of the goal in ``map``, or ``None``.
         distance_remaining: distance [m] still to drive (along the path when it leads to the goal,
             else straight to the goal); 0 without a goal.
-        navigation_time: time [s] since the goal was accepted (frozen when it ended).
+        navigation_time, holding_time: time [s] since the goal was accepted (frozen when it
+            ended), and spent holding for it.
         recoveries: recovery behaviours run for this goal.
-        holding_time: time [s] spent holding for this goal.
         reason: why the goal was aborted (or a note on success); ``""`` otherwise.
     """
 

@@ -166,9 +166,7 @@ def footprint_gaps(x, y, yaw, points: Points2D, footprint: Footprint) -> np.ndar
     outside (exact except toward the corners).
 
     Args:
-        x: (...) pose x [m] in ``map``.
-        y: (...) pose y [m].
-        yaw: (...) pose yaw [rad].
+        x, y, yaw: (...) poses x, y [m] in ``map`` and yaw [rad].
         points: (M, 2) obstacle points x, y [m] in ``map``.
         footprint: the footprint box.
 

@@ -244,8 +244,7 @@ class HoldingBehaviour:
             workstation of its goal's kind (``swap_range``). Empty: never.
 
     Attributes:
-        sites: the workstations' holding sites.
-        kinds: their kinds.
+        sites, kinds: the workstations' holding sites and their kinds.
         avoid: (J, 2) x, y [m] of every workstation and holding point (keep-out discs, staging).
         pattern: the current goal's :class:`HoldingPattern`, or ``None`` before its first plan.
         sent_goal: (3,) the goal as set, once another workstation was taken for it; else

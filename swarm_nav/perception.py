@@ -142,9 +142,7 @@ class RobotTracker:
         """The robots of a new scan (:func:`perceive`); remembers their centres.
 
         Args:
-            dyn_points: (M, 2) dynamic scan points x, y [m] in ``map`` (:func:`dynamic_points`).
-            viewer_xy: (2,) the lidar's (or robot's) x, y [m].
-            now: the scan's time [s].
+            dyn_points, viewer_xy: as :func:`perceive`'s; now: the scan's time [s].
 
         Returns:
             ``(robots, seen)``: one :class:`SeenRobot` per cluster, velocities NaN until a scan

@@ -265,8 +265,7 @@ class Yield:
         target: (2,) the retreat place x, y [m] in ``map``.
         t0: when the yield began [s].
         other: (2,) the other robot's estimated centre [m] when it began.
-        phase: ``"drive"`` or ``"wait"``.
-        t_phase: when the phase began [s].
+        phase, t_phase: ``"drive"`` or ``"wait"``, and when it began [s].
         still_since: since when [s] the drive found no motion, or ``None``.
         clear_since: since when [s] the path ahead has been clear while waiting, or ``None``.
         start: (2,) where the robot was when the yield began [m], or ``None`` (not checked).
