@@ -1,4 +1,4 @@
-"""The messaging baseline of ``swarm-bench --baseline`` (SPEC §6, issue 8).
+"""The messaging baseline of ``swarm-bench --baseline`` (docs/reference/contract.md#s6).
 
 How fast can the swarm's ROS traffic alone go?  The baseline relays the same messages as a
 ``swarm-up --commanders --rtf 0`` run, lockstep and unpaced, with nothing else to do, in the same

@@ -1,5 +1,5 @@
 """``swarm-bench``: sizes x runs of ``swarm-up`` -> table, JSON, plot, and the messaging baseline
-(SPEC §2, §6).
+(docs/reference/contract.md#s2, #s6).
 
 For every size N and run r it starts, from this Python's ``bin/``::
 

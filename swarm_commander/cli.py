@@ -1,4 +1,4 @@
-"""``swarm-commander NS``: drive one robot through the world's workstations (SPEC §5 Commander).
+"""``swarm-commander NS``: one robot's commander (docs/reference/contract.md#s5-commander).
 
 ::
 

@@ -3,7 +3,7 @@
 A command builds its flags on :class:`ArgumentParser`, whose usage errors raise
 :class:`~swarm_common.errors.InputError` instead of printing usage and exiting; the command's
 entry point wraps its body in :func:`~swarm_common.errors.run_cli`, which turns that error into
-one line on stderr and exit code 2 (SPEC §2)::
+one line on stderr and exit code 2 (docs/reference/contract.md#s2)::
 
     swarm-up: error: --swarm-size: must be a positive integer, got '0'
 

@@ -1,4 +1,4 @@
-"""The exit-code contract of every command (SPEC §2).
+"""The exit-code contract of every command (docs/reference/contract.md#s2).
 
 ``0`` success, ``2`` bad input (one line on stderr naming the flag or file and what is wrong, no
 traceback), ``1`` runtime failure.  Loaders raise :class:`InputError`; command entry points wrap

@@ -1,4 +1,6 @@
-"""Which robot model each robot of a swarm is: ``--robot`` as one model or a mix (SPEC §2, §4).
+"""Which robot model each robot of a swarm is: ``--robot`` as one model or a mix.
+
+The contract: docs/reference/contract.md#s2, #s4.
 
 ``--robot`` of ``swarm-up`` and ``swarm-sim`` takes
 

@@ -99,7 +99,7 @@ class SpawnArea:
 
 @dataclass(frozen=True)
 class PointsOfInterest:
-    """Everything a world's POI file says.
+    """Everything a world's points of interest say.
 
     Attributes:
         workstations: in file order.

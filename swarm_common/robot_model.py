@@ -1,4 +1,6 @@
-"""Robot models from URDF/xacro: footprint, drive geometry, lidar and limits (SPEC §4 "Robots").
+"""Robot models from URDF/xacro: footprint, drive geometry, lidar and limits.
+
+The contract: docs/reference/contract.md#s4, "Robots".
 
 A robot is ``robots/<name>.urdf.xacro`` (or ``.urdf``), or a path to any ``.urdf``, ``.xacro`` or
 ``.urdf.xacro`` file.  xacro files are processed with the ``xacro`` package, the result is parsed
@@ -133,7 +135,7 @@ DEFAULT_LIMITS = RobotLimits()
 
 @dataclass(frozen=True, eq=False)
 class RobotModel:
-    """Everything the simulator and the navigator need to know about one robot type.
+    """Everything the simulator and the navigator need to know about one robot model.
 
     Compared and hashed by identity (it holds arrays); :func:`load_robot` returns the same
     object for the same unchanged file, so it can key a cache.

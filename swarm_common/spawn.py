@@ -99,10 +99,11 @@ class FreeRegion:
 def largest_free_region(occ) -> FreeRegion:
     """The largest connected free region of a map, and its clearest cell.
 
-    The spawn rule of a world without points of interest (SPEC §4: "spawn in the largest free
-    area"): take the 4-connected region of free cells (value 0) with the most cells, then the
-    cell of that region farthest from anything outside it (Euclidean distance transform, the
-    map's edge counting as outside). Ties go to the first cell in row-major order.
+    The spawn rule of a world without points of interest (docs/reference/contract.md#s4:
+    "spawn in the largest free area"): take the 4-connected region of free cells (value 0) with
+    the most cells, then the cell of that region farthest from anything outside it (Euclidean
+    distance transform, the map's edge counting as outside). Ties go to the first cell in
+    row-major order.
 
     Args:
         occ: a :class:`swarm_common.occupancy.OccupancyMap`.

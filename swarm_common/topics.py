@@ -12,7 +12,10 @@ is named here too (``*_READER_QOS``), with the reason, and is compatible with th
 (a reliable writer serves best-effort readers; a transient-local writer serves volatile ones).
 
 Names: absolute (``/clock``) or relative to the robot's namespace (``odom`` is
-``/<ns>/odom``, :func:`robot_topic`).
+``/<ns>/odom``, :func:`robot_topic`).  Each topic also says who writes and who reads it
+(:attr:`Topic.writers`, :attr:`Topic.readers`: plain words, a named reader QoS in brackets), and
+the docstring after it says why it is as it is: ``docs/reference/topics.md`` is generated from
+this module (``tools/gen_docs.py``).
 """
 
 from __future__ import annotations
@@ -52,11 +55,31 @@ class Topic:
         name: absolute (``/clock``) or relative to a robot's namespace (``odom``).
         type: the ROS 2 type name (``nav_msgs/msg/Odometry``).
         qos: what its writers offer.
+        writers: who publishes it (plain words, for the reference page).
+        readers: who subscribes to it (plain words; a reader's own QoS named in brackets).
     """
 
     name: str
     type: str
     qos: Qos
+    writers: tuple[str, ...] = ()
+    readers: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class Service:
+    """One service.
+
+    Attributes:
+        name: absolute, or relative to a robot's namespace (``navigator/cancel``).
+        type: the ROS 2 type name (``std_srvs/srv/Trigger``).
+        servers: who serves it; clients: who calls it (plain words).
+    """
+
+    name: str
+    type: str
+    servers: tuple[str, ...] = ()
+    clients: tuple[str, ...] = ()
 
 
 DEFAULT = Qos(10)
@@ -67,7 +90,11 @@ SENSOR_DATA = Qos(5, BEST_EFFORT)
 """rclpy's ``qos_profile_sensor_data``: best effort, depth 5."""
 
 # --------------------------------------------------------------------------------- swarm-wide
-CLOCK = Topic("/clock", "rosgraph_msgs/msg/Clock", Qos(10, durability=TRANSIENT_LOCAL))
+CLOCK = Topic("/clock", "rosgraph_msgs/msg/Clock", Qos(10, durability=TRANSIENT_LOCAL),
+              ("swarm_sim (every tick)",),
+              ("every use_sim_time node (rclpy's time source: best effort, 1), one per group "
+               "process", "swarm-up metrics (CLOCK_METRICS_READER_QOS)",
+               "swarm_coordinator (CLOCK_COORDINATOR_READER_QOS)", "recorder"))
 """Transient local, so that a reader that joins mid-run learns the simulated time at once, even
 while the simulator holds a tick (a restarted coordinator batches requests by it); volatile
 readers (every ``use_sim_time`` node) are served as before."""
@@ -75,9 +102,16 @@ CLOCK_COORDINATOR_READER_QOS = Qos(10, durability=TRANSIENT_LOCAL)
 """The coordinator answers a tick's requests once the simulator has published a later tick."""
 CLOCK_METRICS_READER_QOS = Qos(1, BEST_EFFORT)
 """The metrics listener wants only the latest simulated time, and never to slow the writer."""
-MAP = Topic("/map", "nav_msgs/msg/OccupancyGrid", LATCHED)
+MAP = Topic("/map", "nav_msgs/msg/OccupancyGrid", LATCHED, ("swarm_sim (once)",),
+            ("navigators", "swarm-up metrics (counts its bytes as communication)", "recorder"))
+"""The map every navigator plans on; latched, as nav2's map server publishes it."""
 EVENTS = Topic("/swarm/events", "diagnostic_msgs/msg/DiagnosticArray",
-               Qos(1000, durability=TRANSIENT_LOCAL))
+               Qos(1000, durability=TRANSIENT_LOCAL),
+               ("swarm_sim: spawn, collision, late, fault",
+                "swarm_coordinator: reservation, task, coordinator "
+                "(EVENTS_COORDINATOR_WRITER_QOS)"),
+               ("swarm-up metrics (and swarm-up's fault injection)",
+                "group processes with --faults", "recorder"))
 """The simulator's spawns, collisions and faults; the metrics listener and fault injection read
 it with this same profile.  Transient local on every side: a writer can match a reader before
 the reader has matched the writer, and a volatile reader drops what the writer sent in between
@@ -86,7 +120,9 @@ asks for the writer's history when it matches."""
 EVENTS_COORDINATOR_WRITER_QOS = Qos(100, durability=TRANSIENT_LOCAL)
 """The coordinator's writer of ``/swarm/events`` (a few events per task, reservations and its
 "up"): transient local for the reason :data:`EVENTS` gives, with a shorter history."""
-POSES = Topic("/swarm/poses", "geometry_msgs/msg/PoseArray", Qos(1))
+POSES = Topic("/swarm/poses", "geometry_msgs/msg/PoseArray", Qos(1),
+              ("swarm_sim (every tick, while it has a reader)",),
+              ("swarm-up live view (POSES_READER_QOS), while someone looks",))
 """The whole fleet's ground-truth poses in one message a tick.  The simulator publishes it, only
 while someone subscribes, in ``map``: ``poses[i]`` is robot ``i`` (0-based) of the simulator's
 namespaces, ``/<prefix>1`` ... ``/<prefix>N`` in that order; ``header.stamp`` is the tick's
@@ -96,27 +132,41 @@ live view").  The writer is reliable (it serves best-effort readers too, without
 acknowledgements)."""
 POSES_READER_QOS = Qos(POSES.qos.depth, BEST_EFFORT)
 """A live view reads the poses best effort: a late tick is replaced by the next one."""
-MARKERS = Topic("/swarm/markers", "visualization_msgs/msg/MarkerArray", Qos(1))
+MARKERS = Topic("/swarm/markers", "visualization_msgs/msg/MarkerArray", Qos(1),
+                ("swarm-up live view (2 Hz, with --markers or --dashboard, while it has a "
+                 "reader)",), ("RViz2", "Foxglove"))
+"""Every robot's outline, heading and plan and the workstations' states, in ``map``."""
 SUPERVISION = Topic("/swarm/supervision", "diagnostic_msgs/msg/DiagnosticStatus",
-                    Qos(100, durability=TRANSIENT_LOCAL))
+                    Qos(100, durability=TRANSIENT_LOCAL),
+                    ("swarm-up's supervisor: robots whose navigator process crashed",),
+                    ("swarm_sim",))
 """swarm-up's supervisor names robots whose navigator process is gone
 (:mod:`swarm_common.supervision`); the simulator stops waiting for them.  Transient local on both
 sides: a word sent before the reader matched is still delivered."""
 FAULT_ACKS = Topic("/swarm/fault_acks", "diagnostic_msgs/msg/DiagnosticStatus",
-                   Qos(100, durability=TRANSIENT_LOCAL))
+                   Qos(100, durability=TRANSIENT_LOCAL),
+                   ("swarm-up's fault injection", "group processes with --faults"),
+                   ("swarm_sim",))
 """Transient local on both sides (the simulator's reader too): an acknowledgement published
 before the simulator's reader had matched its writer is delivered when it matches."""
 
 # ------------------------------------------------------------------- the coordinator's topics
 COORDINATOR_REQUEST = Topic("/swarm/coordinator/request", "std_msgs/msg/String",
-                            Qos(10, durability=TRANSIENT_LOCAL))
+                            Qos(10, durability=TRANSIENT_LOCAL),
+                            ("commanders: ready, done, report",),
+                            ("swarm_coordinator (COORDINATOR_REQUEST_READER_QOS)",
+                             "swarm-up metrics (COMM_METRICS_READER_QOS)"))
 """The commanders' requests (:mod:`swarm_common.coordination`).  Transient local: a reader that
 matches late (the metrics listener counting the communication load) still gets the last ones."""
 COORDINATOR_REQUEST_READER_QOS = Qos(100)
 """The coordinator reads the requests volatile (no stale request) and keeps a burst of them."""
-COORDINATOR_STATE = Topic("/swarm/coordinator/state", "std_msgs/msg/String", LATCHED)
+COORDINATOR_STATE = Topic("/swarm/coordinator/state", "std_msgs/msg/String", LATCHED,
+                          ("swarm_coordinator",), ("commanders", "swarm-up metrics"))
+"""The coordinator's ``up`` with its epoch (new at every start) and robots."""
 ASSIGNMENT = Topic("coordinator/assignment", "std_msgs/msg/String",
-                   Qos(10, durability=TRANSIENT_LOCAL))
+                   Qos(10, durability=TRANSIENT_LOCAL), ("swarm_coordinator: go, wait",),
+                   ("the robot's commander (ASSIGNMENT_READER_QOS)",
+                    "swarm-up metrics (COMM_METRICS_READER_QOS)"))
 """The coordinator's answer to one robot (relative: ``/<ns>/coordinator/assignment``).
 Transient local writer: a late-matching metrics reader still counts the first answers."""
 ASSIGNMENT_READER_QOS = Qos(10)
@@ -127,11 +177,21 @@ transient local, so requests and answers published before it matched are deliver
 writers' history when it matches."""
 
 # --------------------------------------------------------------------------- a robot's topics
-ODOM = Topic("odom", "nav_msgs/msg/Odometry", DEFAULT)
-GROUND_TRUTH = Topic("ground_truth", "nav_msgs/msg/Odometry", DEFAULT)
-SCAN = Topic("scan", "sensor_msgs/msg/LaserScan", SENSOR_DATA)
+ODOM = Topic("odom", "nav_msgs/msg/Odometry", DEFAULT, ("swarm_sim (every tick)",),
+             ("the robot's navigator", "recorder"))
+"""``odom`` -> ``base_footprint``; starts at the spawn pose in ``map`` (no drift)."""
+GROUND_TRUTH = Topic("ground_truth", "nav_msgs/msg/Odometry", DEFAULT,
+                     ("swarm_sim (every tick, while it has a reader)",), ("recorder (for /tf)",))
+"""The robot's true pose in ``map``."""
+SCAN = Topic("scan", "sensor_msgs/msg/LaserScan", SENSOR_DATA, ("swarm_sim (on lidar ticks)",),
+             ("the robot's navigator", "swarm-up live view (while a browser shows that robot)",
+              "recorder"))
+"""Frame ``<ns>/base_scan``, or the model's lidar link."""
 CMD_VEL = Topic("cmd_vel", "geometry_msgs/msg/TwistStamped",
-                Qos(300, durability=TRANSIENT_LOCAL))
+                Qos(300, durability=TRANSIENT_LOCAL),
+                ("the robot's navigator (one per tick, stamped with the tick)",
+                 "anyone, with a zero stamp (manual driving, applied at once)"),
+                ("swarm_sim (CMD_VEL_READER_QOS)", "recorder"))
 """The navigator's writer: reliable and transient-local with 300 messages (30 s simulated at
 10 Hz), like ``/rosout``, so that a reader that asks for transient-local (the recorder) gets the
 commands sent before it matched.  A writer matches a reader before the reader matches the
@@ -139,9 +199,15 @@ writer; what the writer sends in between, a volatile reader drops (23 ticks of o
 CI run, the navigator's start gate passed on the writer's side)."""
 CMD_VEL_READER_QOS = DEFAULT
 """The simulator reads ``cmd_vel`` volatile: it wants each tick's command, not a history."""
-PLAN = Topic("plan", "nav_msgs/msg/Path", LATCHED)
+PLAN = Topic("plan", "nav_msgs/msg/Path", LATCHED,
+             ("the robot's navigator (built only while it has a reader)",),
+             ("swarm-up live view, while someone looks", "recorder"))
+"""The global path in ``map``."""
 NAV_STATUS = Topic("nav_status", "diagnostic_msgs/msg/DiagnosticStatus",
-                   Qos(100, durability=TRANSIENT_LOCAL))
+                   Qos(100, durability=TRANSIENT_LOCAL),
+                   ("the robot's navigator (on every change of state and at 2 Hz simulated)",),
+                   ("the robot's commander (NAV_STATUS_COMMANDER_READER_QOS)",
+                    "swarm-up metrics (NAV_STATUS_METRICS_READER_QOS)", "recorder"))
 """The navigator's writer: reliable and transient-local with 100 messages (50 s simulated at
 2 Hz), for the reason :data:`CMD_VEL` has one: a reader whose side matched late still gets every
 status, not the last alone, and so every goal, even one that ended, or whose navigator was
@@ -152,13 +218,26 @@ NAV_STATUS_METRICS_READER_QOS = Qos(100, durability=TRANSIENT_LOCAL)
 """The metrics listener's reader keeps 100 per robot, 50 simulated seconds of statuses at 2 Hz,
 so a listener thread that falls behind under load still sees every SUCCEEDED before the next
 goal's status (tests/swarm_metrics/test_listener.py)."""
-GOAL_POSE = Topic("goal_pose", "geometry_msgs/msg/PoseStamped", DEFAULT)
-CANCEL_SERVICE = "navigator/cancel"
-"""The navigator's ``std_srvs/srv/Trigger`` service (relative to the robot's namespace)."""
-GOAL_COMING_SERVICE = "navigator/goal_coming"
-"""The navigator's ``std_srvs/srv/Trigger`` service: the commander has taken in the goal that
-ended and its next goal is coming (:mod:`swarm_common.lockstep`; the coordinated commander
-calls it once the coordinator has its request)."""
+GOAL_POSE = Topic("goal_pose", "geometry_msgs/msg/PoseStamped", DEFAULT,
+                  ("the robot's commander", "anyone (ros2 topic pub, RViz's goal tool)"),
+                  ("the robot's navigator",))
+"""A new goal replaces the current one."""
+
+# ------------------------------------------------------------------------- a robot's services
+CANCEL = Service("navigator/cancel", "std_srvs/srv/Trigger", ("the robot's navigator",),
+                 ("the robot's commander (cancelTask; centralized: also \"no next goal\")",
+                  "anyone"))
+"""Cancels the current goal; while no goal runs, ends the navigator's wait for the next one."""
+CANCEL_SERVICE = CANCEL.name
+"""The name of :data:`CANCEL`, as ``create_service`` and ``create_client`` take it."""
+GOAL_COMING = Service("navigator/goal_coming", "std_srvs/srv/Trigger",
+                      ("the robot's navigator",),
+                      ("the robot's commander (centralized: once the coordinator has its "
+                       "request)",))
+"""The commander has taken in the goal that ended and its next goal is coming: the tick at which
+the goal ended may be answered (``hold_goal_end``, :mod:`swarm_common.lockstep`)."""
+GOAL_COMING_SERVICE = GOAL_COMING.name
+"""The name of :data:`GOAL_COMING`."""
 
 ROBOT_TOPICS = (SCAN, ODOM, GROUND_TRUTH, CMD_VEL, PLAN, NAV_STATUS)
 """A robot's topics that a recording holds, in its order."""

@@ -103,7 +103,7 @@ def spots_from_poi(poi, parking: np.ndarray | None = None) -> tuple[Spot, ...]:
 
     Args:
         poi: a :class:`swarm_common.poi.PointsOfInterest` (workstations with ``holding``).
-        parking: (K, 2) or (K, 3) parking places x, y [, yaw] in ``map`` (e.g. the spawn grid:
+        parking: (K, 2) or (K, 3) parking spots x, y [, yaw] in ``map`` (e.g. the spawn grid:
             free of walls by construction), or None.
 
     Returns:

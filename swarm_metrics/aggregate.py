@@ -2,7 +2,8 @@
 
 Pure: no ROS import.  :class:`RunRecorder` is fed plain dicts (the metrics node converts
 ``diagnostic_msgs`` messages into them) and :func:`aggregate` turns its state, the simulator's
-``--summary`` JSON and the orchestrator's own figures into the ``--metrics`` dict (SPEC §6).
+``--summary`` JSON and the orchestrator's own figures into the ``--metrics`` dict
+(docs/reference/contract.md#s6).
 
 Definitions (``docs/ARCHITECTURE.md``, ``/<ns>/nav_status``):
 
@@ -160,8 +161,8 @@ class RobotRecord:
     late_events: int = 0
     goal_wait_timeouts: int = 0  # the navigator's counter, as last published
     goal_wait_timeouts_before: int = 0  # the counters of earlier (restarted) navigator processes
-    task_times: list[float] = field(default_factory=list)  # [s] sim time of each first SUCCEEDED
-    reached_at: dict[str, float] = field(default_factory=dict)  # goal id -> sim time [s] reached
+    task_times: list[float] = field(default_factory=list)  # simulated [s]: each first SUCCEEDED
+    reached_at: dict[str, float] = field(default_factory=dict)  # goal id -> simulated [s] reached
     goal_xy: dict[str, tuple[float, float]] = field(default_factory=dict)  # goal id -> x, y [m]
     applied: set[str] = field(default_factory=set)  # goal ids seen applied
     late_goals: int = 0  # goals applied after the first tick after their stamp
@@ -677,7 +678,7 @@ def aggregate(
     holding: Mapping[str, list[tuple[float, float]]] | None = None,
     models: Sequence[str] | None = None,
 ) -> dict:
-    """The ``--metrics`` dict of a run (SPEC §6).
+    """The ``--metrics`` dict of a run (docs/reference/contract.md#s6).
 
     Simulator figures (``sim_time_s``, ``rtf``, ticks, collisions, separation, late ticks,
     distances) come from the simulator's summary; where it lacks them, from the recorder's
@@ -693,7 +694,7 @@ def aggregate(
             simulator's own ``wall_time_s`` is missing).
         resources: ``cpu_percent`` [%] and ``peak_rss_mb_per_robot`` [MB] (ResourceSampler).
         restarts: restarts of navigators/commanders/groups.
-        extra: more keys to add (run dir, process layout, ...).
+        extra: more keys to add (run directory, process layout, ...).
         fault_restarts: those of ``restarts`` that injected faults caused.
         map_deliveries: ``/map`` copies each robot's navigator received (one per process
             start); None: one each.
@@ -706,7 +707,8 @@ def aggregate(
             ``per_robot`` entry's ``robot``; None: neither.
 
     Returns:
-        A JSON-serialisable dict with the keys of SPEC §6 (None where unknown).
+        A JSON-serialisable dict with the keys of docs/reference/contract.md#s6 (None where
+        unknown).
     """
     sim = sim_summary
     robots = recorder.robots

@@ -202,7 +202,7 @@ class HoldingConfig:
                                  "along its path", check=">0")
     holding_arrive_tolerance: float = _p(0.35, "m", "a holding point counts as reached within "
                                          "this", check=">0")
-    holding_target_check_range: float = _p(2.5, "m", "a holding target this close is checked for "
+    holding_target_check_range: float = _p(2.5, "m", "a holding point this close is checked for "
                                            "another robot standing on it (a taken loop point is "
                                            "skipped, a taken spot replaced by a staging point)",
                                            check=">=0")
@@ -396,13 +396,8 @@ _SUBCONFIGS = {
 
 @dataclass(frozen=True)
 class ParamInfo:
-    """One flat navigator parameter as the node declares it.
-
-    Attributes:
-        default: the default value; its type is the parameter's type (bool, int, float).
-        unit: the unit, e.g. ``"m/s"``; ``"-"`` for counts, flags and ratios.
-        description: one line, for the ParameterDescriptor.
-    """
+    """One flat navigator parameter as the node declares it: its default (whose type is the
+    parameter's), unit and one-line description, as :func:`_p` gave them."""
 
     default: Any
     unit: str

@@ -15,7 +15,7 @@ is taken: holding spot or loop), RECOVERING, SUCCEEDED, ABORTED (with the reason
 Per tick in DRIVING/HOLDING: goal reached? (within ``xy_goal_tolerance``, latched, then an in-place
 rotation to the goal yaw) -> holding pattern (:meth:`HoldingBehaviour.step
 <swarm_nav.holding_behaviour.HoldingBehaviour.step>` decides: drive on, hold, wait, replan to a
-new holding target, take another workstation, or give the goal up) -> replan if the robot left
+new holding point, take another workstation, or give the goal up) -> replan if the robot left
 its path by more than ``max_path_deviation``, or something blocks the path ahead (a robot standing
 on it for ``stationary_replan_time``, anything else for ``blocked_replan_time``; the replan then
 plans around the robots seen) -> DWA on the local stretch of the path, shifted to the right while
@@ -32,7 +32,7 @@ turn (:func:`~swarm_nav.recovery.escape_command`). The other robots are known on
 
 Paths are planned on the static costmap plus keep-out discs about the workstations and holding
 points (robots stop there, so paths to elsewhere keep to the lanes).  Plans are made only on a new
-goal or holding target, a blocked path, a path left behind, or a recovery.
+goal or holding point, a blocked path, a path left behind, or a recovery.
 """
 
 from __future__ import annotations
@@ -96,9 +96,9 @@ class NavStatus:
         goal: (3,) x [m], y [m], yaw [rad] of the goal in ``map``, or ``None``.
         distance_remaining: distance [m] still to drive (along the path when it leads to the goal,
             else straight to the goal); 0 without a goal.
-        navigation_time: time [s] since the goal was accepted (frozen when it ended).
+        navigation_time, holding_time: time [s] since the goal was accepted (frozen when it
+            ended), and spent holding for it.
         recoveries: recovery behaviours run for this goal.
-        holding_time: time [s] spent holding for this goal.
         reason: why the goal was aborted (or a note on success); ``""`` otherwise.
     """
 
@@ -129,8 +129,7 @@ def static_costmaps(occ: OccupancyMap, cfg: CostmapConfig, keepout: np.ndarray,
         occ: the occupancy map.
         cfg: the costmap settings.
         keepout: (K, 2) x, y [m] in ``map`` of the keep-out discs' centres.
-        radius: the discs' radius [m].
-        cost: the discs' cost.
+        radius, cost: the discs' radius [m] and cost.
     """
     data = np.ascontiguousarray(occ.data)
     h = hashlib.blake2b(data.tobytes(), digest_size=16)
@@ -306,8 +305,7 @@ class NavigatorCore:
 
         Args:
             pose: (3,) the robot's x [m], y [m], yaw [rad] in ``map``.
-            v: its current forward speed [m/s].
-            w: its current rotational speed [rad/s].
+            v, w: its current forward [m/s] and rotational [rad/s] speeds.
             now: time [s].
 
         Returns:
@@ -455,12 +453,9 @@ class NavigatorCore:
             self._end(NavState.ABORTED, self._now, res.reason)
 
     def _at_goal(self, pose: np.ndarray) -> bool:
-        tol = self.cfg.goal.xy_goal_tolerance
-        if np.hypot(*(pose[:2] - self._goal[:2])) <= tol:
-            return True
-        if self._adjusted_goal is not None and np.hypot(*(pose[:2] - self._adjusted_goal)) <= tol:
-            return True
-        return False
+        tol, adjusted = self.cfg.goal.xy_goal_tolerance, self._adjusted_goal
+        return bool(np.hypot(*(pose[:2] - self._goal[:2])) <= tol or (
+            adjusted is not None and np.hypot(*(pose[:2] - adjusted)) <= tol))
 
     def _rotate_to_goal(self, pose: np.ndarray, now: float) -> tuple[float, float]:
         err = wrap_angle(self._goal[2] - pose[2])

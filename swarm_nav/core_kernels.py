@@ -23,14 +23,10 @@ def robots_near_path(centres, points, starts, sizes, ax, ay, rx, ry, reach, radi
     below ``radius``.
 
     Args:
-        centres: (K, 2) centres x, y [m] in ``map`` of the robots seen.
-        points: (P, 2) their points x, y [m], robot after robot.
-        starts: (K,) each robot's first row in ``points``.
-        sizes: (K,) each robot's number of points.
-        ax: (A,) x [m] of the path points ahead, A >= 1.
-        ay: (A,) y [m] of those points.
-        rx: the robot's x [m] in ``map``.
-        ry: the robot's y [m].
+        centres, points, starts, sizes: those of ``perception.SeenArrays``: (K, 2) centres x, y
+            [m] in ``map`` of the robots seen, (P, 2) their points [m], robot after robot, (K,)
+            each robot's first row in ``points`` and its number of points.
+        ax, ay: (A,) x, y [m] of the path points ahead, A >= 1; rx, ry: the robot's x, y [m].
         reach: [m] the farthest a robot's centre may be to be checked.
         radius: [m] the distance below which a point is on the path.
 
@@ -72,17 +68,14 @@ def may_keep_right(centres, velocities, rx, ry, ryaw, moving_speed, distance, ha
     runs it (``tests/swarm_nav/test_traffic.py`` checks that False is never wrong).
 
     Args:
-        centres: (K, 2) centres x, y [m] in ``map`` of the robots seen.
-        velocities: (K, 2) their velocities [m/s] (NaN: unknown).
-        rx: our x [m] in ``map``.
-        ry: our y [m].
-        ryaw: our yaw [rad].
+        centres, velocities: (K, 2) centres x, y [m] in ``map`` of the robots seen and their
+            velocities [m/s] (NaN: unknown).
+        rx, ry, ryaw: our pose x, y [m] in ``map``, yaw [rad].
         moving_speed: [m/s] the speed toward us above which a robot is oncoming.
-        distance: [m] how far ahead a robot counts.
-        half_angle: [rad] half the opening of the cone ahead.
-        px: (N,) x [m] of the local path's points.
-        py: (N,) y [m] of those points.
-        lateral: [m] how near the path a robot counts as on it.
+        distance: [m] how far ahead a robot counts; half_angle: [rad] half the opening of the
+            cone ahead.
+        px, py: (N,) x, y [m] of the local path's points; lateral: [m] how near the path a
+            robot counts as on it.
     """
     for j in range(centres.shape[0]):
         cx, cy = centres[j, 0], centres[j, 1]

@@ -274,8 +274,7 @@ def segment_profile(costmap: Costmap, a, b) -> tuple[np.ndarray, np.ndarray]:
 
     Args:
         costmap: the costmap.
-        a: (2,) x, y [m] in ``map`` of the segment's start.
-        b: (2,) x, y [m] of its end.
+        a, b: (2,) x, y [m] in ``map`` of the segment's start and of its end.
 
     Returns:
         ``(lengths, costs)``: (P,) length [m] of each piece, in order, and (P,) its cell's cost.
@@ -288,16 +287,6 @@ def segment_profile(costmap: Costmap, a, b) -> tuple[np.ndarray, np.ndarray]:
 
 
 def segment_max_cost(costmap: Costmap, a, b) -> int:
-    """The highest cost of the cells a segment passes through (LETHAL if it leaves the map).
-
-    Exact, see :func:`segment_profile`.
-
-    Args:
-        costmap: the costmap.
-        a: (2,) x, y [m] in ``map`` of the segment's start.
-        b: (2,) x, y [m] of its end.
-
-    Returns:
-        The maximum cost (0..255) along the segment.
-    """
+    """The highest cost (0..255) of the cells the segment from ``a`` (2,) to ``b`` (2,) x, y [m]
+    in ``map`` passes through, ``LETHAL`` if it leaves the map (exact: :func:`segment_profile`)."""
     return int(segment_profile(costmap, a, b)[1].max())

@@ -25,14 +25,9 @@ def segment_profile(costs, res, ox, oy, ax, ay, bx, by):
     (:func:`swarm_nav.costmap.segment_profile`'s arithmetic).
 
     Args:
-        costs: (H, W) uint8 costmap; row 0 at ``y = oy``.
-        res: cell size [m].
-        ox: x [m] of the grid's lower-left corner in ``map``.
-        oy: y [m] of that corner.
-        ax: x [m] of the segment's start.
-        ay: y [m] of its start.
-        bx: x [m] of its end.
-        by: y [m] of its end.
+        costs: (H, W) uint8 costmap; row 0 at ``y = oy``; res: cell size [m].
+        ox, oy: x, y [m] of the grid's lower-left corner in ``map``.
+        ax, ay, bx, by: x, y [m] of the segment's start and of its end.
 
     Returns:
         ``(lengths, cell_costs)``: (P,) length [m] of each piece, in order, and (P,) uint8 its

@@ -55,10 +55,8 @@ class Footprint:
     """The robot's footprint as a box in ``base_footprint`` (the bounding box of its polygon).
 
     Attributes:
-        x_min: rear edge [m].
-        x_max: front edge [m].
-        y_min: right edge [m].
-        y_max: left edge [m].
+        x_min, x_max: rear and front edges [m].
+        y_min, y_max: right and left edges [m].
     """
 
     x_min: float
@@ -104,8 +102,7 @@ class RobotState:
 
     Attributes:
         pose: (3,) x [m], y [m], yaw [rad] in ``map``.
-        v: current forward speed [m/s].
-        w: current rotational speed [rad/s].
+        v, w: current forward [m/s] and rotational [rad/s] speeds.
     """
 
     pose: np.ndarray
@@ -118,8 +115,7 @@ class Command:
     """The local planner's answer.
 
     Attributes:
-        v: forward speed [m/s] to command.
-        w: rotational speed [rad/s] to command.
+        v, w: forward [m/s] and rotational [rad/s] speeds to command.
         ok: False when no admissible motion was found (``v`` is 0 and ``w`` is 0 or a rotation in
             place that was checked to be safe).
         cost: the chosen rollout's weighted cost (``inf`` when not ``ok``).
@@ -162,32 +158,6 @@ def dynamic_window(state: RobotState, cfg: DwaConfig, dt: float) -> tuple[float,
     return v_lo, v_hi, w_lo, w_hi
 
 
-def rollout(pose, v, w, times) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Poses along constant-velocity arcs (exact unicycle kinematics).
-
-    Args:
-        pose: (3,) start x [m], y [m], yaw [rad] in ``map``.
-        v: (S,) forward speeds [m/s].
-        w: (S,) rotational speeds [rad/s].
-        times: (T,) times [s] after the start.
-
-    Returns:
-        ``(x, y, yaw)``, each (S, T), in ``map`` (yaw not wrapped).
-    """
-    x0, y0, th0 = (float(c) for c in pose)
-    v = np.asarray(v, dtype=float)[:, None]
-    w = np.asarray(w, dtype=float)[:, None]
-    t = np.asarray(times, dtype=float)[None, :]
-    th = th0 + w * t
-    straight = np.abs(w) < 1e-6
-    w_safe = np.where(straight, 1.0, w)
-    s0, c0 = math.sin(th0), math.cos(th0)
-    sin_th, cos_th = np.sin(th), np.cos(th)
-    x = np.where(straight, x0 + v * t * c0, x0 + v / w_safe * (sin_th - s0))
-    y = np.where(straight, y0 + v * t * s0, y0 - v / w_safe * (cos_th - c0))
-    return x, y, th
-
-
 def footprint_gaps(x, y, yaw, points: Points2D, footprint: Footprint) -> np.ndarray:
     """Signed gap [m] between the footprint box at each pose and the nearest obstacle point.
 
@@ -196,9 +166,7 @@ def footprint_gaps(x, y, yaw, points: Points2D, footprint: Footprint) -> np.ndar
     outside (exact except toward the corners).
 
     Args:
-        x: (...) pose x [m] in ``map``.
-        y: (...) pose y [m].
-        yaw: (...) pose yaw [rad].
+        x, y, yaw: (...) poses x, y [m] in ``map`` and yaw [rad].
         points: (M, 2) obstacle points x, y [m] in ``map``.
         footprint: the footprint box.
 
@@ -212,7 +180,11 @@ def footprint_gaps(x, y, yaw, points: Points2D, footprint: Footprint) -> np.ndar
     yaw = np.asarray(yaw, dtype=float)
     c, s = np.cos(yaw), np.sin(yaw)
     bx, by = _box_centres(x, np.asarray(y, dtype=float), c, s, footprint)
-    return _gaps(bx, by, c, s, pts, footprint).min(axis=-1)
+    hx, hy = footprint.half_size
+    c, s = c[..., None], s[..., None]
+    dx = pts[:, 0] - bx[..., None]
+    dy = pts[:, 1] - by[..., None]
+    return np.maximum(np.abs(c * dx + s * dy) - hx, np.abs(c * dy - s * dx) - hy).min(axis=-1)
 
 
 def _box_centres(x, y, c, s, footprint: Footprint) -> tuple[np.ndarray, np.ndarray]:
@@ -220,17 +192,6 @@ def _box_centres(x, y, c, s, footprint: Footprint) -> tuple[np.ndarray, np.ndarr
     (all of one shape, or broadcasting)."""
     cx, cy = footprint.centre
     return x + c * cx - s * cy, y + s * cx + c * cy
-
-
-def _gaps(bx, by, c, s, pts: np.ndarray, footprint: Footprint) -> np.ndarray:
-    """(..., M) Chebyshev gaps between the box centred at ``bx, by`` (shape (...)) with ``c, s``
-    the cosine and sine of its yaw (same shape) and each point of the (M, 2) ``pts`` (see
-    :func:`footprint_gaps`)."""
-    hx, hy = footprint.half_size
-    c, s = np.asarray(c)[..., None], np.asarray(s)[..., None]
-    dx = pts[:, 0] - np.asarray(bx)[..., None]
-    dy = pts[:, 1] - np.asarray(by)[..., None]
-    return np.maximum(np.abs(c * dx + s * dy) - hx, np.abs(c * dy - s * dx) - hy)
 
 
 def point_gaps(pose, points: Points2D, footprint: Footprint) -> np.ndarray:

@@ -9,8 +9,8 @@ What the loops gain is not arithmetic but the (S, T) temporaries and the per-cal
 some forty numpy calls a tick, half of a DWA call's time
 (docs/design/navigator.md#compiled-kernels).
 
-Compiled on first use and cached beside this file (``cache=True``), so a process after the first
-loads the machine code instead of compiling it (:mod:`swarm_nav.jit` warms them all up).
+Compiled on first use and cached beside this file (``cache=True``): a process after the first
+loads the machine code (:mod:`swarm_nav.jit` warms them all up).
 """
 
 from __future__ import annotations
@@ -27,25 +27,18 @@ def rollout_boxes(x0, y0, s0, c0, vs, ws, ws_safe, straight, times, cos_th, sin_
     """Poses and footprint-box centres of the rollouts of every ``vs`` x ``ws`` pair, and the
     gap each rollout must keep.
 
-    The arithmetic of ``dwa.rollout`` and ``dwa._box_centres``: for a turning rollout
-    ``x = x0 + v / w (sin th - s0)``, ``y = y0 - v / w (cos th - c0)``; for a straight one
-    ``x = x0 + v t c0``, ``y = y0 + v t s0``; the box centre ``x + c cx - s cy``,
+    Exact unicycle arcs (``tests/swarm_nav/helpers.rollout``, and ``dwa._box_centres``): for a
+    turning rollout ``x = x0 + v / w (sin th - s0)``, ``y = y0 - v / w (cos th - c0)``; for a
+    straight one ``x = x0 + v t c0``, ``y = y0 + v t s0``; the box centre ``x + c cx - s cy``,
     ``y + s cx + c cy``.
 
     Args:
-        x0: start x [m] in ``map``.
-        y0: start y [m].
-        s0: sin of the start yaw.
-        c0: cos of the start yaw.
-        vs: (V,) forward speeds [m/s].
-        ws: (W,) rotational speeds [rad/s].
-        ws_safe: (W,) ``ws``, 1.0 where ``straight``.
-        straight: (W,) bool, ``|w| < 1e-6``.
+        x0, y0: start x, y [m] in ``map``; s0, c0: sin and cos of the start yaw.
+        vs: (V,) forward speeds [m/s]; ws: (W,) rotational speeds [rad/s].
+        ws_safe: (W,) ``ws``, 1.0 where ``straight``; straight: (W,) bool, ``|w| < 1e-6``.
         times: (T,) times [s] after the start.
-        cos_th: (W, T) cos of the yaw of rollout ``w`` at each time.
-        sin_th: (W, T) sin of that yaw.
-        cx: box centre x [m] in ``base_footprint``.
-        cy: box centre y [m] in ``base_footprint``.
+        cos_th, sin_th: (W, T) cos and sin of the yaw of rollout ``w`` at each time.
+        cx, cy: box centre x, y [m] in ``base_footprint``.
         radius: the box's circumscribed radius [m] about ``base_footprint``.
         dt_check: time [s] between two checked poses.
         need: the gap [m] to keep at the checked poses.
@@ -174,14 +167,11 @@ def gap_bounds(bx, by, box_bounds, px, py, grid, r_out, r_in, need):
     sqrt(2) grid`` of its distance to the nearest point.
 
     Args:
-        bx: (S, T) box centres x [m] in ``map``.
-        by: (S, T) box centres y [m].
+        bx, by: (S, T) box centres x, y [m] in ``map``.
         box_bounds: (4,) ``(bx_min, bx_max, by_min, by_max)`` [m].
-        px: (M,) obstacle points x [m] in ``map``, M > 0.
-        py: (M,) obstacle points y [m].
+        px, py: (M,) obstacle points x, y [m] in ``map``, M > 0.
         grid: cell size [m].
-        r_out: the box's half diagonal [m].
-        r_in: the box's half width [m].
+        r_out, r_in: the box's half diagonal and half width [m].
         need: (S,) the gap [m] each rollout must keep.
 
     Returns:
@@ -241,14 +231,10 @@ def first_admissible(order, unsure, need, bx, by, cos_th, sin_th, px, py, hx, hy
         order: (K,) int candidate rollouts, cheapest first.
         unsure: (S, T) bool, poses the bounds could not clear.
         need: (S,) the gap [m] each rollout must keep.
-        bx: (S, T) box centres x [m] in ``map``.
-        by: (S, T) box centres y [m].
-        cos_th: (W, T) cos of the yaw; rollout ``k`` has row ``k % W``.
-        sin_th: (W, T) sin of the yaw.
-        px: (M,) obstacle points x [m] in ``map``.
-        py: (M,) obstacle points y [m].
-        hx: half length [m] of the footprint box.
-        hy: half width [m].
+        bx, by: (S, T) box centres x, y [m] in ``map``.
+        cos_th, sin_th: (W, T) cos and sin of the yaw; rollout ``k`` has row ``k % W``.
+        px, py: (M,) obstacle points x, y [m] in ``map``.
+        hx, hy: half length and half width [m] of the footprint box.
     """
     nw, nt = cos_th.shape
     for i in range(order.shape[0]):
@@ -292,29 +278,21 @@ def score_rollouts(x, y, aim_end, th_end, vs, ws, rx, ry, carrot_x, carrot_y, ta
     candidates to check, cheapest first.
 
     Args:
-        x: (S, T) rollout poses x [m] in ``map``; rollout ``k`` has ``vs[k // W]``,
+        x, y: (S, T) rollout poses x, y [m] in ``map``; rollout ``k`` has ``vs[k // W]``,
             ``ws[k % W]``.
-        y: (S, T) rollout poses y [m].
         aim_end: (S,) ``arctan2`` [rad] of each rollout end's offset to the carrot (numpy's,
             whose rounding the kernels do not reproduce).
         th_end: (W,) yaw [rad] at the rollouts' end per ``ws`` sample.
-        vs: (V,) forward speeds [m/s].
-        ws: (W,) rotational speeds [rad/s].
-        rx: the robot's x [m] in ``map``.
-        ry: the robot's y [m].
-        carrot_x: x [m] of the lookahead point.
-        carrot_y: y [m] of the lookahead point.
-        tangent: the path's heading [rad] there.
-        px: (N,) path points x [m] in ``map``.
-        py: (N,) path points y [m].
-        to_path: (N,) each path point's distance [m] to the robot.
-        i0: index of the path point nearest the robot.
-        est_min: (S,) each rollout's least gap estimate [m] (``gap_bounds``).
-        upper_min: (S,) each rollout's least gap upper bound [m].
-        need: (S,) the gap [m] each rollout must keep.
-        max_vel_x: [m/s], for the Speed critic.
-        influence: BaseObstacle's influence distance [m].
-        scales: (5,) weights of PathDist, GoalDist, PathAlign, BaseObstacle, Speed.
+        vs: (V,) forward speeds [m/s]; ws: (W,) rotational speeds [rad/s].
+        rx, ry: the robot's x, y [m] in ``map``.
+        carrot_x, carrot_y: x, y [m] of the lookahead point; tangent: the path's heading [rad]
+            there.
+        px, py: (N,) path points x, y [m] in ``map``; to_path: (N,) their distance [m] to the
+            robot; i0: index of the one nearest the robot.
+        est_min, upper_min: (S,) each rollout's least gap estimate and upper bound [m]
+            (:func:`gap_bounds`); need: (S,) the gap [m] each rollout must keep.
+        max_vel_x: [m/s], for the Speed critic; influence: BaseObstacle's influence distance
+            [m]; scales: (5,) weights of PathDist, GoalDist, PathAlign, BaseObstacle, Speed.
 
     Returns:
         ``(cost, order)``: (S,) weighted costs, and (K,) the rollouts that move and whose upper
@@ -375,21 +353,15 @@ def window_setup(x0, y0, th0, ws, horizon, n, obstacles, radius, c, s, cx, cy, h
     """The rollout times and headings, the obstacle points within reach, and the gap now.
 
     Args:
-        x0: the robot's x [m] in ``map``.
-        y0: its y [m].
-        th0: its yaw [rad].
+        x0, y0, th0: the robot's pose x, y [m], yaw [rad] in ``map``.
         ws: (W,) rotational speeds [rad/s].
-        horizon: the rollouts' duration [s].
-        n: the number of checked poses along a rollout.
+        horizon: the rollouts' duration [s]; n: the number of checked poses along a rollout.
         obstacles: (M, 2) obstacle points x, y [m] in ``map``.
         radius: [m] points farther from the robot than this are left out (as
             ``dwa._local_points``).
-        c: ``np.cos`` of the yaw (``dwa.point_gaps``' rounding).
-        s: ``np.sin`` of the yaw.
-        cx: the footprint box's centre x [m] in ``base_footprint``.
-        cy: its centre y [m].
-        hx: its half length [m].
-        hy: its half width [m].
+        c, s: ``np.cos`` and ``np.sin`` of the yaw (``dwa.point_gaps``' rounding).
+        cx, cy, hx, hy: the footprint box's centre x, y [m] in ``base_footprint``, its half
+            length and half width [m].
 
     Returns:
         ``(times, th, px, py, gap)``: (T,) ``horizon * arange(1, n + 1) / n`` [s]; (W, T) yaws
@@ -441,10 +413,8 @@ def lookahead(path_x, path_y, rx, ry, dist, i0):
     the heading from the robot to it).
 
     Args:
-        path_x, path_y: (N,) the path [m] in ``map``.
-        rx, ry: the robot's position [m].
-        dist: the lookahead distance [m].
-        i0: the index of the path point nearest the robot.
+        path_x, path_y: (N,) the path [m] in ``map``; rx, ry: the robot's position [m].
+        dist: the lookahead distance [m]; i0: the index of the path point nearest the robot.
 
     Returns:
         ``(carrot_x, carrot_y, ty, tx, has_tangent)``: the point [m] in ``map``, and the
@@ -493,21 +463,11 @@ def rollouts_and_bounds(x0, y0, s0, c0, vs, ws, times, cos_th, sin_th, cx, cy, r
     :func:`gap_bounds` and :func:`lookahead` in one call.
 
     Args:
-        x0, y0: the robot's position [m] in ``map``.
-        s0, c0: ``math.sin`` and ``math.cos`` of its yaw.
-        vs: (V,) forward speeds [m/s].
-        ws: (W,) rotational speeds [rad/s].
-        times: (T,) times [s] of the checked poses.
-        cos_th, sin_th: (W, T) cos and sin of the rollouts' yaws.
-        cx, cy: the footprint box's centre [m] in ``base_footprint``.
-        radius: the box's circumscribed radius [m].
-        dt_check: time [s] between two checked poses.
-        need: the gap [m] to keep.
-        px, py: (L,) the obstacle points within reach, x and y [m] in ``map``.
-        grid: the distance grid's cell [m].
-        r_out, r_in: the box's half diagonal and half width [m].
-        path_x, path_y: (N,) the local path [m] in ``map``, N > 0.
-        dist: the lookahead distance [m].
+        x0, y0, s0, c0, vs, ws, times, cos_th, sin_th, cx, cy, radius, dt_check, need: as
+            :func:`rollout_boxes` (``s0``, ``c0``: ``math.sin`` and ``math.cos``).
+        px, py, grid, r_out, r_in: as :func:`gap_bounds` (L, the points within reach, may be 0).
+        path_x, path_y: (N,) the local path [m] in ``map``, N > 0; dist: the lookahead
+            distance [m] (:func:`lookahead`).
 
     Returns:
         ``(x, y, bx, by, need_s, lower, upper_min, est_min, unsure, to_path, i0, carrot_x,

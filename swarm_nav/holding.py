@@ -1,7 +1,7 @@
 """What a holding robot judges from its own scan: is the goal taken, and where to hold.
 
 No communication: a robot judges its goal from the other robots it sees in its own scan
-(:func:`swarm_nav.perception.perceive_robots`: clusters of the points the static map does not
+(:func:`swarm_nav.perception.perceive`: clusters of the points the static map does not
 explain, with their velocities). The goal is occupied when a robot has enough points in the disc
 of ``goal_occupied_radius`` about it and is not seen leaving. First come, first served among robots
 that see each other: a robot yields when it sees another robot within ``yield_radius`` of its goal,
@@ -39,7 +39,7 @@ from swarm_nav.costmap import LETHAL, Costmap, segment_max_cost
 from swarm_nav.perception import SeenRobot
 
 HoldingSite = tuple[np.ndarray, np.ndarray]
-"""(workstation pose (3,) x, y [m], yaw [rad] in ``map``, holding points (K, 2) x, y [m])."""
+"""(docking pose (3,) x, y [m], yaw [rad] in ``map``, holding points (K, 2) x, y [m])."""
 
 
 def holding_sites_from_poi(poi) -> list[HoldingSite]:
@@ -91,7 +91,7 @@ def goal_occupied(robots: Sequence[SeenRobot], goal_xy, cfg: HoldingConfig) -> b
     """Whether another robot stands on the goal (or is driving onto it, and not off it).
 
     Args:
-        robots: the robots seen (:func:`~swarm_nav.perception.perceive_robots`).
+        robots: the robots seen (:func:`~swarm_nav.perception.perceive`).
         goal_xy: (2,) the goal x, y [m].
         cfg: ``goal_occupied_radius`` [m], ``goal_occupied_min_points``, ``moving_speed`` [m/s].
 
@@ -115,9 +115,8 @@ def someone_came_first(robots: Sequence[SeenRobot], robot_xy, goal_xy,
     """First come, first served: another robot heading for our goal and nearer to it than we are.
 
     Args:
-        robots: the robots seen (:func:`~swarm_nav.perception.perceive_robots`).
-        robot_xy: (2,) our position x, y [m].
-        goal_xy: (2,) the goal x, y [m].
+        robots: the robots seen (:func:`~swarm_nav.perception.perceive`).
+        robot_xy, goal_xy: (2,) our position and the goal, x, y [m].
         cfg: ``yield_radius`` [m], ``yield_margin`` [m] and ``moving_speed`` [m/s].
 
     Returns:
@@ -139,17 +138,16 @@ def goal_crowded(robots: Sequence[SeenRobot], robot_xy, goal_xy, cfg: HoldingCon
     """A queue at the goal already: ``crowd_limit`` robots stand near it, all nearer than we are.
 
     A free workstation that robots stand around is no free way in: they wait for it, or are
-    stuck there, and the robot that must leave it needs room; robots that join such a crowd
-    lock it up. A robot that sees the crowd holds instead, as when the goal is taken; the
+    stuck there, and the robot that must leave it needs room; robots that join such a queue
+    lock it up. A robot that sees the queue holds instead, as when the goal is taken; the
     nearest ``crowd_limit`` robots keep trying, so a free goal is always tried by someone. A
     robot standing on *another* workstation or on another workstation's holding spot
     (``elsewhere``) waits for that one, not in our queue, and does not count (why:
     docs/design/navigator.md#queue-rule).
 
     Args:
-        robots: the robots seen (:func:`~swarm_nav.perception.perceive_robots`).
-        robot_xy: (2,) our position x, y [m].
-        goal_xy: (2,) the goal x, y [m].
+        robots: the robots seen (:func:`~swarm_nav.perception.perceive`).
+        robot_xy, goal_xy: (2,) our position and the goal, x, y [m].
         cfg: ``crowd_radius`` [m], ``crowd_limit``, ``moving_speed`` [m/s] and
             ``holding_arrive_tolerance`` [m].
         elsewhere: (J, 2) x, y [m] of the other workstations and their holding points (not the
@@ -199,7 +197,7 @@ def path_congested(centres: np.ndarray, standing: np.ndarray, ahead: np.ndarray,
         standing: (K,) whether each is seen standing (slower than ``moving_speed``, or unknown).
         ahead: (N, 2) the next ``congestion_distance`` of our path x, y [m].
         goal_xy: (2,) the goal x, y [m].
-        avoid: (J, 2) workstation poses and holding points x, y [m].
+        avoid: (J, 2) docking poses and holding points x, y [m].
         wall_distance: (K,) distance [m] of each centre from the nearest wall (static map).
         cfg: ``congestion_radius`` [m], ``congestion_limit``, ``crowd_radius`` [m],
             ``holding_arrive_tolerance`` [m] and ``staging_wall_clearance`` [m].
@@ -315,7 +313,7 @@ def staging_point(costmap: Costmap, goal_xy, robot_xy, centres: np.ndarray,
         goal_xy: (2,) the goal x, y [m] in ``map``.
         robot_xy: (2,) the robot's x, y [m].
         centres: (K, 2) centres [m] of the robots seen.
-        avoid: (J, 2) workstation poses and holding points x, y [m] to keep clear of.
+        avoid: (J, 2) docking poses and holding points x, y [m] to keep clear of.
         cfg: the holding settings.
         step: lattice spacing [m] of the candidates.
 

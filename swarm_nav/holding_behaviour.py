@@ -203,8 +203,8 @@ class HoldingKind(StrEnum):
     """What the navigator is to do after a tick of the holding behaviour."""
 
     DRIVE = "drive"        # drive to the goal (replan: the holding just ended, plan to it again)
-    HOLD = "hold"          # drive to the holding target (replan: the target moved)
-    WAIT = "wait"          # stand at the holding target (replan: as HOLD), no motion
+    HOLD = "hold"          # drive to the holding point (replan: the point moved)
+    WAIT = "wait"          # stand at the holding point (replan: as HOLD), no motion
     NEW_GOAL = "new_goal"  # another workstation was taken: ``goal``, planned as ``plan``
     ABORT = "abort"        # give the goal up, for ``reason``
 
@@ -216,7 +216,7 @@ class HoldingDecision:
     Attributes:
         kind: what to do.
         replan: DRIVE, HOLD, WAIT: plan again from the robot to the target (the goal, or the
-            holding target) and restart the progress checker.
+            holding point) and restart the progress checker.
         goal: NEW_GOAL: (3,) x, y [m], yaw [rad] in ``map`` of the other workstation's docking
             pose, the new goal (the goal id stays).
         plan: NEW_GOAL: the plan to it.
@@ -244,8 +244,7 @@ class HoldingBehaviour:
             workstation of its goal's kind (``swap_range``). Empty: never.
 
     Attributes:
-        sites: the workstations' holding sites.
-        kinds: their kinds.
+        sites, kinds: the workstations' holding sites and their kinds.
         avoid: (J, 2) x, y [m] of every workstation and holding point (keep-out discs, staging).
         pattern: the current goal's :class:`HoldingPattern`, or ``None`` before its first plan.
         sent_goal: (3,) the goal as set, once another workstation was taken for it; else
@@ -378,8 +377,9 @@ class HoldingBehaviour:
         move: at every judgement in that time the goal was in sight and taken, and no robot was
         seen moving (faster than ``moving_speed``) within 2 x ``goal_occupied_radius`` of it. A
         queue at a workstation moves whenever a robot docks or leaves; a robot that died on it
-        never does. The goal is then unreachable, and given up (SPEC §5: aborted with the
-        reason) rather than held for ever (why: docs/design/navigator.md#occupied-timeout).
+        never does. The goal is then unreachable, and given up (aborted with the reason:
+        docs/reference/contract.md#s5-navigation) rather than held for ever (why:
+        docs/design/navigator.md#occupied-timeout).
 
         Args:
             occupied: this tick's judgement (None: not judged, out of sight or no fresh scan).
@@ -409,7 +409,8 @@ class HoldingBehaviour:
         :func:`~swarm_nav.holding.goal_occupied`, :func:`~swarm_nav.holding.someone_came_first`,
         :func:`~swarm_nav.holding.goal_crowded`). The goal becomes that workstation's docking pose
         (``nav_status`` reports it; the goal id stays), the holding pattern starts afresh for it.
-        Our design: SPEC §5 has the robot hold until its own goal is free (why:
+        Our design: the contract has the robot hold until its own goal is free
+        (docs/reference/contract.md#s5-navigation; why:
         docs/design/navigator.md#taking-another-workstation).
 
         Returns:

@@ -61,7 +61,7 @@ def warm_up() -> float:
     if _done:
         return 0.0
     t0 = time.perf_counter()
-    from swarm_nav import perception
+    from swarm_nav import planner_kernels
     from swarm_nav.config import NavigatorConfig
     from swarm_nav.core import NavigatorCore
     from swarm_nav.costmap import segment_max_cost
@@ -85,16 +85,9 @@ def warm_up() -> float:
             core.on_scan(points, now)
         v, w = core.step(pose, v, w, now)
         pose = pose + np.array([v * math.cos(pose[2]) * dt, v * math.sin(pose[2]) * dt, w * dt])
-    # entry points the scene need not reach: the holding pattern's line of sight, the
-    # perception's public helpers (tools and tests call them one by one) and the planner's
-    # whole search
+    # entry points the scene need not reach: the holding pattern's line of sight and the
+    # planner's whole search (an overlay without a patch is searched whole)
     segment_max_cost(core.costmap, pose[:2], goal[:2])
-    robots = perception.perceive_robots(points, pose[:2], perception.robot_centres(
-        perception.perceive_robots(points, pose[:2])), 0.2)
-    centres = perception.cluster_centres(points, pose[:2])
-    perception.estimate_velocities(centres, centres, 0.2)
-    perception.SeenArrays.of(robots)
-    from swarm_nav import planner_kernels  # an overlay without a patch is searched whole
     planner_kernels.dijkstra(np.zeros(0), np.zeros(0, dtype=np.int32),
                              np.zeros(2, dtype=np.int32), 0, 0, math.inf)
     _done = True

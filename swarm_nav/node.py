@@ -1,4 +1,4 @@
-"""``swarm-nav``: one robot's navigator node ``/<ns>/navigator`` (SPEC §3, §5).
+"""``swarm-nav``: the navigator node ``/<ns>/navigator`` (docs/reference/contract.md#s3, #s5).
 
 A thin ROS 2 shell around :class:`swarm_nav.core.NavigatorCore`: it converts messages to arrays,
 declares the parameters of :func:`swarm_nav.config.flat_defaults` and answers the simulator's
@@ -117,7 +117,7 @@ class NavigatorNode(Node):
         **kwargs: passed to :class:`rclpy.node.Node` (``context``, ``cli_args``, ...).
 
     Raises:
-        InputError: a parameter value is invalid, or the robot or POI file cannot be loaded.
+        InputError: a parameter value is invalid, or the robot or points of interest do not load.
     """
 
     def __init__(self, namespace: str | None = None, **kwargs):

@@ -2,13 +2,13 @@
 
 No communication: every robot knows the others only through its lidar. The scan points that the
 static map does not explain (farther than ``static_point_tolerance`` from every lethal cell,
-:func:`dynamic_points`) are grouped by single linkage (:func:`cluster_points`); each cluster is
-one robot (:class:`SeenRobot`) whose centre lies a little behind its visible side
-(:func:`cluster_centres`) and whose velocity comes from matching the centres to those of a scan
-about ``velocity_baseline`` earlier (:func:`estimate_velocities`; :class:`RobotTracker` keeps
-that short history). :class:`ObstacleSet` keeps what one navigator sees (the scan, the robots in
-it, the walls near the robot, where the robots seen moving will be) for the holding pattern, the
-traffic rules and the navigator (:mod:`swarm_nav.core`).
+:func:`dynamic_points`) are grouped by single linkage; each cluster is one robot
+(:class:`SeenRobot`) whose centre lies a little behind its visible side and whose velocity comes
+from matching the centres to those of a scan about ``velocity_baseline`` earlier
+(:func:`perceive`; :class:`RobotTracker` keeps that short history). :class:`ObstacleSet` keeps
+what one navigator sees (the scan, the robots in it, the walls near the robot, where the robots
+seen moving will be) for the holding pattern, the traffic rules and the navigator
+(:mod:`swarm_nav.core`).
 
 The loops run compiled (:mod:`swarm_nav.perception_kernels`, numba), with the same results to the
 last bit as the numpy and scipy code they replaced (tests/swarm_nav/test_perception_kernels.py).
@@ -71,87 +71,22 @@ class SeenRobot:
     velocity: np.ndarray
 
 
-def cluster_points(points: Points2D, link: float = 0.2) -> tuple[np.ndarray, int]:
-    """Group points at most ``link`` [m] apart (single linkage); clusters are numbered in the
-    order of their first point.
-
-    Two points are linked when ``dx * dx + dy * dy <= link * link`` (the test of scipy's
-    ``cKDTree.query_pairs``, which this function used before
-    :func:`swarm_nav.perception_kernels.cluster_labels`).
-
-    Args:
-        points: (M, 2) x, y [m].
-        link: the linking distance [m].
-
-    Returns:
-        ``(labels, n)``: (M,) int cluster index of each point, and the number of clusters.
-
-    Raises:
-        ValueError: more than one point and a coordinate is NaN or infinite.
-    """
-    pts = np.ascontiguousarray(np.asarray(points, dtype=float).reshape(-1, 2))
-    labels, n = kern.cluster_labels(pts, float(link))
-    if n < 0:
-        raise ValueError("data must be finite, check for nan or inf values")
-    return labels, n
+_LINK = 0.2  # [m] scan points at most this far apart belong to one robot (single linkage)
+_GATE = 0.3  # [m] a centre matches one of a scan dt earlier at most _GATE + _MAX_SPEED dt away
+_MAX_SPEED = 0.5  # [m/s] the fastest a robot seen is taken to move
+_NO_CENTRES = np.zeros((0, 2))
 
 
-def cluster_centres(points: Points2D, viewer_xy, link: float = 0.2,
-                    depth: float = CENTRE_DEPTH) -> np.ndarray:
-    """Estimated centres of the objects (robots) behind clusters of dynamic points.
-
-    A lidar sees an object's near side, so each cluster's centroid is pushed ``depth`` [m] away
-    from the viewer.
-
-    Args:
-        points: (M, 2) dynamic points x, y [m] in ``map``.
-        viewer_xy: (2,) x, y [m] of the lidar (or robot) in ``map``.
-        link: the clustering distance [m] (:func:`cluster_points`).
-        depth: how far behind its visible side an object's centre lies [m].
-
-    Returns:
-        (K, 2) x, y [m] of the estimated centres, one per cluster.
-    """
-    pts = np.asarray(points, dtype=float).reshape(-1, 2)
-    labels, n = cluster_points(pts, link)
-    return _centres_of(pts, labels, n, viewer_xy, depth)
-
-
-def _centres_of(pts: np.ndarray, labels: np.ndarray, n: int, viewer_xy, depth: float
-                ) -> np.ndarray:
-    """(n, 2) the centres of the clusters ``labels`` of ``pts`` (see :func:`cluster_centres`)."""
-    if n == 0:
-        return np.zeros((0, 2))
-    v = np.asarray(viewer_xy, dtype=float).reshape(2)
-    return kern.cluster_centres(np.ascontiguousarray(pts), np.asarray(labels, dtype=np.int64),
-                                int(n), float(v[0]), float(v[1]), float(depth))
-
-
-def estimate_velocities(centres: np.ndarray, earlier: np.ndarray, dt: float,
-                        gate: float = 0.3, max_speed: float = 0.5) -> np.ndarray:
-    """Velocities of clusters by matching each centre to the nearest centre of an earlier scan.
-
-    Args:
-        centres: (K, 2) centres x, y [m] now.
-        earlier: (J, 2) centres [m] ``dt`` seconds earlier.
-        dt: time [s] between the two (> 0).
-        gate: a match may be at most ``gate + max_speed * dt`` [m] away.
-        max_speed: the fastest a robot moves [m/s].
-
-    Returns:
-        (K, 2) velocities [m/s]; NaN where no earlier centre matched.
-    """
-    c = np.asarray(centres, dtype=float).reshape(-1, 2)
-    e = np.asarray(earlier, dtype=float).reshape(-1, 2)
-    if len(c) == 0 or len(e) == 0 or dt <= 0:
-        return np.full(c.shape, np.nan)
-    return kern.match_velocities(np.ascontiguousarray(c), np.ascontiguousarray(e), float(dt),
-                                 gate + max_speed * dt)
-
-
-def perceive_robots(dyn_points: Points2D, viewer_xy, earlier: np.ndarray | None = None,
-                    dt: float = 0.0) -> list[SeenRobot]:
+def perceive(dyn_points: Points2D, viewer_xy, earlier: np.ndarray | None = None, dt: float = 0.0
+             ) -> tuple[list[SeenRobot], SeenArrays | None]:
     """The other robots in a scan: clusters of dynamic points, their centres and velocities.
+
+    Points at most ``_LINK`` apart are one cluster (single linkage: ``dx * dx + dy * dy <= link
+    * link``, the test of scipy's ``cKDTree.query_pairs``); clusters are numbered in the order of
+    their first point. Each cluster is a robot whose centre is its centroid pushed
+    ``CENTRE_DEPTH`` away from the viewer (a lidar sees an object's near side), and whose
+    velocity matches its centre to the nearest of ``earlier`` (at most ``_GATE + _MAX_SPEED *
+    dt`` away; NaN otherwise). One compiled call (:func:`swarm_nav.perception_kernels.perceive`).
 
     Args:
         dyn_points: (M, 2) dynamic scan points x, y [m] in ``map`` (:func:`dynamic_points`).
@@ -160,20 +95,12 @@ def perceive_robots(dyn_points: Points2D, viewer_xy, earlier: np.ndarray | None 
         dt: the time [s] since ``earlier``.
 
     Returns:
-        One :class:`SeenRobot` per cluster.
+        ``(robots, seen)``: one :class:`SeenRobot` per cluster, and the same as
+        :class:`SeenArrays` (``None`` when no robot is seen).
+
+    Raises:
+        ValueError: more than one point and a coordinate is NaN or infinite.
     """
-    return _perceive(dyn_points, viewer_xy, earlier, dt)[0]
-
-
-_GATE = 0.3  # [m] estimate_velocities' default gate
-_MAX_SPEED = 0.5  # [m/s] estimate_velocities' default max_speed
-_NO_CENTRES = np.zeros((0, 2))
-
-
-def _perceive(dyn_points: Points2D, viewer_xy, earlier: np.ndarray | None, dt: float
-              ) -> tuple[list[SeenRobot], SeenArrays | None]:
-    """:func:`perceive_robots` in one compiled call; also the robots' :class:`SeenArrays`
-    (None when no robot is seen)."""
     pts = np.ascontiguousarray(np.asarray(dyn_points, dtype=float).reshape(-1, 2))
     v = np.asarray(viewer_xy, dtype=float).reshape(2)
     if earlier is None:
@@ -182,7 +109,7 @@ def _perceive(dyn_points: Points2D, viewer_xy, earlier: np.ndarray | None, dt: f
         e = np.ascontiguousarray(np.asarray(earlier, dtype=float).reshape(-1, 2))
         reach = _GATE + _MAX_SPEED * dt
     n, centres, vel, grouped, starts, sizes, owner, known, speed = kern.perceive(
-        pts, 0.2, float(v[0]), float(v[1]), CENTRE_DEPTH, e, float(dt), reach)
+        pts, _LINK, float(v[0]), float(v[1]), CENTRE_DEPTH, e, float(dt), reach)
     if n < 0:
         raise ValueError("data must be finite, check for nan or inf values")
     if n == 0:
@@ -190,7 +117,7 @@ def _perceive(dyn_points: Points2D, viewer_xy, earlier: np.ndarray | None, dt: f
     ends = (starts + sizes).tolist()
     robots = [SeenRobot(c, grouped[a:b], u)
               for c, a, b, u in zip(centres, starts.tolist(), ends, vel, strict=True)]
-    # the arrays apart from the robots' (as SeenArrays.of's), so neither sees the other's changes
+    # the arrays apart from the robots', so neither sees the other's changes
     return robots, SeenArrays(centres.copy(), vel.copy(), known, speed, grouped.copy(), owner,
                               starts, sizes)
 
@@ -210,32 +137,17 @@ class RobotTracker:
         self.cfg = cfg
         self._history: list[tuple[float, np.ndarray]] = []
 
-    def update(self, dyn_points: Points2D, viewer_xy, now: float) -> list[SeenRobot]:
-        """The robots of a new scan (:func:`perceive_robots`); remembers their centres.
+    def update(self, dyn_points: Points2D, viewer_xy, now: float
+               ) -> tuple[list[SeenRobot], SeenArrays]:
+        """The robots of a new scan (:func:`perceive`); remembers their centres.
 
         Args:
-            dyn_points: (M, 2) dynamic scan points x, y [m] in ``map`` (:func:`dynamic_points`).
-            viewer_xy: (2,) the lidar's (or robot's) x, y [m].
-            now: the scan's time [s].
+            dyn_points, viewer_xy: as :func:`perceive`'s; now: the scan's time [s].
 
         Returns:
-            One :class:`SeenRobot` per cluster; velocities NaN until a scan at least
-            ``velocity_min_baseline`` older is known (or where no earlier centre matched).
-        """
-        return self.update_arrays(dyn_points, viewer_xy, now)[0]
-
-    def update_arrays(self, dyn_points: Points2D, viewer_xy, now: float
-                      ) -> tuple[list[SeenRobot], SeenArrays]:
-        """:meth:`update`, and its robots as :class:`SeenArrays`.
-
-        Args:
-            dyn_points: (M, 2) dynamic scan points x, y [m] in ``map`` (:func:`dynamic_points`).
-            viewer_xy: (2,) the lidar's (or robot's) x, y [m].
-            now: the scan's time [s].
-
-        Returns:
-            ``(robots, seen)``: :meth:`update`'s robots, and ``SeenArrays.of(robots)`` (equal
-            arrays, made from the clusters without gathering them from the robots).
+            ``(robots, seen)``: one :class:`SeenRobot` per cluster, velocities NaN until a scan
+            at least ``velocity_min_baseline`` older is known (or where no earlier centre
+            matched), and the same robots as :class:`SeenArrays`.
         """
         cfg = self.cfg
         self._history = [(t, c) for t, c in self._history
@@ -247,9 +159,9 @@ class RobotTracker:
                 off = abs(now - t - cfg.velocity_baseline)
                 if best is None or off < best:
                     best, earlier, dt = off, c, now - t
-        robots, seen = _perceive(dyn_points, viewer_xy, earlier, dt)
+        robots, seen = perceive(dyn_points, viewer_xy, earlier, dt)
         if seen is None:
-            seen = SeenArrays.of([])
+            seen = SeenArrays.empty()
         self._history.append((now, seen.centres.copy()))
         return robots, seen
 
@@ -279,23 +191,10 @@ class SeenArrays:
     sizes: np.ndarray
 
     @classmethod
-    def of(cls, robots: list[SeenRobot]) -> SeenArrays:
-        """The arrays of ``robots`` (in their order)."""
-        if not robots:
-            z2, zi = np.zeros((0, 2)), np.zeros(0, dtype=int)
-            return cls(z2, z2, np.zeros(0, dtype=bool), np.zeros(0), z2, zi, zi, zi)
-        velocity = np.array([r.velocity for r in robots], dtype=float)
-        known, speed = kern.speeds(velocity)
-        sizes = np.array([len(r.points) for r in robots], dtype=int)
-        starts = np.concatenate(([0], np.cumsum(sizes)[:-1])).astype(int)
-        return cls(robot_centres(robots), velocity, known, speed,
-                   np.vstack([r.points for r in robots]),
-                   np.repeat(np.arange(len(robots)), sizes), starts, sizes)
-
-
-def robot_centres(robots: list[SeenRobot]) -> np.ndarray:
-    """(K, 2) the centres x, y [m] of ``robots`` ((0, 2) when there are none)."""
-    return np.array([r.centre for r in robots]) if robots else np.zeros((0, 2))
+    def empty(cls) -> SeenArrays:
+        """No robot: arrays of length 0."""
+        z2, zi = np.zeros((0, 2)), np.zeros(0, dtype=int)
+        return cls(z2, z2, np.zeros(0, dtype=bool), np.zeros(0), z2, zi, zi, zi)
 
 
 _STATIC_MARGIN = 0.5  # [m] the robot moves this far before its static obstacle window is renewed
@@ -325,7 +224,7 @@ class ObstacleSet:
         self.scan = np.zeros((0, 2))
         self.dynamic = np.zeros((0, 2))
         self.robots: list[SeenRobot] = []
-        self.seen = SeenArrays.of([])
+        self.seen = SeenArrays.empty()
         self.time = -math.inf
         self._movers = self._moving_points()
         self._tracker = RobotTracker(cfg.perception)
@@ -345,7 +244,7 @@ class ObstacleSet:
         else:
             self.dynamic = dynamic_points(pts, self.costmap,
                                           self.cfg.perception.static_point_tolerance)
-        self.robots, self.seen = self._tracker.update_arrays(self.dynamic, viewer_xy, now)
+        self.robots, self.seen = self._tracker.update(self.dynamic, viewer_xy, now)
         self._movers = self._moving_points()
 
     def fresh(self, now: float) -> bool:

@@ -1,9 +1,8 @@
 """Compiled loops of the navigator's perception (:mod:`swarm_nav.perception`), with numba.
 
 Each kernel does, point by point, the arithmetic that :mod:`swarm_nav.perception` did with numpy
-(and a scipy k-d tree) over whole arrays: the same IEEE operations on the same operands in the
-same order, so the results are the same to the last bit (no ``fastmath``: LLVM then neither
-reorders nor contracts them).  ``hypot`` is the C library's in both numpy and numba.  What the
+(and a scipy k-d tree) over whole arrays, with the same results to the last bit (the rules:
+:mod:`swarm_nav.dwa_kernels`; ``hypot`` is the C library's in both numpy and numba).  What the
 loops gain is not arithmetic but the per-call overhead of some forty numpy and scipy calls on
 small arrays (tens to a few hundred points) at every scan of every robot (a fifth of the time:
 docs/design/navigator.md#compiled-kernels; tests/swarm_nav/test_perception_kernels.py holds the
@@ -14,8 +13,7 @@ scipy's ``cKDTree.query_pairs`` at its leaves (it compares squared distances, su
 the order x, y).  The pairs are found by a sweep over the points sorted by x, which stops once
 ``dx * dx`` alone exceeds ``link * link``.
 
-Compiled on first use and cached beside this file (``cache=True``), so a process after the first
-loads the machine code instead of compiling it (:mod:`swarm_nav.jit` warms them all up).
+Compiled on first use and cached beside this file (:mod:`swarm_nav.jit` warms them all up).
 """
 
 from __future__ import annotations
@@ -35,9 +33,7 @@ def dynamic_mask(pts, ox, oy, resolution, distance, tolerance):
 
     Args:
         pts: (M, 2) x, y [m] in ``map`` (C-contiguous).
-        ox: x [m] of the grid's cell (0, 0) corner in ``map``.
-        oy: y [m] of that corner.
-        resolution: cell size [m].
+        ox, oy: x, y [m] of the grid's cell (0, 0) corner in ``map``; resolution: cell size [m].
         distance: (H, W) float32 distance [m] of each cell to the nearest lethal cell.
         tolerance: the distance [m] a point must exceed.
 
@@ -128,16 +124,14 @@ def cluster_labels(pts, link):
 def cluster_centres(pts, labels, n, vx, vy, depth):
     """The centres of clusters of points: centroids pushed ``depth`` away from a viewer.
 
-    The arithmetic of ``perception._centres_of``: sums accumulated point by point in the order
+    The arithmetic of the numpy code it replaced: sums accumulated point by point in the order
     of ``pts`` (as ``np.add.at``), divided by the counts; then ``centroid + depth * away /
     max(|away|, 1e-9)`` with ``away = centroid - viewer``.
 
     Args:
-        pts: (M, 2) x, y [m] in ``map``.
-        labels: (M,) int cluster index of each point (0 to n - 1).
-        n: the number of clusters.
-        vx: the viewer's x [m] in ``map``.
-        vy: the viewer's y [m].
+        pts: (M, 2) x, y [m] in ``map``; labels: (M,) int cluster index of each point (0 to
+            n - 1); n: the number of clusters.
+        vx, vy: the viewer's x, y [m] in ``map``.
         depth: how far behind its centroid [m] a cluster's centre lies.
 
     Returns:
@@ -169,15 +163,13 @@ def cluster_centres(pts, labels, n, vx, vy, depth):
 def match_velocities(centres, earlier, dt, reach):
     """Velocities of centres from the nearest centre of an earlier scan.
 
-    The arithmetic of ``perception.estimate_velocities``: ``hypot`` distances, the first least
+    The arithmetic of the numpy code it replaced: ``hypot`` distances, the first least
     one (a NaN distance counts as least, as ``np.argmin``), accepted when ``<= reach``, the
     velocity ``(centre - earlier) / dt``.
 
     Args:
-        centres: (K, 2) centres x, y [m] now.
-        earlier: (J, 2) centres [m] ``dt`` seconds earlier.
-        dt: the time between them [s] (> 0).
-        reach: the farthest [m] a match may be.
+        centres: (K, 2) centres x, y [m] now; earlier: (J, 2) centres [m] ``dt`` seconds earlier.
+        dt: the time between them [s] (> 0); reach: the farthest [m] a match may be.
 
     Returns:
         (K, 2) velocities [m/s]; NaN where no earlier centre matched (all NaN when J is 0).
@@ -213,9 +205,8 @@ def group_points(pts, labels, n):
     """The points cluster after cluster, each cluster's in the order of ``pts``.
 
     Args:
-        pts: (M, 2) x, y [m].
-        labels: (M,) int cluster index of each point (0 to n - 1).
-        n: the number of clusters.
+        pts: (M, 2) x, y [m]; labels: (M,) int cluster index of each point (0 to n - 1); n: the
+            number of clusters.
 
     Returns:
         ``(grouped, starts, sizes)``: (M, 2) the points, (n,) int64 index of each cluster's
@@ -279,10 +270,9 @@ def moving_points(points, starts, sizes, velocity, moving):
     (``swarm_nav.perception.ObstacleSet._moving_points``).
 
     Args:
-        points: (P, 2) every robot's points x, y [m] in ``map``, robot after robot.
-        starts: (K,) int index of each robot's first point in ``points``.
-        sizes: (K,) int number of each robot's points.
-        velocity: (K, 2) each robot's velocity [m/s].
+        points, starts, sizes, velocity: those of ``perception.SeenArrays``: (P, 2) points x, y
+            [m] in ``map``, robot after robot, (K,) int each robot's first point and number of
+            points, (K, 2) its velocity [m/s].
         moving: (K,) bool, the robots to take.
 
     Returns:
@@ -320,14 +310,9 @@ def perceive(pts, link, vx, vy, depth, earlier, dt, reach):
     has rows and ``dt > 0``; NaN velocities otherwise) and :func:`group_points` in one call.
 
     Args:
-        pts: (M, 2) dynamic points x, y [m] in ``map`` (C-contiguous).
-        link: the linking distance [m].
-        vx: the viewer's x [m] in ``map``.
-        vy: the viewer's y [m].
-        depth: how far behind its centroid [m] a cluster's centre lies.
-        earlier: (J, 2) the centres [m] seen ``dt`` seconds earlier (J may be 0).
-        dt: the time [s] since ``earlier``.
-        reach: the farthest [m] a match may be.
+        pts, link: as :func:`cluster_labels` (the dynamic points [m] in ``map``).
+        vx, vy, depth: as :func:`cluster_centres` [m].
+        earlier, dt, reach: as :func:`match_velocities` (J may be 0) [m], [s], [m].
 
     Returns:
         ``(n, centres, velocity, grouped, starts, sizes, owner, known, speed)``: the number of

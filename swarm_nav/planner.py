@@ -66,21 +66,11 @@ class PlanResult:
     goal_shift: float = 0.0
 
 
-def step_multipliers(costmap: Costmap, cfg: PlannerConfig) -> np.ndarray:
-    """(H, W) float per-cell multiplier of a step's length; 0 where the cell is impassable.
-
-    Args:
-        costmap: the costmap.
-        cfg: ``cost_penalty`` [-] and ``allow_unknown``.
-
-    Returns:
-        ``1 + cost_penalty * cost / 252`` for traversable cells, 0 for the others.
+def step_multipliers(costs: np.ndarray, cfg: PlannerConfig) -> np.ndarray:
+    """(H, W) float multiplier of a step's length into each cell of ``costs`` (a costmap's
+    costs, or a window of them): ``1 + cost_penalty * cost / 252`` where the cell is traversable
+    (``cost_penalty`` [-]; unknown counts as ``_UNKNOWN_AS`` with ``allow_unknown``), 0 where not.
     """
-    return _multipliers(costmap.costs, cfg)
-
-
-def _multipliers(costs: np.ndarray, cfg: PlannerConfig) -> np.ndarray:
-    """:func:`step_multipliers` of an array of costs (a whole costmap or a window of one)."""
     unknown = costs == UNKNOWN
     c = costs.astype(float)
     c[unknown] = _UNKNOWN_AS
@@ -98,10 +88,10 @@ def plan_path(costmap: Costmap, start, goal, cfg: PlannerConfig) -> PlanResult:
     A start inside the inscribed zone (e.g. a robot pushed against a wall, or a robot seen in the
     scan overlaid on the costmap) first escapes to the nearest traversable cell within
     ``start_escape_radius``.  A goal in a lethal cell (inside an obstacle) is ``"goal in
-    obstacle"``, as SPEC §5 wants; a goal in the inflation (inscribed or unknown, not lethal) is
-    replaced by the nearest reachable traversable cell within ``tolerance``, as NavFn does, and
-    is ``"goal in obstacle"`` when there is none; a goal in a free cell that is not reachable is
-    ``"no path"``, never moved across a wall.
+    obstacle"``, as docs/reference/contract.md#s5-navigation wants; a goal in the inflation
+    (inscribed or unknown, not lethal) is replaced by the nearest reachable traversable cell
+    within ``tolerance``, as NavFn does, and is ``"goal in obstacle"`` when there is none; a goal
+    in a free cell that is not reachable is ``"no path"``, never moved across a wall.
 
     Args:
         costmap: the costmap (usually :func:`~swarm_nav.costmap.build_costmap`'s).
@@ -177,8 +167,7 @@ def cell_path(costmap: Costmap, start_rc: tuple[int, int], goal_rc: tuple[int, i
 
     Args:
         costmap: the costmap.
-        start_rc: ``(row, col)`` of the start cell.
-        goal_rc: ``(row, col)`` of the goal cell.
+        start_rc, goal_rc: ``(row, col)`` of the start cell and of the goal cell.
         cfg: ``cost_penalty`` and ``allow_unknown``.
 
     Returns:
@@ -220,7 +209,7 @@ def share_cost_to_go(robots: int) -> None:
 
     A field is a whole-map search from a goal cell, asked for by every plan and replan toward
     that goal. The targets are the workstations, their holding spots and each robot's own
-    staging and retreat points, so fewer fields than robots let the staging points push the
+    staging points and retreat places, so fewer fields than robots let the staging points push the
     workstations' fields out (measured: docs/design/navigator.md#replanning). The fields are the
     same either way; only when they are searched changes.
 
@@ -376,7 +365,7 @@ def _build_graph(costmap: Costmap, cfg: PlannerConfig) -> tuple[csr_matrix, np.n
     """The reversed graph and the (H*W, 8) data index of every (cell, move slot), -1 if none."""
     h, w = costmap.height, costmap.width
     pad = np.zeros((h + 2, w + 2))
-    pad[1:-1, 1:-1] = step_multipliers(costmap, cfg)
+    pad[1:-1, 1:-1] = step_multipliers(costmap.costs, cfg)
     cost = _edge_costs(pad, costmap.resolution)
     valid = np.isfinite(cost)
     idx = np.arange(h * w, dtype=np.int32).reshape(h, w)
@@ -402,7 +391,7 @@ def _patch(costmap: Costmap, cfg: PlannerConfig) -> tuple[np.ndarray, np.ndarray
     pr0, pc0 = r0 - 1, c0 - 1  # the padded window's first row/column in the map (may be -1)
     rs, cs = max(pr0, 0), max(pc0, 0)
     re, ce = min(r1 + 1, h), min(c1 + 1, w)
-    pad[rs - pr0:re - pr0, cs - pc0:ce - pc0] = _multipliers(costmap.costs[rs:re, cs:ce], cfg)
+    pad[rs - pr0:re - pr0, cs - pc0:ce - pc0] = step_multipliers(costmap.costs[rs:re, cs:ce], cfg)
     steps = np.array([math.hypot(dr, dc) * costmap.resolution for dr, dc in _MOVES])
     return kernels.patch_moves(pad, steps, _MOVE_ARRAY, r0, r1, c0, c1, w, slots, base.data)
 

@@ -58,17 +58,12 @@ def shortcut_indices(costs, res, ox, oy, pts, cell_cost, penalty, allow_unknown,
     """The points kept by :func:`swarm_nav.planner.shortcut_path` (its search, compiled).
 
     Args:
-        costs: (H, W) uint8 costmap; row 0 at ``y = oy``.
-        res: cell size [m].
-        ox: x [m] of the grid's lower-left corner in ``map``.
-        oy: y [m] of that corner.
+        costs, res, ox, oy: the costmap, as :func:`swarm_nav.costmap_kernels.segment_profile`.
         pts: (N, 2) path points x, y [m], N >= 3.
         cell_cost: (N,) int64 each point's cell cost (unknown already counted as ``UNKNOWN_AS``
             when allowed).
-        penalty: ``cost_penalty`` [-].
-        allow_unknown: whether unknown cells are traversable.
-        max_cost: ``shortcut_max_cost``.
-        keep_first: keep the first segment as it is.
+        penalty: ``cost_penalty`` [-]; allow_unknown: whether unknown cells are traversable.
+        max_cost: ``shortcut_max_cost``; keep_first: keep the first segment as it is.
 
     Returns:
         (K,) int64 indices into ``pts`` of the points kept, first and last included.
@@ -394,10 +389,8 @@ def patch_moves(pad, steps, moves, r0, r1, c0, c1, width, slots, base_data):
             ``r0 - 1 .. r1`` and columns ``c0 - 1 .. c1`` (0 = impassable, and outside the map).
         steps: (8,) float64 each move's length [m] (``hypot(dr, dc) * resolution``).
         moves: (8, 2) int64 each move's ``(dr, dc)`` from the neighbour into the cell.
-        r0: first row of the window (cells moved into).
-        r1: one past its last row.
-        c0: first column.
-        c1: one past its last column.
+        r0, r1, c0, c1: the window (cells moved into): first row, one past its last row, first
+            column, one past its last column.
         width: the map's width [cells].
         slots: (H * W, 8) int32 the base graph's data index of each (cell, move), -1 if none.
         base_data: (E,) float64 the base graph's weights.

@@ -32,9 +32,9 @@ class PathTracker:
             ``holding.moving_speed`` [m/s].
 
     Attributes:
-        path: (N, 2) x, y [m] in ``map``, or ``None``.
-        s: (N,) arc length [m] of each point from the first.
-        to_goal: whether the path leads to the goal (not to a holding target or a retreat).
+        path, s: (N, 2) x, y [m] in ``map`` (or ``None``), and (N,) each point's arc length
+            [m] from the first.
+        to_goal: whether the path leads to the goal (not to a holding point or a retreat).
         version: incremented whenever a path is set.
         idx: the progress index into ``path``.
     """

@@ -4,9 +4,9 @@ Every robot applies the same rules to what its own scan shows, so two robots agr
 communication:
 
 - **Keep right** (:func:`keep_right`): a robot shifts its local path to its own right while a
-  robot comes toward it on it (:func:`oncoming`), so two robots meeting head-on in a lane move
-  apart before they meet, like road traffic. Without it, two DWAs facing each other each steer
-  around the other to the same side about half of the time and end nose to nose.
+  robot comes toward it on it (:func:`oncoming_centres`), so two robots meeting head-on in a
+  lane move apart before they meet, like road traffic. Without it, two DWAs facing each other
+  each steer around the other to the same side about half of the time and end nose to nose.
 - **Yield** (:func:`must_yield`): what is left of a face-to-face deadlock (a robot within
   ``deadlock_distance`` ahead, :func:`robots_ahead`, while stuck) is broken by a rule whose answer
   is opposite for the two robots: the one whose bearing to the other points along the yield axis
@@ -23,7 +23,7 @@ tests/swarm_nav/test_traffic.py.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from enum import StrEnum
 
@@ -32,7 +32,6 @@ import numpy as np
 from swarm_common.geometry import Path2D, wrap_angle
 from swarm_nav.config import PlannerConfig, TrafficConfig
 from swarm_nav.costmap import INSCRIBED, Costmap
-from swarm_nav.perception import SeenRobot
 from swarm_nav.planner import path_length, plan_path
 
 _EPS = 1e-6  # [m] below this a distance counts as zero (no direction)
@@ -40,29 +39,19 @@ _NO_RETREAT = 0.05  # [m] a yielding robot that got less far than this from wher
 #                    when the drive to its retreat place ends stuck, did not retreat at all
 
 
-def oncoming(robots: Sequence[SeenRobot], robot_xy, moving_speed: float) -> np.ndarray:
+def oncoming_centres(centres: np.ndarray, velocities: np.ndarray, robot_xy,
+                     moving_speed: float) -> np.ndarray:
     """The robots seen driving toward us: those the keep-right rule makes room for.
 
     Args:
-        robots: the robots seen (:func:`swarm_nav.perception.perceive_robots`).
+        centres: (K, 2) the robots' centres x, y [m] in ``map``.
+        velocities: (K, 2) their velocities [m/s] (NaN: unknown; such a robot never counts).
         robot_xy: (2,) our position x, y [m] in ``map``.
-        moving_speed: a robot counts when its speed toward us exceeds this [m/s] (one with an
-            unknown velocity never counts).
+        moving_speed: a robot counts when its speed toward us exceeds this [m/s].
 
     Returns:
-        (K, 2) their centres x, y [m] in ``map``, in the order of ``robots``.
+        (J, 2) the centres x, y [m] of those driving toward us, in the order of ``centres``.
     """
-    if not robots:
-        return np.zeros((0, 2))
-    return oncoming_centres(np.array([r.centre for r in robots], dtype=float),
-                            np.array([r.velocity for r in robots], dtype=float),
-                            robot_xy, moving_speed)
-
-
-def oncoming_centres(centres: np.ndarray, velocities: np.ndarray, robot_xy,
-                     moving_speed: float) -> np.ndarray:
-    """:func:`oncoming` on arrays: (K, 2) centres [m] and (K, 2) velocities [m/s] (NaN:
-    unknown) of the robots seen; the (J, 2) centres of those driving toward ``robot_xy``."""
     xy = np.asarray(robot_xy, dtype=float)[:2]
     d = xy - centres
     n = np.hypot(d[:, 0], d[:, 1])
@@ -179,8 +168,8 @@ def retreat_candidates(costmap: Costmap, robot_xy, other_xy, cfg: TrafficConfig,
 
     Args:
         costmap: the costmap (static, or with the robots seen overlaid).
-        robot_xy: (2,) our position x, y [m] in ``map``.
-        other_xy: (2,) the other robot's estimated centre [m].
+        robot_xy, other_xy: (2,) our position and the other robot's estimated centre, x, y [m]
+            in ``map``.
         cfg: ``yield_search_radius`` [m] and ``yield_clearance`` [m].
         max_cost: the highest cost a candidate cell may have.
 
@@ -228,8 +217,8 @@ def plan_retreat(costmap: Costmap, robot_xy, other_xy, cfg: TrafficConfig,
 
     Args:
         costmap: the costmap to plan on (the static one, or with the robots seen overlaid).
-        robot_xy: (2,) our position x, y [m] in ``map``.
-        other_xy: (2,) the other robot's estimated centre [m].
+        robot_xy, other_xy: (2,) our position and the other robot's estimated centre, x, y [m]
+            in ``map``.
         cfg: the traffic settings.
         planner: the global planner's settings (:func:`swarm_nav.planner.plan_path`).
 
@@ -276,8 +265,7 @@ class Yield:
         target: (2,) the retreat place x, y [m] in ``map``.
         t0: when the yield began [s].
         other: (2,) the other robot's estimated centre [m] when it began.
-        phase: ``"drive"`` or ``"wait"``.
-        t_phase: when the phase began [s].
+        phase, t_phase: ``"drive"`` or ``"wait"``, and when it began [s].
         still_since: since when [s] the drive found no motion, or ``None``.
         clear_since: since when [s] the path ahead has been clear while waiting, or ``None``.
         start: (2,) where the robot was when the yield began [m], or ``None`` (not checked).

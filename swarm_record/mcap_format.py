@@ -15,10 +15,11 @@ parts of the recorder (:class:`McapRecording`, :class:`TfBuilder`; the CDR bytes
 :mod:`swarm_common.cdr`).
 :mod:`swarm_record.recorder` is its ROS shell; ``swarm-plot`` (:mod:`swarm_record.plot`) reads it.
 
-``/tf`` is not published by the swarm (SPEC §3: ``ground_truth`` is "tf-like"): the recorder
-builds ``tf2_msgs/msg/TFMessage`` from each robot's ``ground_truth`` and ``odom`` of one tick
-(``map`` -> ``<ns>/odom`` -> ``<ns>/base_footprint`` -> ``<ns>/base_scan``) and writes its CDR
-bytes itself (:func:`swarm_common.cdr.tf_message`), since no ``tf2_msgs`` wheel exists.
+``/tf`` is not published by the swarm (docs/reference/contract.md#s3: ``ground_truth`` is
+"tf-like"): the recorder builds ``tf2_msgs/msg/TFMessage`` from each robot's ``ground_truth`` and
+``odom`` of one tick (``map`` -> ``<ns>/odom`` -> ``<ns>/base_footprint`` -> ``<ns>/base_scan``)
+and writes its CDR bytes itself (:func:`swarm_common.cdr.tf_message`), since no ``tf2_msgs``
+wheel exists.
 """
 
 from __future__ import annotations

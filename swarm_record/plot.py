@@ -1,4 +1,4 @@
-"""``swarm-plot``: pictures of a recorded run (SPEC §2).
+"""``swarm-plot``: pictures of a recorded run (docs/reference/contract.md#s2).
 
 ``swarm-plot RUN_DIR|FILE.mcap [-o OUT.png]`` reads a recording of ``swarm-up --record`` and
 draws two PNG figures (matplotlib, Agg backend):

@@ -5,7 +5,8 @@ Examples::
     swarm-map slim_blockage                      # writes slim_blockage.yaml + .pgm here
     swarm-map my_hall.world --resolution 0.1 --output maps/my_hall
 
-Exit codes (SPEC §2): 0 written, 2 bad input (one line on stderr), 1 runtime failure.
+Exit codes (docs/reference/contract.md#s2): 0 written, 2 bad input (one line on stderr), 1 runtime
+failure.
 """
 
 from __future__ import annotations
@@ -95,7 +96,8 @@ def _names(names: list[str], limit: int = 6) -> str:
 
 
 def spawn_line(world_path: Path, occ) -> str:
-    """One line saying where ``swarm-up`` spawns robots in this world (SPEC §4).
+    """One line saying where ``swarm-up`` spawns robots in this world
+    (docs/reference/contract.md#s4).
 
     Args:
         world_path: the world file; its points of interest are the ``.yaml`` beside it.

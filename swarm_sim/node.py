@@ -1,4 +1,4 @@
-"""``swarm-sim``: the simulator node ``/swarm_sim`` (SPEC §2, §3, §5).
+"""``swarm-sim``: the simulator node ``/swarm_sim`` (docs/reference/contract.md#s2, #s3, #s5).
 
 Loads a Gazebo world and a URDF robot, spawns exactly N robots, and runs the synchronous control
 loop of docs/ARCHITECTURE.md: each control tick it publishes ``/clock``, every robot's ``odom``
@@ -768,7 +768,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--faults", default=None, metavar="SPEC",
                    help="inject faults at simulated times: KIND[:TARGET]@TIME[+DURATION],... "
                    "or a YAML file (kinds kill-nav, kill-robot, freeze, drop, kill-coordinator; "
-                   "see README, Faults) [none]")
+                   "see docs/guides/faults.md) [none]")
     p.add_argument("--gui", action="store_true",
                    help="open the PyBullet window (default headless)")
     p.add_argument("--headless", action="store_true", help="run without a window (the default)")
@@ -800,7 +800,7 @@ def prepare(settings: SimSettings):
         ``skipped`` names what of it is not simulated.
 
     Raises:
-        InputError: an unknown or malformed world, robot, map or POI file, a bad name prefix, or
+        InputError: a missing or malformed world, robot, map or points of interest, bad prefix, or
             more robots than fit.
     """
     from swarm_common.fleet import describe_fleet, fleet_models

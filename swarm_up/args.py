@@ -63,7 +63,7 @@ def default_processes(n: int) -> str | int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The ``swarm-up`` argument parser (SPEC §2)."""
+    """The ``swarm-up`` argument parser (docs/reference/contract.md#s2)."""
     cores = os.cpu_count() or 1
     p = cli.ArgumentParser(
         prog=PROG,
@@ -85,8 +85,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a robot under robots/ or a .urdf/.xacro path; or a mixed fleet "
                    "NAME:COUNT,NAME:COUNT,... (e.g. turtlebot3_waffle:12,turtlebot3_burger:4,"
                    "linorobot2_2wd:4; the counts add up to --swarm-size) or a fleet .yaml "
-                   "file (README, Robots); the models are interleaved over the robot numbers "
-                   "(default: %(default)s)")
+                   "file (docs/guides/robots_and_fleets.md); the models are interleaved over "
+                   "the robot numbers (default: %(default)s)")
     cli.add_shared(p, "--name-prefix",
                    help="robot namespaces are /<PREFIX><i>, i = 1..N (default: %(default)s)")
     cli.add_shared(p, "--seed", help="seed of every random choice (default: %(default)s)")
@@ -122,7 +122,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="inject faults at simulated times: a comma-separated list of "
                    "KIND[:TARGET]@TIME[+DURATION] (kill-nav:3@60, kill-robot:3@60, "
                    "freeze:2@30+20, drop:2/scan:0.5@30+20, kill-coordinator@120[+10]) or a "
-                   "YAML file (README, Faults)")
+                   "YAML file (docs/guides/faults.md)")
     p.add_argument("--processes", type=processes_arg, default=None, metavar="per-robot|K",
                    help="one navigator process per robot, or K processes each hosting a group "
                    f"of robots (default: per-robot up to {PER_ROBOT_MAX} robots, else "

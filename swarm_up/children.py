@@ -100,7 +100,8 @@ def child_specs(cfg: RunConfig):
         "--world", world, "--robot", cfg.robot, "--swarm-size", str(len(cfg.robots)),
         "--name-prefix", cfg.name_prefix,
         "--seed", str(cfg.seed), "--rtf", repr(cfg.rtf),
-        # Simulated time starts when every navigator answers (SPEC §5's synchronous loop).
+        # Simulated time starts when every navigator answers (the synchronous loop:
+        # docs/reference/contract.md#s5-simulation).
         "--wait-for", str(len(cfg.robots)),
     ]
     if cfg.duration is not None:

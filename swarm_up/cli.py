@@ -1,4 +1,6 @@
-"""``swarm-up``: bring a whole swarm up with one command, supervise it and measure it (SPEC §2).
+"""``swarm-up``: bring a whole swarm up with one command, supervise it and measure it.
+
+The contract: docs/reference/contract.md#s2.
 
 The command is split by what each part holds: :mod:`swarm_up.args` (flags and validation),
 :mod:`swarm_up.rundir` (run directory and params files), :mod:`swarm_up.children` (the child

@@ -1,4 +1,4 @@
-"""Start, watch, restart and stop the child processes of a run (SPEC §5, supervision).
+"""Start, watch, restart and stop a run's children (docs/reference/contract.md#s5-supervision).
 
 Every child runs in its own session (``setsid``), so it is its own process group: a signal sent
 to the group reaches the child and anything it started, and the terminal's Ctrl-C reaches only

@@ -7,7 +7,7 @@ the tail of swarm-up's own output and of those logs.  The session's ``ROS_DOMAIN
 test starts (swarm-up and all it started, which run in sessions of their own) is stopped in a
 ``finally``.
 
-What is checked (SPEC §2, §5, §6):
+What is checked (docs/reference/contract.md#s2, #s5, #s6):
 
 1. a 6-robot run with commanders, 180 simulated s: no collision, no aborted goal, every robot
    reaches goals, no late tick;
@@ -314,7 +314,7 @@ def test_killed_navigator_is_restarted_and_goes_on(tmp_path):
         assert new, f"Srobot2's navigator not restarted within 15 s\n{run.diagnostics()}"
         delay = new[0].create_time() - killed_at
         assert delay <= 2.0, (f"Srobot2's navigator restarted {delay:.2f} s after SIGKILL "
-                              f"(SPEC: within 2 s)\n{run.diagnostics()}")
+                              f"(the contract: within 2 s)\n{run.diagnostics()}")
 
         code = run.wait(60 + EXIT_SLACK_S)
         diag = run.diagnostics(n=25, logs=("sim", "nav_Srobot2", "cmd_Srobot2"))
@@ -432,7 +432,7 @@ def test_bad_input_exits_2_with_one_line(args, flag, limit_s, tmp_path):
     if len(errors) != 1:
         problems.append("no single 'swarm-up: error: ' line on stderr")
     line = errors[0] if errors else ""
-    named = (flag, broken.name) if str(broken) in args else (flag,)  # SPEC: the flag or file
+    named = (flag, broken.name) if str(broken) in args else (flag,)  # contract: flag or file
     if not any(word in line for word in named):
         problems.append(f"the error line does not name {' or '.join(named)}")
     if args[:2] == ["--swarm-size", "500"] and not (

@@ -3,7 +3,7 @@
     python tools/gen_docs.py           # rewrite the pages
     python tools/gen_docs.py --check   # exit 1 and name the pages that are out of date
 
-Two pages of ``docs/reference/`` are written here and nowhere else, so they cannot drift from
+Three pages of ``docs/reference/`` are written here and nowhere else, so they cannot drift from
 the code (``tests/docs/test_generated.py`` fails when a page differs from this script's output):
 
 - ``parameters.md``: every navigator parameter from :func:`swarm_nav.config.flat_defaults` (the
@@ -12,6 +12,9 @@ the code (``tests/docs/test_generated.py`` fails when a page differs from this s
 - ``commands.md``: the ``--help`` of every console script in ``pyproject.toml``'s
   ``[project.scripts]``, each run in a subprocess through its entry point at a fixed width
   (``COLUMNS=100``), so the page follows the entry points when their modules move.
+- ``topics.md``: every topic and service of :mod:`swarm_common.topics` (name, type, the QoS its
+  writers offer, writers, readers, and the docstring after it as notes), its named QoS
+  profiles, and the ``nav_status`` keys of :func:`swarm_common.nav_status.encode`.
 
 Importable: the tests call :func:`pages` and compare.
 """
@@ -19,7 +22,9 @@ Importable: the tests call :func:`pages` and compare.
 from __future__ import annotations
 
 import argparse
+import ast
 import dataclasses
+import inspect
 import os
 import re
 import subprocess
@@ -227,12 +232,185 @@ def commands_page() -> str:
     return "\n".join(lines)
 
 
+# --------------------------------------------------------------------------- topics
+TOPICS_INTRO = """\
+Every topic and service of a running swarm: its type, the QoS its writers offer, who writes and
+who reads it. Standard message types only ([contract](contract.md#s3)); `<ns>` is a robot's
+namespace without the leading `/` (`Srobot3`). The conventions behind them (the synchronous
+control loop, the goal handshake, the `nav_status` contract, frames) are in
+[Architecture](../ARCHITECTURE.md#ros-conventions-chosen-by-us).
+
+QoS is history keep-last with the depth given; *latched* means reliable, transient local, depth
+1, as nav2's map server does it; *sensor data* is rclpy's `qos_profile_sensor_data` (best effort,
+volatile, depth 5). A reader that asks for other QoS than the writer's names its profile in
+brackets ([named QoS profiles](#named-qos-profiles)).
+
+## Nodes
+
+The writers and readers below are these nodes:
+
+"""
+
+# The nodes the writers and readers are: (who, node, process, what).
+TOPICS_NODES = (
+    ("swarm_sim", "`/swarm_sim`", "`swarm-sim` (child `sim` of `swarm-up`)", "the simulator"),
+    ("navigators, the robot's navigator", "`/<ns>/navigator`",
+     "`swarm-nav`, or a group process", "one robot's navigator"),
+    ("commanders, the robot's commander", "`/<ns>/commander`",
+     "`swarm-commander`, or a group process", "one robot's commander (nav2's `BasicNavigator`)"),
+    ("group processes", "`/<ns>/clock` (the first robot's)",
+     "`python -m swarm_up.group` (children `group_<k>` of `swarm-up`)",
+     "several robots' navigators and commanders; the process's one `/clock` subscription and, "
+     "with `--faults`, the in-process side of faults"),
+    ("swarm_coordinator", "`/swarm_coordinator`", "`swarm-coordinator` (child `coordinator`)",
+     "the coordinator, `--coordination centralized` only"),
+    ("swarm-up metrics", "`/swarm_up_metrics`", "`swarm-up`",
+     "the metrics listener (writes `metrics.json`); swarm-up's fault injection reads the "
+     "events through it"),
+    ("swarm-up's fault injection", "`/swarm_up_faults`", "`swarm-up`",
+     "with `--faults`, the process side of faults for per-robot processes and the coordinator"),
+    ("swarm-up live view", "`/swarm_up_fleet`", "`swarm-up`",
+     "the dashboard and the RViz markers, `--dashboard` or `--markers` only"),
+    ("recorder", "`/swarm_recorder`", "`python -m swarm_record.recorder` (child `record`)",
+     "the recorder, `--record` only"),
+)
+
+
+TOPICS_OUTRO = """\
+Nothing publishes `/tf`: every pose is already in `map` (odometry has no drift here). A recording
+builds `/tf` for Foxglove ([dashboard and recording](../guides/dashboard_and_recording.md)).
+
+The benchmark's messaging baseline (`swarm-bench --baseline`) runs the same topics with the same
+types, QoS and rates, with relaying nodes in place of the simulator and the navigators.
+"""
+
+
+def _attribute_docs(path: Path) -> dict[str, str]:
+    """Module-level name -> the docstring that follows its assignment (the string literal
+    statement right after it, as Sphinx reads attribute docstrings), as one paragraph."""
+    body = ast.parse(path.read_text()).body
+    out: dict[str, str] = {}
+    for node, nxt in zip(body, body[1:], strict=False):
+        if not (isinstance(nxt, ast.Expr) and isinstance(nxt.value, ast.Constant)
+                and isinstance(nxt.value.value, str)):
+            continue
+        targets = node.targets if isinstance(node, ast.Assign) else (
+            [node.target] if isinstance(node, ast.AnnAssign) else [])
+        for target in targets:
+            if isinstance(target, ast.Name):
+                out[target.id] = " ".join(inspect.cleandoc(nxt.value.value).split())
+    return out
+
+
+def _rst(text: str) -> str:
+    """reStructuredText inline markup as Markdown: ``code`` and :role:`target` (``~``: its last
+    part) as code spans."""
+    text = re.sub(r"``(.+?)``", r"`\1`", text)
+    text = re.sub(r":\w+:`~([^`]+)`", lambda m: f"`{m.group(1).split('.')[-1]}`", text)
+    text = re.sub(r":\w+:`([^`]+)`", r"`\1`", text)
+    return text
+
+
+_QOS_NAME = re.compile(r"\b([A-Z][A-Z_]*_QOS)\b")
+
+
+def _who(words: tuple[str, ...]) -> str:
+    """Writers or readers as one table cell; a named QoS profile links to its row."""
+    cell = "; ".join(words) if words else "-"
+    cell = cell.replace("|", "\\|")
+    return _QOS_NAME.sub(lambda m: f"[`{m.group(1)}`](#{m.group(1).lower()})", cell)
+
+
+def _qos_cells(qos) -> str:
+    """``reliability | durability | depth`` of a :class:`swarm_common.topics.Qos`."""
+    return " | ".join((qos.reliability.replace("_", " "), qos.durability.replace("_", " "),
+                       str(qos.depth)))
+
+
+def topics_page() -> str:
+    """The text of ``docs/reference/topics.md``."""
+    from swarm_common import topics
+    from swarm_common.nav_status import NavState, NavStatusRecord, encode
+
+    docs = _attribute_docs(ROOT / "swarm_common" / "topics.py")
+    named = {k: v for k, v in vars(topics).items() if isinstance(v, topics.Topic)}
+    services = {k: v for k, v in vars(topics).items() if isinstance(v, topics.Service)}
+    profiles = {k: v for k, v in vars(topics).items() if isinstance(v, topics.Qos)}
+
+    def shown(t) -> str:
+        return t.name if t.name.startswith("/") else f"/<ns>/{t.name}"
+
+    groups = {
+        "Swarm-wide topics": [k for k, t in named.items()
+                              if t.name.startswith("/") and "coordinator" not in t.name],
+        "A robot's topics": [k for k, t in named.items()
+                             if not t.name.startswith("/") and "coordinator" not in t.name],
+        "Centralized coordination": [k for k, t in named.items() if "coordinator" in t.name],
+    }
+    lines = [
+        "# Topics and services",
+        "",
+        "<!-- Generated by tools/gen_docs.py from swarm_common/topics.py; do not edit: run "
+        f"{REGENERATE}. -->",
+        "",
+        TOPICS_INTRO,
+        "| who | node | process | what |",
+        "|---|---|---|---|",
+        *(f"| {' | '.join(row)} |" for row in TOPICS_NODES),
+        "",
+    ]
+    for title, keys in groups.items():
+        lines += [f"## {title}", ""]
+        if title == "Centralized coordination":
+            lines += ["Only with `--coordination centralized`. Every message is a "
+                      "`std_msgs/String` whose `data` is JSON (the records of "
+                      "`swarm_common/coordination.py`); the coordinator also writes "
+                      "`/swarm/events` (above).", ""]
+        lines += ["| topic | type | reliability | durability | depth | writers | readers |",
+                  "|---|---|---|---|---|---|---|"]
+        for key in keys:
+            t = named[key]
+            lines.append(f"| `{shown(t)}` | `{t.type}` | {_qos_cells(t.qos)} | "
+                         f"{_who(t.writers)} | {_who(t.readers)} |")
+        lines.append("")
+        if title == "A robot's topics":
+            lines += ["| service | type | servers | clients |", "|---|---|---|---|"]
+            for v in services.values():
+                lines.append(f"| `/<ns>/{v.name}` | `{v.type}` | {_who(v.servers)} | "
+                             f"{_who(v.clients)} |")
+            lines.append("")
+        notes = [(shown(named[k]), docs[k]) for k in keys if k in docs]
+        if title == "A robot's topics":
+            notes += [(f"/<ns>/{v.name}", docs[k]) for k, v in services.items() if k in docs]
+        if notes:
+            lines += ["Notes:", ""]
+            lines += [f"- `{name}`: {_rst(text)}" for name, text in notes]
+            lines.append("")
+        if title == "A robot's topics":
+            full = NavStatusRecord(NavState.IDLE, "", 0, (0.0, 0.0, 0.0), 0.0, 0.0, 0, 0.0, 0,
+                                   "")
+            keys_text = ", ".join(f"`{k}`" for k in encode(full))
+            states = " ".join(s.value for s in NavState)
+            lines += [f"`nav_status` carries the state in `message` (`{states}`) and in "
+                      f"`values` {keys_text}, all strings "
+                      "(`swarm_common.nav_status.encode`); the contract is "
+                      "`swarm_common/nav_status.py`.", ""]
+    lines += ["## Named QoS profiles", "",
+              "| name | reliability | durability | depth | what |", "|---|---|---|---|---|"]
+    for key, q in profiles.items():
+        lines.append(f'| <span id="{key.lower()}"></span>`{key}` | {_qos_cells(q)} | '
+                     f"{_rst(docs.get(key, ''))} |")
+    lines += ["", TOPICS_OUTRO]
+    return "\n".join(lines)
+
+
 # --------------------------------------------------------------------------- main
 def pages() -> dict[Path, Callable[[], str]]:
     """Every generated page: its path -> the function that writes its text."""
     return {
         DOCS / "reference" / "parameters.md": parameters_page,
         DOCS / "reference" / "commands.md": commands_page,
+        DOCS / "reference" / "topics.md": topics_page,
     }
 
 

@@ -63,3 +63,26 @@ def test_commands_page_lists_every_console_script():
     page = (ROOT / "docs" / "reference" / "commands.md").read_text()
     for name in gen_docs.console_scripts():
         assert f"\n## {name}\n" in page, f"{name} missing from commands.md: {HINT}"
+
+
+def test_topics_page_is_up_to_date():
+    page = ROOT / "docs" / "reference" / "topics.md"
+    assert page.read_text() == gen_docs.topics_page(), f"{page.name} {HINT}"
+
+
+def test_every_topic_and_service_says_who_writes_and_reads_it():
+    from swarm_common import topics
+
+    found = [(k, v) for k, v in vars(topics).items()
+             if isinstance(v, topics.Topic | topics.Service)]
+    assert len(found) >= 17  # 16 topics and the navigator's cancel service when written
+    for name, t in found:
+        who = (t.writers, t.readers) if isinstance(t, topics.Topic) else (t.servers, t.clients)
+        assert all(who), f"swarm_common.topics.{name}: say who writes and who reads it"
+
+
+def test_topics_page_links_every_named_qos_it_uses():
+    page = (ROOT / "docs" / "reference" / "topics.md").read_text()
+    used = set(re.findall(r"\(#([a-z_]+_qos)\)", page))
+    anchors = set(re.findall(r'<span id="([a-z_]+)"></span>', page))
+    assert used and used <= anchors

@@ -1,7 +1,7 @@
 """docs/reference/metrics.md against real metrics.json files: no key undocumented, none invented.
 
-The samples in ``tests/docs/data/`` are copies of ``swarm-up --metrics`` files (a decentralised
-run, a centralised one, one with faults and ``--record``; ``data/README.md`` says how they were
+The samples in ``tests/docs/data/`` are copies of ``swarm-up --metrics`` files (a decentralized
+run, a centralized one, one with faults and ``--record``; ``data/README.md`` says how they were
 made). A key is a dotted path; the page writes a dict keyed by robot, model, topic or fault kind
 once with a placeholder (``per_robot.<ns>.tasks``) and a list's entries as ``name[].field``.
 """

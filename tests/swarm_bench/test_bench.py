@@ -1,4 +1,6 @@
-"""``swarm-bench`` (SPEC §2, §6): flags, the summary's arithmetic, the plot, and real sweeps.
+"""``swarm-bench``: flags, the summary's arithmetic, the plot, and real sweeps.
+
+The contract: docs/reference/contract.md#s2, #s6.
 
 The sweeps start the installed console script (``.venv/bin/swarm-bench``) as a user does, with
 2-3 robots and a few simulated seconds; every process they start is stopped in a ``finally``.

@@ -245,3 +245,30 @@ def _wall_gap(poly: np.ndarray, walls: np.ndarray) -> float:
         box = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
         best = min(best, polygon_distance(poly, box))
     return best
+
+
+def rollout(pose, v, w, times) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Poses along constant-velocity arcs (exact unicycle kinematics): the DWA's rollouts one
+    (v, w) pair at a time, as :func:`swarm_nav.dwa_kernels.rollout_boxes` computes them.
+
+    Args:
+        pose: (3,) start x [m], y [m], yaw [rad] in ``map``.
+        v: (S,) forward speeds [m/s].
+        w: (S,) rotational speeds [rad/s].
+        times: (T,) times [s] after the start.
+
+    Returns:
+        ``(x, y, yaw)``, each (S, T), in ``map`` (yaw not wrapped).
+    """
+    x0, y0, th0 = (float(c) for c in pose)
+    v = np.asarray(v, dtype=float)[:, None]
+    w = np.asarray(w, dtype=float)[:, None]
+    t = np.asarray(times, dtype=float)[None, :]
+    th = th0 + w * t
+    straight = np.abs(w) < 1e-6
+    w_safe = np.where(straight, 1.0, w)
+    s0, c0 = math.sin(th0), math.cos(th0)
+    sin_th, cos_th = np.sin(th), np.cos(th)
+    x = np.where(straight, x0 + v * t * c0, x0 + v / w_safe * (sin_th - s0))
+    y = np.where(straight, y0 + v * t * s0, y0 - v / w_safe * (cos_th - c0))
+    return x, y, th

@@ -279,7 +279,8 @@ def test_a_robot_predicted_into_our_footprint_does_not_unlock_driving_into_anoth
     us is predicted *inside* our footprint. DWA relaxes its padding to the current gap when the
     robot already is that near (so that it can leave a tight spot); a predicted point there
     relaxed it against the real robot standing 6.5 cm in front, and we drove into it."""
-    from swarm_nav.dwa import Footprint, footprint_gaps, rollout
+    from swarm_nav.dwa import Footprint, footprint_gaps
+    from tests.swarm_nav.helpers import rollout
 
     pose = np.array([2.0, 3.0, 0.0])
     core = NavigatorCore(NavigatorConfig(), WAFFLE_FOOTPRINT)
@@ -538,7 +539,7 @@ def test_a_holding_robot_takes_the_free_workstation_beside_its_taken_goal(occ, k
     loader3 free within ``swap_range`` (2.5 m), docks there instead: SUCCEEDED, with loader3 as
     the goal in its status and a note naming both. Without kinds (``kinds`` "none"), with every
     loader but loader4 of another kind ("other") or with ``swap_range`` 0 ("off") it holds for
-    loader4, as SPEC §5 says."""
+    loader4, as docs/reference/contract.md#s5-navigation says."""
     sites, site_kinds, ws = _loaders()
     if kinds == "none":
         site_kinds = []

@@ -14,10 +14,9 @@ from swarm_nav.dwa import (
     dynamic_window,
     footprint_gaps,
     linspace,
-    rollout,
     rotation_is_safe,
 )
-from tests.swarm_nav.helpers import WAFFLE_FOOTPRINT, unicycle_step
+from tests.swarm_nav.helpers import WAFFLE_FOOTPRINT, rollout, unicycle_step
 
 CFG = DwaConfig()
 FP = Footprint.from_polygon(WAFFLE_FOOTPRINT)

@@ -28,9 +28,8 @@ from swarm_nav.dwa import (
     dynamic_window,
     footprint_gaps,
     point_gaps,
-    rollout,
 )
-from tests.swarm_nav.helpers import WAFFLE_FOOTPRINT
+from tests.swarm_nav.helpers import WAFFLE_FOOTPRINT, rollout
 
 CFG = DwaConfig()
 FP = Footprint.from_polygon(WAFFLE_FOOTPRINT)

@@ -27,5 +27,6 @@ def test_warm_up_compiles_or_loads_every_kernel_the_python_code_calls():
               for mod in KERNEL_MODULES for name, fn in vars(mod).items()
               if isinstance(fn, CPUDispatcher) and fn.__module__ == mod.__name__
               and re.search(rf"\.{name}\(", python)}
-    assert len(called) >= 15  # the scan finds them (16 when this test was written)
+    assert len(called) >= 14  # the scan finds them (14 since the perception's one-step
+    # wrappers moved to tests/swarm_nav/perception_steps.py; the kernels call the others)
     assert [name for name, fn in called.items() if not fn.signatures] == []

@@ -8,14 +8,8 @@ import pytest
 from swarm_nav.config import PerceptionConfig
 from swarm_nav.perception import (
     RobotTracker,
-    SeenArrays,
     SeenRobot,
-    cluster_centres,
-    cluster_points,
     dynamic_points,
-    estimate_velocities,
-    perceive_robots,
-    robot_centres,
 )
 from tests.swarm_nav.helpers import (
     SLIM_BLOCKAGE_WALLS,
@@ -23,6 +17,14 @@ from tests.swarm_nav.helpers import (
     box_segments,
     footprint_polygon,
     polygon_segments,
+)
+from tests.swarm_nav.perception_steps import (
+    cluster_centres,
+    cluster_points,
+    estimate_velocities,
+    perceive_robots,
+    robot_centres,
+    seen_arrays_of,
 )
 
 PCFG = PerceptionConfig()
@@ -126,14 +128,14 @@ def test_tracker_takes_velocities_over_about_the_baseline():
     seen = {}
     for i in range(21):
         t = i / 10.0
-        seen[i] = tracker.update(side + [x(t), 0.0], viewer, t)[0].velocity
+        seen[i] = tracker.update(side + [x(t), 0.0], viewer, t)[0][0].velocity
     assert np.all(np.isnan(seen[0])) and np.all(np.isnan(seen[3]))   # nothing 0.35 s old yet
     assert seen[4] == pytest.approx([(x(0.4) - x(0.0)) / 0.4, 0.0])  # the oldest: 0.4 s
     assert seen[12] == pytest.approx([(x(1.2) - x(0.2)) / 1.0, 0.0])  # 1 s back
     assert seen[20] == pytest.approx([(x(2.0) - x(1.0)) / 1.0, 0.0])
     # a gap in the scans longer than the history forgets the old centres
-    assert np.all(np.isnan(tracker.update(side, viewer, 5.0)[0].velocity))
-    assert math.isfinite(tracker.update(side, viewer, 5.5)[0].velocity[0])
+    assert np.all(np.isnan(tracker.update(side, viewer, 5.0)[0][0].velocity))
+    assert math.isfinite(tracker.update(side, viewer, 5.5)[0][0].velocity[0])
 
 
 def test_seen_arrays_lay_out_every_robots_points_in_order():
@@ -143,7 +145,7 @@ def test_seen_arrays_lay_out_every_robots_points_in_order():
                         np.array([np.nan, np.nan])),
               SeenRobot(np.array([0.0, -4.0]), np.array([[0.0, -3.9], [0.1, -3.9], [0.2, -4.0]]),
                         np.array([0.0, 0.05]))]
-    seen = SeenArrays.of(robots)
+    seen = seen_arrays_of(robots)
     assert seen.centres.tolist() == [[1.0, 2.0], [-3.0, 0.5], [0.0, -4.0]]
     assert seen.known.tolist() == [True, False, True]
     assert seen.speed.tolist() == pytest.approx([0.5, 0.0, 0.05])
@@ -152,7 +154,7 @@ def test_seen_arrays_lay_out_every_robots_points_in_order():
     assert seen.sizes.tolist() == [2, 1, 3]
     for k, r in enumerate(robots):
         assert np.array_equal(seen.points[seen.owner == k], r.points)
-    empty = SeenArrays.of([])
+    empty = seen_arrays_of([])
     assert empty.centres.shape == (0, 2) and empty.points.shape == (0, 2)
     assert len(empty.owner) == len(empty.starts) == len(empty.speed) == 0
 

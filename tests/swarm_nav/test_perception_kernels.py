@@ -20,17 +20,19 @@ from swarm_nav.costmap import Costmap
 from swarm_nav.perception import (
     CENTRE_DEPTH,
     RobotTracker,
-    SeenArrays,
     SeenRobot,
-    _centres_of,
+    dynamic_points,
+)
+from tests.swarm_nav.helpers import footprint_polygon
+from tests.swarm_nav.perception_steps import (
+    centres_of,
     cluster_centres,
     cluster_points,
-    dynamic_points,
     estimate_velocities,
     perceive_robots,
     robot_centres,
+    seen_arrays_of,
 )
-from tests.swarm_nav.helpers import footprint_polygon
 
 PCFG = PerceptionConfig()
 
@@ -66,7 +68,7 @@ def ref_cluster_points(points, link=0.2):
     return labels.reshape(-1), int(labels.max()) + 1
 
 
-def ref_centres_of(pts, labels, n, viewer_xy, depth):
+def refcentres_of(pts, labels, n, viewer_xy, depth):
     if n == 0:
         return np.zeros((0, 2))
     sums = np.zeros((n, 2))
@@ -95,7 +97,7 @@ def ref_perceive_robots(dyn_points, viewer_xy, earlier=None, dt=0.0):
     labels, n = ref_cluster_points(pts)
     if n == 0:
         return []
-    centres = ref_centres_of(pts, labels, n, viewer_xy, CENTRE_DEPTH)
+    centres = refcentres_of(pts, labels, n, viewer_xy, CENTRE_DEPTH)
     if earlier is None:
         vel = np.full((n, 2), np.nan)
     else:
@@ -251,15 +253,15 @@ def test_centres_as_before(seed):
     pts, viewer = scene(rng)
     labels, n = ref_cluster_points(pts)
     for depth in (CENTRE_DEPTH, 0.25):
-        assert same(_centres_of(pts, labels, n, viewer, depth),
-                    ref_centres_of(pts, labels, n, viewer, depth))
+        assert same(centres_of(pts, labels, n, viewer, depth),
+                    refcentres_of(pts, labels, n, viewer, depth))
         assert same(cluster_centres(pts, viewer, 0.2, depth),
-                    ref_centres_of(pts, labels, n, viewer, depth))
+                    refcentres_of(pts, labels, n, viewer, depth))
     if n:   # a viewer on a centroid (norm below 1e-9) and a NaN viewer
-        c = ref_centres_of(pts, labels, n, viewer, 0.0)[0]
+        c = refcentres_of(pts, labels, n, viewer, 0.0)[0]
         for v in (c, [np.nan, 0.0]):
-            assert same(_centres_of(pts, labels, n, v, 0.1),
-                        ref_centres_of(pts, labels, n, v, 0.1))
+            assert same(centres_of(pts, labels, n, v, 0.1),
+                        refcentres_of(pts, labels, n, v, 0.1))
 
 
 @pytest.mark.parametrize("seed", SEEDS[:100])
@@ -291,7 +293,7 @@ def test_perceive_robots_as_before(seed):
     new = perceive_robots(pts, viewer, earlier, dt)
     old = ref_perceive_robots(pts, viewer, earlier, dt)
     same_robots(new, old)
-    same_seen(SeenArrays.of(new), ref_seen_arrays(old))
+    same_seen(seen_arrays_of(new), ref_seen_arrays(old))
 
 
 def test_tracker_and_its_arrays_as_before():
@@ -310,20 +312,14 @@ def test_tracker_and_its_arrays_as_before():
             pts = np.vstack([np.zeros((0, 2)), *parts])
             if rng.random() < 0.1:
                 pts = pts[: len(pts) // 2]
-            robots, seen = tracker.update_arrays(pts, viewer, t)
+            robots, seen = tracker.update(pts, viewer, t)
             old = ref.update(pts, viewer, t)
             same_robots(robots, old)
             same_seen(seen, ref_seen_arrays(old))
-            same_seen(SeenArrays.of(robots), ref_seen_arrays(old))
+            same_seen(seen_arrays_of(robots), ref_seen_arrays(old))
         assert len(tracker._history) == len(ref._history)
         for (t1, c1), (t2, c2) in zip(tracker._history, ref._history, strict=True):
             assert t1 == t2 and same(c1, c2)
-    # update() is update_arrays()'s robots
-    a, b = RobotTracker(PCFG), RefTracker(PCFG)
-    pts = outline_points(rng, [1.0, 1.0], np.zeros(2))
-    for t in (0.0, 0.5, 1.0):
-        same_robots(a.update(pts + [0.1 * t, 0], [0.0, 0.0], t),
-                    b.update(pts + [0.1 * t, 0], [0.0, 0.0], t))
 
 
 def test_dynamic_points_as_before(costmap):
@@ -388,7 +384,7 @@ def test_moving_points_as_before(seed):
                          + rng.normal(0, 0.15, (1, 2)), rng.uniform(-5, 5, (2, 2))))
     tracker = RobotTracker(PCFG)
     tracker._history = [(0.0, earlier)]
-    _, seen = tracker.update_arrays(pts, viewer, 0.5)
+    _, seen = tracker.update(pts, viewer, 0.5)
     for speed in (0.0, 0.05, 0.2):
         moving = seen.known & (seen.speed > speed)
         got = perception_kernels.moving_points(seen.points, seen.starts, seen.sizes,

@@ -291,7 +291,7 @@ def ref_patch(costmap, cfg):
     pr0, pc0 = r0 - 1, c0 - 1
     rs, cs = max(pr0, 0), max(pc0, 0)
     re, ce = min(r1 + 1, h), min(c1 + 1, w)
-    pad[rs - pr0:re - pr0, cs - pc0:ce - pc0] = planner._multipliers(
+    pad[rs - pr0:re - pr0, cs - pc0:ce - pc0] = planner.step_multipliers(
         costmap.costs[rs:re, cs:ce], cfg)
     cost = planner._edge_costs(pad, costmap.resolution).reshape(-1)
     rows = (np.arange(r0, r1)[:, None] * w + np.arange(c0, c1)[None, :]).ravel()

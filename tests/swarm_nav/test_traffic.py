@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 
+from swarm_nav import traffic
 from swarm_nav.config import CostmapConfig, PlannerConfig, TrafficConfig
 from swarm_nav.costmap import build_costmap
 from swarm_nav.perception import SeenRobot
@@ -14,8 +15,6 @@ from swarm_nav.traffic import (
     YieldStep,
     keep_right,
     must_yield,
-    oncoming,
-    oncoming_centres,
     plan_retreat,
     retreat_candidates,
     robots_ahead,
@@ -85,6 +84,15 @@ def test_retreat_candidates_are_off_the_line_and_not_beyond_the_other():
 
 def seen(x, y, vx, vy):
     return SeenRobot(np.array([x, y]), np.array([[x, y]]), np.array([vx, vy]))
+
+
+def oncoming(robots, robot_xy, moving_speed):
+    """traffic.oncoming_centres of SeenRobot objects (the rule read robot by robot)."""
+    if not robots:
+        return np.zeros((0, 2))
+    return traffic.oncoming_centres(np.array([r.centre for r in robots], dtype=float),
+                            np.array([r.velocity for r in robots], dtype=float),
+                            robot_xy, moving_speed)
 
 
 def test_oncoming_counts_robots_driving_toward_us():
@@ -216,7 +224,7 @@ def test_oncoming_centres_is_oncoming_on_arrays():
     robots += [seen(1.0, 1.0, np.nan, 0.1), seen(0.0, 0.0, -0.5, 0.0)]
     centres = np.array([r.centre for r in robots])
     velocities = np.array([r.velocity for r in robots])
-    got = oncoming_centres(centres, velocities, [0.0, 0.0], 0.08)
+    got = traffic.oncoming_centres(centres, velocities, [0.0, 0.0], 0.08)
     assert 0 < len(got) < len(robots)
     assert np.array_equal(got, oncoming(robots, [0.0, 0.0], 0.08))
     # the same robots, counted one by one as the rule reads
@@ -251,7 +259,7 @@ def test_compiled_keep_right_precheck_is_never_wrong_when_it_says_no_shift():
             centres[0] = pose[:2] + cfg.keep_right_distance * np.array(
                 [math.cos(pose[2]), math.sin(pose[2])])
             velocities[0] = -0.25 * np.array([math.cos(pose[2]), math.sin(pose[2])])
-        oncoming = oncoming_centres(centres, velocities, pose[:2], 0.05)
+        oncoming = traffic.oncoming_centres(centres, velocities, pose[:2], 0.05)
         out = keep_right(path, pose, oncoming, cm, cfg)
         maybe = core_kernels.may_keep_right(
             centres, velocities, *pose, 0.05, cfg.keep_right_distance, math.pi / 2,

@@ -1,4 +1,7 @@
-"""Every bad input of SPEC §2 exits 2 with one stderr line naming the flag, and no traceback."""
+"""Every bad input exits 2 with one stderr line naming the flag, and no traceback.
+
+The contract: docs/reference/contract.md#s2.
+"""
 
 import socket
 import subprocess
