@@ -36,6 +36,11 @@ from swarm_up.rundir import check_nav_template, load_nav_template
 # navigators' first answer now waits for the recorder (wait_for_cmd_vel_readers); per-robot stays
 # the default here until a bench round measures the switch.
 PER_ROBOT_MAX = 8
+# Fast DDS gives the participants of one domain on one host the unicast ports
+# 7410 + 250 * domain + 2 * id: participant 120 and up take the next domain's ports (RTPS
+# 2.2, 9.6.1.1, PB 7400, DG 250, PG 2, d1 10), and a run of more (tried: more than about 120
+# rclpy processes on one host) had its participants spill into other domains' discovery.
+MAX_PARTICIPANTS_PER_HOST = 120
 DEFAULT_READY_TIMEOUT_S = 120.0
 RECORD_IN_RUN_DIR = Path("recording.mcap")  # --record without a path: in the run directory
 DEFAULT_DASHBOARD_PORT = 8080
@@ -308,6 +313,27 @@ def split_groups(robots: tuple[str, ...], k: int) -> tuple[tuple[str, ...], ...]
     return tuple(tuple(robots[g::k]) for g in range(k))
 
 
+def participants(n: int, commanders: bool, coordinator: bool, recorder: bool,
+                 groups: int | None = None) -> int:
+    """The DDS participants (one per rclpy process, two in swarm-up's own) of a run on one
+    host: the simulator, swarm-up (its metrics listener, and its announcer of fault
+    acknowledgements and lost robots), the navigators and commanders (a process each, or
+    ``groups`` group processes), the coordinator and the recorder."""
+    robots = (2 * n if commanders else n) if groups is None else groups
+    return 1 + 2 + robots + int(coordinator) + int(recorder)
+
+
+def _check_participants(n: int, commanders: bool, coordinator: bool, recorder: bool) -> None:
+    """``--processes per-robot`` only as far as one host serves the participants."""
+    need = participants(n, commanders, coordinator, recorder)
+    if need > MAX_PARTICIPANTS_PER_HOST:
+        raise InputError(
+            f"--processes: per-robot runs {n} robots as {need} DDS participants (a process "
+            f"each for every navigator{' and commander' if commanders else ''}), more than the "
+            f"{MAX_PARTICIPANTS_PER_HOST} Fast DDS serves on one host; use --processes K (K "
+            f"group processes, the default above {PER_ROBOT_MAX} robots)")
+
+
 def validate(args: argparse.Namespace) -> RunConfig:
     """Turn parsed arguments into a :class:`RunConfig`, checking every flag and file.
 
@@ -350,6 +376,9 @@ def validate(args: argparse.Namespace) -> RunConfig:
     if processes is None:
         processes = default_processes(n)
     groups = None if processes == PER_ROBOT else split_groups(robots, int(processes))
+    if groups is None:
+        _check_participants(n, args.commanders, args.coordination == "centralized",
+                            args.record is not None)
 
     faults = check_faults(args.faults, robots, args.name_prefix, args.duration)
     run_dir = args.run_dir if args.run_dir is not None else default_run_dir()

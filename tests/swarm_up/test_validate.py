@@ -69,3 +69,24 @@ def test_context_keys_are_the_nodes():
     from swarm_nav.node import _CONTEXT_PARAMS
 
     assert CONTEXT_KEYS == {*_CONTEXT_PARAMS, "use_sim_time"}
+
+
+def test_per_robot_processes_are_refused_beyond_what_one_host_serves():
+    """Issue 38 item 5: a process per navigator and per commander at 60 robots is more than 120
+    DDS participants, the most one host serves in one domain (swarm_up.args
+    MAX_PARTICIPANTS_PER_HOST): refused before anything starts, with what to use instead."""
+    from swarm_up.args import MAX_PARTICIPANTS_PER_HOST, participants
+
+    def run(*flags):
+        return validate(build_parser().parse_args(list(flags)))
+
+    with pytest.raises(InputError) as err:
+        run("--swarm-size", "60", "--commanders", "--processes", "per-robot")
+    assert str(err.value).startswith("--processes: per-robot runs 60 robots as 123 DDS "
+                                     "participants")
+    assert "use --processes K" in str(err.value)
+    assert participants(58, True, False, False) <= MAX_PARTICIPANTS_PER_HOST
+    assert run("--swarm-size", "58", "--commanders", "--processes", "per-robot").groups is None
+    # in group processes, 60 robots are a handful of participants
+    assert run("--swarm-size", "60", "--commanders").groups is not None
+    assert participants(60, True, False, False, groups=2) == 5
