@@ -163,6 +163,32 @@ def positive_float(text: str) -> float:
     return _float(text, lambda v: v > 0, "a positive number")
 
 
+def positive_floats(text: str) -> tuple[float, ...]:
+    """argparse type: a comma-separated list of finite numbers > 0 (``2,1,1``)."""
+    parts = [p.strip() for p in text.split(",")]
+    try:
+        values = tuple(float(p) for p in parts)
+    except ValueError:
+        values = ()
+    if not values or not all(math.isfinite(v) and v > 0 for v in values):
+        raise argparse.ArgumentTypeError(
+            f"must be a comma-separated list of positive numbers, got {text!r}")
+    return values
+
+
+def host_port(text: str) -> str:
+    """argparse type: ``HOST:PORT``, a host name or IPv4 address and a port 1..65535."""
+    host, sep, port_text = text.strip().rpartition(":")
+    try:
+        ok = bool(sep and host and 0 < int(port_text) < 65536
+                  and all(c.isalnum() or c in ".-" for c in host))
+    except ValueError:
+        ok = False
+    if not ok:
+        raise argparse.ArgumentTypeError(f"must be HOST:PORT (e.g. 10.0.0.1:11811), got {text!r}")
+    return f"{host}:{int(port_text)}"
+
+
 # ------------------------------------------------------------------------------ shared flags
 SHARED_FLAGS = {
     "--world": {"default": "slim_blockage", "metavar": "NAME|PATH"},

@@ -143,6 +143,15 @@ SUPERVISION = Topic("/swarm/supervision", "diagnostic_msgs/msg/DiagnosticStatus"
 """swarm-up's supervisor names robots whose navigator process is gone
 (:mod:`swarm_common.supervision`); the simulator stops waiting for them.  Transient local on both
 sides: a word sent before the reader matched is still delivered."""
+RUN = Topic("/swarm/run", "std_msgs/msg/String", LATCHED,
+            ("swarm-up of rank 0 (--hosts)",), ("swarm-up of every other rank",))
+"""Rank 0's run identity (:class:`swarm_common.ranks.RunIdentity`), and ``state: ending`` when
+its run ends; only with ``--hosts`` above 1."""
+RANKS = Topic("/swarm/ranks", "std_msgs/msg/String", LATCHED,
+              ("swarm-up of every rank (--hosts), once a second",),
+              ("swarm-up of every rank",))
+"""Every rank's report (:class:`swarm_common.ranks.RankReport`): alive, its robots, CPU,
+memory, restarts; latched, so a rank that starts later hears the others at once."""
 FAULT_ACKS = Topic("/swarm/fault_acks", "diagnostic_msgs/msg/DiagnosticStatus",
                    Qos(100, durability=TRANSIENT_LOCAL),
                    ("swarm-up's fault injection", "group processes with --faults"),

@@ -78,6 +78,21 @@ def _robots(metrics: dict) -> str:
             + ", ".join(f"{count} {model}" for model, count in fleet.items()) + ")")
 
 
+def _hosts_table(hosts: list[dict]):
+    """One row per host of a run over several hosts (``swarm-up --hosts``)."""
+    from rich.table import Table
+
+    table = Table(title="hosts")
+    for name in ("rank", "host", "robots", "CPU", "peak RSS", "restarts"):
+        table.add_column(name, justify="left" if name == "host" else "right")
+    for h in hosts:
+        table.add_row(str(h.get("rank")), f"{h.get('host') or '?'}"
+                      + (" (lost)" if h.get("lost") else ""), _fmt(h.get("robots")),
+                      _fmt(h.get("cpu_percent"), "%", 0), _fmt(h.get("peak_rss_mb"), "MB", 0),
+                      _fmt(h.get("restarts")))
+    return table
+
+
 def print_summary(metrics: dict, metrics_files: list[Path]) -> None:
     """Print the run's figures as a table (rich; plain text when not a terminal)."""
     from rich.console import Console
@@ -143,6 +158,8 @@ def print_summary(metrics: dict, metrics_files: list[Path]) -> None:
     stations = metrics.get("workstations") or []
     if any(row.get("goals") for row in stations):
         console.print(_workstation_table(stations))
+    if metrics.get("hosts"):
+        console.print(_hosts_table(metrics["hosts"]))
     for path in metrics_files:
         print(f"metrics: {path}", flush=True)
 

@@ -144,6 +144,29 @@ def build_parser() -> argparse.ArgumentParser:
                    "(default: %(default)s)")
     p.add_argument("--nav-params", type=Path, default=None, metavar="PATH",
                    help="navigator parameter template (default: params/navigator.yaml)")
+    hosts = p.add_argument_group(
+        "several hosts", "one swarm over N hosts: run swarm-up with the same run flags on every "
+        "host, each with its own --host-rank (docs/guides/multi_host.md)")
+    hosts.add_argument("--hosts", type=cli.positive_int, default=1, metavar="N",
+                       help="hosts the swarm runs on (default: %(default)s)")
+    hosts.add_argument("--host-rank", type=cli.non_negative_int, default=0, metavar="R",
+                       help="this host's rank, 0..N-1; rank 0 runs the simulator, the metrics, "
+                       "the coordinator, the dashboard and the recorder (default: %(default)s)")
+    hosts.add_argument("--host-weights", type=cli.positive_floats, default=None,
+                       metavar="W,W,...",
+                       help="one weight per host: robot after robot goes to the host whose "
+                       "share is furthest behind its weight (default: equal: robot i on host "
+                       "i mod N)")
+    hosts.add_argument("--discovery-server", type=cli.host_port, default=None,
+                       metavar="HOST:PORT",
+                       help="use Fast DDS's Discovery Server at HOST:PORT (rank 0 starts it; "
+                       "HOST must be rank 0's address) instead of multicast discovery")
+    hosts.add_argument("--rank-timeout", type=cli.positive_float, default=10.0, metavar="SEC",
+                       help="wall seconds a rank may be silent before it counts as lost "
+                       "(default: %(default)s)")
+    hosts.add_argument("--on-rank-loss", choices=("end", "continue"), default="end",
+                       help="when a rank is lost: end the run (exit 1, metrics written) or "
+                       "continue without its robots (default: %(default)s)")
     return p
 
 
@@ -372,13 +395,17 @@ def validate(args: argparse.Namespace) -> RunConfig:
         _check_fitted_params(nav_template, fleet or (robot,))
     _check_world_and_fit(world_path, robot, n, fleet)
     robots = tuple(f"{args.name_prefix}{i}" for i in range(1, n + 1))
+    host_robots, weights = _check_hosts(args, robots)
+    local = host_robots[args.host_rank] if host_robots else robots
     processes = args.processes
     if processes is None:
-        processes = default_processes(n)
-    groups = None if processes == PER_ROBOT else split_groups(robots, int(processes))
+        processes = default_processes(len(local))
+    groups = None if processes == PER_ROBOT else split_groups(local, int(processes))
     if groups is None:
-        _check_participants(n, args.commanders, args.coordination == "centralized",
-                            args.record is not None)
+        leader = args.host_rank == 0
+        _check_participants(len(local), args.commanders,
+                            leader and args.coordination == "centralized",
+                            leader and args.record is not None)
 
     faults = check_faults(args.faults, robots, args.name_prefix, args.duration)
     run_dir = args.run_dir if args.run_dir is not None else default_run_dir()
@@ -409,7 +436,45 @@ def validate(args: argparse.Namespace) -> RunConfig:
         dashboard_port=args.dashboard,
         markers=args.markers or args.dashboard is not None,
         fleet=fleet,
+        hosts=args.hosts,
+        rank=args.host_rank,
+        host_robots=host_robots,
+        host_weights=weights,
+        discovery_server=args.discovery_server,
+        rank_timeout=args.rank_timeout,
+        on_rank_loss=args.on_rank_loss,
     )
+
+
+def _check_hosts(args: argparse.Namespace, robots: tuple[str, ...]
+                 ) -> tuple[tuple[tuple[str, ...], ...], tuple[float, ...]]:
+    """Check ``--hosts``, ``--host-rank`` and ``--host-weights``.
+
+    Returns:
+        ``(host_robots, weights)``: the robots of every rank (empty with one host) and the
+        weights (empty: equal).
+
+    Raises:
+        InputError: a rank not below N, a weight per host missing or extra, or a host left
+            without a robot.
+    """
+    from swarm_up.hosts import assign_robots
+
+    n_hosts = args.hosts
+    if args.host_rank >= n_hosts:
+        raise InputError(f"--host-rank: {args.host_rank} is not a rank of {n_hosts} host(s) "
+                         f"(0..{n_hosts - 1})")
+    weights = tuple(args.host_weights or ())
+    if weights and len(weights) != n_hosts:
+        raise InputError(f"--host-weights: {len(weights)} weight(s) for {n_hosts} hosts")
+    if n_hosts == 1:
+        return (), weights
+    host_robots = assign_robots(robots, n_hosts, weights)
+    empty = [r for r, rob in enumerate(host_robots) if not rob]
+    if empty:
+        raise InputError(f"--hosts: rank {empty[0]} would run no robot ({len(robots)} robots "
+                         f"over {n_hosts} hosts{' with these weights' if weights else ''})")
+    return host_robots, weights
 
 
 def check_faults(spec: str | None, robots: tuple[str, ...], prefix: str,

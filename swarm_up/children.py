@@ -95,6 +95,8 @@ def child_specs(cfg: RunConfig):
     logs = cfg.run_dir / "logs"
     params = cfg.run_dir / "params"
     env = dict(os.environ, PYTHONUNBUFFERED="1", RCUTILS_COLORIZED_OUTPUT="0")
+    if cfg.discovery_server:
+        env[DISCOVERY_ENV] = cfg.discovery_server
     world = str(cfg.world_path)
     sim = command("swarm-sim", "swarm_sim.node") + [
         "--world", world, "--robot", cfg.robot, "--swarm-size", str(len(cfg.robots)),
@@ -116,26 +118,31 @@ def child_specs(cfg: RunConfig):
     readers = 0 if cfg.record_path is None else simulator_readers(cfg.robots, cfg.record_topics)
     if readers:  # the recorder gets the first tick on (docs/ARCHITECTURE.md)
         sim += ["--wait-for-reader", RECORDER_NODE, "--reader-subscriptions", str(readers)]
-    specs = [ChildSpec("sim", tuple(sim), logs / "sim.log", kind="sim", restart=False, env=env)]
-    if cfg.record_path is not None:  # started first: swarm-up waits for it before the rest
-        specs.insert(0, recorder_spec(cfg, env))
+    specs = []
+    if cfg.leader:  # rank 0 (or the only host): simulator, recorder, coordinator
+        specs.append(ChildSpec("sim", tuple(sim), logs / "sim.log", kind="sim", restart=False,
+                               env=env))
+        if cfg.record_path is not None:  # started first: swarm-up waits for it before the rest
+            specs.insert(0, recorder_spec(cfg, env))
+        if cfg.discovery_server:  # first of all: every other process is its client
+            specs.insert(0, discovery_server_spec(cfg, env))
     coordinated = cfg.coordination == "centralized"
-    if coordinated:
+    if coordinated and cfg.leader:
         specs.append(coordinator_spec(cfg, env))
 
     if cfg.groups is None:
         # A robot that a fault kills gets processes that own no shared-memory port.
         killed, free_env = fault_killed_robots(cfg), shm_free_env(env)
-        robot_env = {ns: free_env if ns in killed else env for ns in cfg.robots}
+        robot_env = {ns: free_env if ns in killed else env for ns in cfg.local_robots}
         nav = command("swarm-nav", "swarm_nav.node")
-        for ns in cfg.robots:
+        for ns in cfg.local_robots:
             argv = nav + ["--ros-args", "-r", f"__ns:=/{ns}",
                           "--params-file", str(params / f"{ns}.yaml")]
             specs.append(ChildSpec(f"nav_{ns}", tuple(argv), logs / f"nav_{ns}.log",
                                    kind="nav", robots=(ns,), env=robot_env[ns]))
         if cfg.commanders:
             cmd = command("swarm-commander", "swarm_commander.cli")
-            for ns in cfg.robots:
+            for ns in cfg.local_robots:
                 argv = cmd + [ns, "--world", world, "--seed", str(cfg.seed),
                               "--wait-timeout", repr(cfg.ready_timeout)]
                 if coordinated:
@@ -193,6 +200,34 @@ def recorder_spec(cfg: RunConfig, env: dict[str, str]):
         argv += ["--topics", cfg.record_topics]
     return ChildSpec("record", tuple(argv), cfg.run_dir / "logs" / "record.log", kind="record",
                      restart=False, env=env)
+DISCOVERY_ENV = "ROS_DISCOVERY_SERVER"
+"""The variable by which rmw_fastrtps makes a participant a client of Fast DDS's Discovery
+Server (``HOST:PORT``; several servers separated by ``;``)."""
+
+
+def discovery_server_spec(cfg: RunConfig, env: dict):
+    """Fast DDS's Discovery Server of ``--discovery-server HOST:PORT`` (the wheel's
+    ``fast-discovery-server``, server id 0 listening on HOST:PORT), restarted if it dies.
+
+    The wheel's program finds its libraries only with ``LD_LIBRARY_PATH`` naming the
+    environment's ``lib/`` and ``site-packages/ros_fastrtps.libs``."""
+    import sysconfig
+
+    from swarm_up.supervisor import ChildSpec
+
+    host, _, port = cfg.discovery_server.rpartition(":")
+    prefix = Path(sys.prefix)
+    libs = [prefix / "lib", Path(sysconfig.get_paths()["purelib"]) / "ros_fastrtps.libs"]
+    lib_env = dict(env, LD_LIBRARY_PATH=os.pathsep.join(
+        [str(p) for p in libs] + [v for v in [env.get("LD_LIBRARY_PATH")] if v]))
+    lib_env.pop(DISCOVERY_ENV, None)  # the server itself is no client
+    program = (shutil.which("fast-discovery-server")
+               or str(Path(sys.executable).parent / "fast-discovery-server"))
+    argv = [program, "-i", "0", "-l", host, "-p", port]
+    return ChildSpec("discovery", tuple(argv), cfg.run_dir / "logs" / "discovery.log",
+                     kind="discovery", env=lib_env)
+
+
 COORDINATOR = "coordinator"
 """The child name of the coordinator (``RUN/logs/coordinator.log``); fault injection finds it by
 this name in the supervisor (``Supervisor.pid(COORDINATOR)``)."""

@@ -78,7 +78,7 @@ class Orchestrator:
 
             self.live = LiveView(cfg, self.listener)
         self.sup = Supervisor(on_restart=self._on_restart)
-        self.sampler = ResourceSampler(self.sup, robots=self.n)
+        self.sampler = ResourceSampler(self.sup, robots=len(cfg.local_robots))
         self.view = ProgressView(self.n, tty=sys.stdout.isatty())
         self.all_ready = False
         self._last_report = time.monotonic()
@@ -89,6 +89,10 @@ class Orchestrator:
         self._dead: dict[str, int] = {}  # exited, not to be restarted -> exit code
         self.faults = None  # swarm_up.faults.ProcessFaults, with --faults
         self._announcer = None  # swarm_up.faults.Announcer: made with --faults or at a crash
+        self.link = None  # swarm_up.hosts.HostLink, with --hosts above 1
+        self.identity = None  # the run's identity it publishes then
+        self._ranks_said: set[tuple[int, str, str]] = set()  # (rank, session, state) reported
+        self._lost_ranks: set[int] = set()
         self._faults_seen = 0  # fault events of the recorder's log handled so far
 
     def _log_of(self, name: str) -> Path:
@@ -103,7 +107,10 @@ class Orchestrator:
 
         Raises:
             RunError: a command could not be started.
+            InputError: another rank 0 of this run is up (``--hosts``).
         """
+        if self.cfg.hosts > 1:
+            self._start_link()
         self.listener.start()
         if self.cfg.faults:
             from swarm_up.faults import ProcessFaults
@@ -167,6 +174,10 @@ class Orchestrator:
             self._say_lost(ev)
         if sim_code is not None:
             return self._sim_ended(sim_code)
+        if self.link is not None:
+            lost = self._watch_ranks()
+            if lost is not None:
+                return lost
         if self.faults is not None:
             self._handle_faults()
         if not self.all_ready:
@@ -174,6 +185,100 @@ class Orchestrator:
         self.sampler.maybe_sample()
         self._report_progress()
         return None
+
+    def _start_link(self) -> None:
+        """Rank 0 of a run over several hosts: make sure no other rank 0 is up, then publish the
+        run's identity (:mod:`swarm_up.hosts`)."""
+        from swarm_common.errors import InputError
+        from swarm_up.hosts import HostLink, identity_of, new_session
+        from swarm_up.remote import DISCOVERY_GRACE_S
+
+        session = new_session()
+        self.link = HostLink(0, len(self.cfg.local_robots), session)
+        self.link.spin(DISCOVERY_GRACE_S)
+        twins = self.link.others(0, self.cfg.rank_timeout)
+        other = self.link.identity
+        if twins or (other is not None and other.session != session and other.state == "up"):
+            where = f" on host {twins[0].host} (pid {twins[0].pid})" if twins else ""
+            raise InputError(f"--host-rank: rank 0 of this run already runs{where}; every "
+                             "rank runs once")
+        self.identity = identity_of(self.cfg, session)
+        self.link.publish_identity(self.identity)
+        self.link.report("up", force=True)
+        say(f"rank 0 of {self.cfg.hosts}: {len(self.cfg.local_robots)} robots here, "
+            + ", ".join(f"rank {r}: {len(rob)}" for r, rob in enumerate(self.cfg.host_robots)
+                        if r) + " (robot i on host i mod N unless --host-weights)")
+
+    def _watch_ranks(self) -> Outcome | None:
+        """Rank 0: report, and watch the other ranks: say once when one refuses, comes up or
+        ends; a rank silent for ``--rank-timeout`` after it was heard is lost: the run ends
+        (exit 1) or goes on without its robots (``--on-rank-loss continue``)."""
+        link = self.link
+        link.spin(0.0)
+        res = self.sampler.result()
+        per = res.get("peak_rss_mb_per_robot")
+        link.report("up", resources={"cpu_percent": res.get("cpu_percent"),
+                                     "peak_rss_mb": per * len(self.cfg.local_robots)
+                                     if per else None}, restarts=self.sup.restarts)
+        twins = [t for t in link.others(0, self.cfg.rank_timeout) if t.session < link.session]
+        if twins:  # another rank 0 came up meanwhile: the later one goes (discovery was slow)
+            return Outcome(EXIT_BAD_INPUT, f"--host-rank: rank 0 of this run already runs on "
+                           f"host {twins[0].host} (pid {twins[0].pid}); every rank runs once",
+                           "rank started twice")
+        now = time.monotonic()
+        for rank, (rep, t) in sorted(link.latest().items()):
+            if rank == 0 or rank >= self.cfg.hosts or rank in self._lost_ranks:
+                continue
+            key = (rank, rep.session, rep.state)
+            if key not in self._ranks_said:
+                self._ranks_said.add(key)
+                if rep.state == "refused":
+                    warn(f"rank {rank} on host {rep.host} refused to join: {rep.reason}")
+                elif rep.state == "up":
+                    say(f"rank {rank} is up on host {rep.host} ({rep.robots} robots)")
+            silent = now - t > self.cfg.rank_timeout
+            was_up = (rank, rep.session, "up") in self._ranks_said
+            if was_up and (silent or rep.state == "ending"):
+                why = (f"silent for {self.cfg.rank_timeout:g} s (its swarm-up or the network "
+                       "is gone)" if silent else f"ended ({rep.reason or 'stopped'})")
+                return self._rank_lost(rank, rep, why)
+        return None
+
+    def _rank_lost(self, rank: int, rep, why: str) -> Outcome | None:
+        from swarm_common.supervision import RobotsLost
+
+        self._lost_ranks.add(rank)
+        robots = self.cfg.host_robots[rank]
+        line = (f"rank {rank} (host {rep.host}, {len(robots)} robots: {', '.join(robots[:4])}"
+                f"{' ...' if len(robots) > 4 else ''}) lost: {why}")
+        self._announce().lost(RobotsLost(robots, line, for_good=True))
+        if self.cfg.on_rank_loss == "end":
+            return Outcome(EXIT_RUNTIME, f"{line}; the run ends (--on-rank-loss end)",
+                           "rank lost")
+        warn(f"{line}; going on without its robots (--on-rank-loss continue)")
+        return None
+
+    def hosts_figures(self) -> list[dict]:
+        """One row per host for the metrics (``hosts``): rank, host, robots, CPU, peak RSS,
+        restarts (rank 0's own, the others' from their last report)."""
+        import socket
+
+        res = self.sampler.result()
+        per = res.get("peak_rss_mb_per_robot")
+        rows = [{"rank": 0, "host": socket.gethostname(), "robots": len(self.cfg.local_robots),
+                 "cpu_percent": res.get("cpu_percent"),
+                 "peak_rss_mb": round(per * len(self.cfg.local_robots), 1) if per else None,
+                 "restarts": self.sup.restarts, "lost": False}]
+        latest = self.link.latest() if self.link is not None else {}
+        for rank in range(1, self.cfg.hosts):
+            rep = latest.get(rank, (None, 0))[0]
+            rows.append({"rank": rank, "host": rep.host if rep else None,
+                         "robots": len(self.cfg.host_robots[rank]),
+                         "cpu_percent": rep.cpu_percent if rep else None,
+                         "peak_rss_mb": rep.peak_rss_mb if rep else None,
+                         "restarts": rep.restarts if rep else None,
+                         "lost": rank in self._lost_ranks})
+        return rows
 
     def _announce(self):
         """The :class:`swarm_up.faults.Announcer`, made when first needed."""
@@ -280,6 +385,12 @@ class Orchestrator:
         if self.sup.children:
             say(f"stopping ({ended_by}) ...")
         self.sampler.maybe_sample(force=True)
+        if self.link is not None and self.identity is not None:  # the other ranks end too
+            from dataclasses import replace
+
+            self.link.publish_identity(replace(self.identity, state="ending"))
+            self.link.report("ending", reason=ended_by, force=True)
+            self.link.spin(0.2)
         self.sup.stop()
         wall = time.monotonic() - self.t0
         if self.live is not None:
@@ -287,6 +398,8 @@ class Orchestrator:
         self.listener.stop()
         if self._announcer is not None:
             self._announcer.close()
+        if self.link is not None:
+            self.link.close()
         return wall
 
     def _map_deliveries(self, summary) -> dict[str, int]:
@@ -338,6 +451,7 @@ class Orchestrator:
                 extra={"ended_by": outcome.ended_by, "run_dir": str(cfg.run_dir),
                        "processes": PER_ROBOT if cfg.groups is None else len(cfg.groups),
                        "commanders": cfg.commanders, "rtf_requested": cfg.rtf,
+                       **({"hosts": self.hosts_figures()} if cfg.hosts > 1 else {}),
                        **({"recording": str(cfg.record_path)} if cfg.record_path else {})},
             )
         files = [cfg.run_dir / "metrics.json"]
@@ -401,6 +515,15 @@ def run(cfg: RunConfig) -> int:
     """
     from swarm_up import shm
 
+    if cfg.discovery_server:  # swarm-up's own participants are the server's clients too
+        from swarm_up.children import DISCOVERY_ENV
+
+        os.environ[DISCOVERY_ENV] = cfg.discovery_server
+    if not cfg.leader:
+        from swarm_up.remote import run_remote
+
+        (cfg.run_dir / "logs").mkdir(parents=True, exist_ok=True)
+        return run_remote(prepare_map(cfg))
     template = load_nav_template(cfg.nav_template)
     (cfg.run_dir / "logs").mkdir(parents=True, exist_ok=True)
     (cfg.run_dir / "params").mkdir(parents=True, exist_ok=True)

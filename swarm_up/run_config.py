@@ -46,6 +46,17 @@ class RunConfig:
         fleet: the model of every robot (name or absolute path), index-aligned with
             ``robots`` (:func:`swarm_common.fleet.fleet_models`); empty: every robot is
             ``robot``.
+        hosts: the hosts the swarm runs on (``--hosts``), one ``swarm-up`` each.
+        rank: this host's rank (``--host-rank``); rank 0 runs the simulator, the metrics, the
+            coordinator, the dashboard and the recorder.
+        host_robots: the robots of every rank (:func:`swarm_up.hosts.assign_robots`); empty
+            with one host.
+        host_weights: ``--host-weights``, one per host (empty: equal).
+        discovery_server: ``HOST:PORT`` of Fast DDS's Discovery Server (rank 0 starts it), or
+            None for ROS 2's simple discovery.
+        rank_timeout: [s] wall a rank may be silent before it counts as lost.
+        on_rank_loss: ``end`` (rank 0 ends the run, exit 1) or ``continue`` (its robots are
+            gone: not waited for).
     """
 
     robots: tuple[str, ...]
@@ -72,6 +83,23 @@ class RunConfig:
     dashboard_port: int | None = None
     markers: bool = False
     fleet: tuple[str, ...] = ()
+    hosts: int = 1
+    rank: int = 0
+    host_robots: tuple[tuple[str, ...], ...] = ()
+    host_weights: tuple[float, ...] = ()
+    discovery_server: str | None = None
+    rank_timeout: float = 10.0
+    on_rank_loss: str = "end"
+
+    @property
+    def local_robots(self) -> tuple[str, ...]:
+        """The robots whose navigators and commanders run on this host."""
+        return self.host_robots[self.rank] if self.host_robots else self.robots
+
+    @property
+    def leader(self) -> bool:
+        """Whether this host is rank 0 (simulator, metrics, coordinator, live view, recorder)."""
+        return self.rank == 0
 
     @property
     def models(self) -> tuple[str, ...]:

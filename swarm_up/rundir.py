@@ -208,7 +208,10 @@ def write_params_files(cfg: RunConfig, template: dict) -> list[Path]:
     out_dir = cfg.run_dir / "params"
     out_dir.mkdir(parents=True, exist_ok=True)
     files = []
+    local = set(cfg.local_robots)
     for i, ns in enumerate(cfg.robots, start=1):
+        if ns not in local:  # another host's robot (--hosts): its host writes its file
+            continue
         path = out_dir / f"{ns}.yaml"
         path.write_text(yaml.safe_dump(navigator_params(template, ns, i, cfg), sort_keys=False))
         files.append(path)
