@@ -35,7 +35,7 @@ def _refuse(link: HostLink, line: str) -> InputError:
 
 
 def wait_for_leader(cfg: RunConfig, link: HostLink, stop: StopFlag):
-    """Wait for rank 0's identity; check it against this host's flags and that this rank runs
+    """Wait for rank 0's identity; check it against this host's flags, then that this rank runs
     nowhere else.
 
     Returns:
@@ -52,15 +52,13 @@ def wait_for_leader(cfg: RunConfig, link: HostLink, stop: StopFlag):
     while stop.signum is None:
         link.spin(0.1)
         link.report(STARTING)
-        twins = link.others(cfg.rank, cfg.rank_timeout)
-        if twins:
-            t = twins[0]
-            raise _refuse(link, f"--host-rank: rank {cfg.rank} already runs on host {t.host} "
-                                f"(pid {t.pid}); every rank runs once")
         if link.identity is not None and link.identity.state == UP:
             heard = heard or time.monotonic()
-            if time.monotonic() - heard >= DISCOVERY_GRACE_S:  # twins heard by now
+            if time.monotonic() - heard >= DISCOVERY_GRACE_S:  # the ranks are heard by now
                 break
+        elif link.identity is not None and link.identity.state == ENDING:
+            raise RunError(f"rank 0's run {link.identity.session} has ended; start rank 0 "
+                           "first")
         if time.monotonic() - t0 > cfg.ready_timeout:
             raise RunError(f"no rank 0 on /swarm/run after {cfg.ready_timeout:g} s (is it "
                            "running, with the same ROS_DOMAIN_ID and discovery?)")
@@ -72,6 +70,11 @@ def wait_for_leader(cfg: RunConfig, link: HostLink, stop: StopFlag):
         more = f" (and {len(diffs) - 1} more)" if len(diffs) > 1 else ""
         raise _refuse(link, f"{flag}: {here} on this host, {there} on rank 0{more}; every "
                             "host must run the same run flags")
+    twins = link.others(cfg.rank, cfg.rank_timeout)
+    if twins:
+        t = twins[0]
+        raise _refuse(link, f"--host-rank: rank {cfg.rank} already runs on host {t.host} "
+                            f"(pid {t.pid}); every rank runs once")
     return link.identity
 
 

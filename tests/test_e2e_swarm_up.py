@@ -76,18 +76,24 @@ class SwarmUp:
         args: the command-line arguments (``--run-dir`` is added).
         tmp_path: the test's directory.
         name: the run's name (run directory ``tmp_path/name``).
+        wrap: ``wrap(argv)`` -> the command line that runs it (None: as it is).
+        env: its environment (None: this process's).
     """
 
-    def __init__(self, args: list[str], tmp_path: Path, name: str = "run"):
+    def __init__(self, args: list[str], tmp_path: Path, name: str = "run",
+                 wrap=None, env: dict | None = None):
         self.run_dir = tmp_path / name
         self.logs = self.run_dir / "logs"
         self.out_path = tmp_path / f"{name}.stdout"
         self.err_path = tmp_path / f"{name}.stderr"
         self.argv = [str(SWARM_UP), *args, "--run-dir", str(self.run_dir)]
+        if wrap is not None:  # e.g. run it in a network namespace (tests/support/netns.py)
+            self.argv = wrap(self.argv)
         self.known: dict[int, psutil.Process] = {}  # every descendant seen, by pid
         with open(self.out_path, "wb") as out, open(self.err_path, "wb") as err:
             self.proc = subprocess.Popen(self.argv, stdin=subprocess.DEVNULL, stdout=out,
-                                         stderr=err, cwd=tmp_path, start_new_session=True)
+                                         stderr=err, cwd=tmp_path, start_new_session=True,
+                                         env=env)
         self.t0 = time.monotonic()
         self.track()
 
