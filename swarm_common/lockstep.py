@@ -144,15 +144,19 @@ class GoalHandshake:
             commander: whether a commander is still connected.
 
         Returns:
-            ``(over, stalled)``: ``over``, wait 2 ends without a goal (the commander left, or, out
-            of the lockstep, ``timeout_s`` passed: counted in :attr:`timeouts`); ``stalled``,
-            the seconds waited when a stall is to be reported now, else None.
+            ``(over, stalled)``: ``over``, wait 2 ends without a goal: the commander left
+            (counted in :attr:`timeouts` in the lockstep) or, out of the lockstep,
+            ``timeout_s`` passed (counted); ``stalled``, the seconds waited when a stall is to
+            be reported now, else None.
         """
         since = now_s if self._since is None else self._since
         waited = now_s - since
         ending = self._end_ns is not None and t_ns > self._end_ns
         if ending and (not commander or (not self.lockstep and waited >= self.timeout_s)):
-            if commander:
+            # counted: a timeout out of the lockstep, or a lockstep commander that left (it
+            # crashed, or was stopped beyond DDS's participant lease): either way the tick is
+            # answered without the goal the run would have had
+            if commander or self.lockstep:
                 self.timeouts += 1
             self._over_ns = self._end_ns
             self.released()

@@ -123,6 +123,7 @@ class RankReport:
         cpu_percent: its processes' CPU [% of one core] over the run so far, or None.
         peak_rss_mb: their peak RSS summed [MB], or None.
         restarts: supervised restarts on this host.
+        fault_restarts: those of ``restarts`` that the fault schedule caused.
     """
 
     rank: int
@@ -135,6 +136,7 @@ class RankReport:
     cpu_percent: float | None = None
     peak_rss_mb: float | None = None
     restarts: int = 0
+    fault_restarts: int = 0
 
     def encode(self) -> str:
         """The ``std_msgs/String.data`` (compact JSON)."""

@@ -138,8 +138,9 @@ MARKERS = Topic("/swarm/markers", "visualization_msgs/msg/MarkerArray", Qos(1),
 """Every robot's outline, heading and plan and the workstations' states, in ``map``."""
 SUPERVISION = Topic("/swarm/supervision", "diagnostic_msgs/msg/DiagnosticStatus",
                     Qos(100, durability=TRANSIENT_LOCAL),
-                    ("swarm-up's supervisor: robots whose navigator process crashed",),
-                    ("swarm_sim",))
+                    ("swarm-up's supervisor (every rank): robots whose navigator process "
+                     "crashed", "swarm-up of rank 0: the robots of a lost rank"),
+                    ("swarm_sim", "swarm_coordinator (robots gone for good)"))
 """swarm-up's supervisor names robots whose navigator process is gone
 (:mod:`swarm_common.supervision`); the simulator stops waiting for them.  Transient local on both
 sides: a word sent before the reader matched is still delivered."""

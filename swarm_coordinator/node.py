@@ -59,6 +59,7 @@ from swarm_common.coordination import (
 )
 from swarm_common.errors import InputError, run_cli
 from swarm_common.stamps import NS_PER_S
+from swarm_common.supervision import LOST, RobotsLost
 from swarm_coordinator.core import CoordinatorConfig, CoordinatorCore
 from swarm_ros.qos import publisher, subscription
 from swarm_ros.session import node_session, spin_forever
@@ -116,6 +117,7 @@ class CoordinatorNode(Node):
                      qos=topics.COORDINATOR_REQUEST_READER_QOS)
         subscription(self, Clock, topics.CLOCK, self._on_clock,
                      qos=topics.CLOCK_COORDINATOR_READER_QOS)
+        subscription(self, DiagnosticStatus, topics.SUPERVISION, self._on_supervision)
         # timers
         self._poll_timer = self.create_timer(
             SYNC_POLL_S, self._on_poll, clock=RclpyClock(clock_type=ClockType.STEADY_TIME))
@@ -147,6 +149,22 @@ class CoordinatorNode(Node):
                 robot=req.robot, seq=0, reply_to=req.seq, kind="ack", target="",
                 pose=(0.0, 0.0, 0.0), stamp_ns=req.stamp_ns, epoch=self.core.epoch))))
         self._pending.append(req)
+        self._handle_due()
+
+    def _on_supervision(self, msg: DiagnosticStatus) -> None:
+        """Robots whose navigator is gone for good (the supervisor gave up, a lost host): dead
+        from now on, as a ``kill-robot`` fault's robot is (not waited for at a sync, never
+        handed a workstation). A failure, not a schedule: such a run is not reproducible."""
+        if msg.name != LOST:
+            return
+        word = RobotsLost.decode({kv.key: kv.value for kv in msg.values})
+        if word is None or not word.for_good:
+            return
+        now = self._clock_ns or 0
+        for ns in word.robots:
+            if ns in self.core.robots and self._dead.get(ns, now + 1) > now:
+                self._dead[ns] = now
+                self.get_logger().warning(f"{ns} is gone for good ({word.reason})")
         self._handle_due()
 
     def _on_clock(self, msg: Clock) -> None:

@@ -47,6 +47,7 @@ from swarm_ros.navigator import navigator_interface
 from swarm_ros.session import node_session, spin_forever
 
 STATUS_PERIOD_NS = NS_PER_S // 2  # nav_status at 2 Hz simulated, and on every change of state
+STATUS_REPEAT_S = 1.0  # [s] wall: while a tick waits for the next goal, the status again
 # Parameters that describe the robot and its world rather than an algorithm.
 _CONTEXT_PARAMS = {
     "robot": ("turtlebot3_waffle", "-", "robot name under robots/ or a .urdf/.xacro path: the "
@@ -168,6 +169,7 @@ class NavigatorNode(Node):
         self._last_t: int | None = None  # the last tick answered (a re-published one is not)
         self._wait_timer = None  # polls a held tick (wall clock: it only reports and checks)
         self._wait_t = 0
+        self._said_at = 0.0  # [s] monotonic: when a waiting tick last said its status again
         self._answered = False
         self._goal_topic = f"{self.get_namespace().rstrip('/')}/goal_pose"
         self._last_status: tuple | None = None
@@ -338,7 +340,7 @@ class NavigatorNode(Node):
         that discovered it only after that goal ended would never see the goal. This gate counts
         the writer's matches only; the reader's side can lag behind, which the histories of
         :data:`swarm_common.topics.CMD_VEL` and :data:`~swarm_common.topics.NAV_STATUS` cover
-        (why: docs/design/performance.md).
+        (why: docs/HISTORY.md, "The runs behind the internal contract").
         """
         waiting = [] if self.has_map else ["/map"]
         if (self.get_parameter("wait_for_commander").value
@@ -379,6 +381,12 @@ class NavigatorNode(Node):
             self.get_logger().warning(
                 f"tick {t / NS_PER_S:.3f} s has waited {stalled:.0f} s (wall) for "
                 f"{self._awaited(t)}; still waiting (a stall costs wall time only)")
+        now = time.monotonic()
+        if self._answered and self._held is None and now - self._said_at >= STATUS_REPEAT_S:
+            # waiting for the next goal: say the status again, so that a commander whose goal
+            # went to this navigator's predecessor (killed before it took it) sends it again
+            self._said_at = now
+            self._publish_status(force=True)
         self._release()
 
     def _awaited(self, t: int) -> str:

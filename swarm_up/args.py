@@ -337,18 +337,26 @@ def split_groups(robots: tuple[str, ...], k: int) -> tuple[tuple[str, ...], ...]
 
 
 def participants(n: int, commanders: bool, coordinator: bool, recorder: bool,
-                 groups: int | None = None) -> int:
-    """The DDS participants (one per rclpy process, two in swarm-up's own) of a run on one
-    host: the simulator, swarm-up (its metrics listener, and its announcer of fault
-    acknowledgements and lost robots), the navigators and commanders (a process each, or
-    ``groups`` group processes), the coordinator and the recorder."""
+                 groups: int | None = None, leader: bool = True, hosts: int = 1,
+                 discovery_server: bool = False) -> int:
+    """The DDS participants (one per rclpy context) one host runs: the navigators and
+    commanders of its ``n`` robots (a process each, or ``groups`` group processes), swarm-up's
+    announcer of fault acknowledgements and lost robots, and its link to the other hosts
+    (``hosts`` above 1); rank 0 (``leader``) also the simulator, swarm-up's metrics listener,
+    the coordinator, the recorder and the Discovery Server."""
     robots = (2 * n if commanders else n) if groups is None else groups
-    return 1 + 2 + robots + int(coordinator) + int(recorder)
+    own = 1 + int(hosts > 1)
+    if leader:
+        own += 1 + 1 + int(coordinator) + int(recorder) + int(discovery_server)
+    return robots + own
 
 
-def _check_participants(n: int, commanders: bool, coordinator: bool, recorder: bool) -> None:
+def _check_participants(n: int, commanders: bool, coordinator: bool, recorder: bool,
+                        leader: bool = True, hosts: int = 1,
+                        discovery_server: bool = False) -> None:
     """``--processes per-robot`` only as far as one host serves the participants."""
-    need = participants(n, commanders, coordinator, recorder)
+    need = participants(n, commanders, coordinator, recorder, None, leader, hosts,
+                        discovery_server)
     if need > MAX_PARTICIPANTS_PER_HOST:
         raise InputError(
             f"--processes: per-robot runs {n} robots as {need} DDS participants (a process "
@@ -402,10 +410,9 @@ def validate(args: argparse.Namespace) -> RunConfig:
         processes = default_processes(len(local))
     groups = None if processes == PER_ROBOT else split_groups(local, int(processes))
     if groups is None:
-        leader = args.host_rank == 0
-        _check_participants(len(local), args.commanders,
-                            leader and args.coordination == "centralized",
-                            leader and args.record is not None)
+        _check_participants(len(local), args.commanders, args.coordination == "centralized",
+                            args.record is not None, args.host_rank == 0, args.hosts,
+                            args.discovery_server is not None)
 
     faults = check_faults(args.faults, robots, args.name_prefix, args.duration)
     run_dir = args.run_dir if args.run_dir is not None else default_run_dir()

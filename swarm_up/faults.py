@@ -111,13 +111,17 @@ class ProcessFaults:
             coordinator's start-up; None: acknowledged as soon as the process is started.
         stall_report: [s] wall: a restarted coordinator not serving after this long is
             reported (and again every as long); the acknowledgement still waits for it.
+        coordinator: this ``swarm-up`` carries out ``kill-coordinator`` (rank 0: the
+            coordinator is its child, or there is none); False on the other ranks of a run over
+            several hosts.
     """
 
     def __init__(self, supervisor, per_robot: tuple[str, ...], ack: Callable[[FaultAck], None],
                  say: Callable[[str], None],
                  serving: Callable[[], frozenset[str]] | None = None,
-                 stall_report: float = 10.0):
+                 stall_report: float = 10.0, coordinator: bool = True):
         self.sup = supervisor
+        self.coordinator = coordinator
         self.per_robot = frozenset(per_robot)
         self.ack = ack
         self.say = say
@@ -136,8 +140,9 @@ class ProcessFaults:
         if key in self._done:
             return
         if ev.kind == KILL_COORDINATOR:
-            self._done.add(key)
-            self._coordinator(ev)
+            if self.coordinator:
+                self._done.add(key)
+                self._coordinator(ev)
         elif ev.kind in (KILL_NAV, KILL_ROBOT) and ev.phase == START \
                 and ev.robot in self.per_robot:
             self._done.add(key)
@@ -186,7 +191,7 @@ class ProcessFaults:
 
         The simulator holds the fault's end tick until then, so the coordinator's start-up
         (process start, discovery, the sync with every robot's report) costs no simulated
-        time (why: docs/design/performance.md). A wait of ``stall_report`` s is reported.
+        time (why: docs/HISTORY.md, 2026-11-25). A wait of ``stall_report`` s is reported.
         """
         if self._awaiting is None:
             return

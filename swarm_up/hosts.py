@@ -184,7 +184,7 @@ class HostLink:
         self._run_pub.publish(self._string(data=identity.encode()))
 
     def report(self, state: str, reason: str = "", resources: dict | None = None,
-               restarts: int = 0, force: bool = False) -> None:
+               restarts: int = 0, fault_restarts: int = 0, force: bool = False) -> None:
         """Publish this rank's report, at most once a :data:`REPORT_PERIOD_S` unless
         ``force``."""
         now = time.monotonic()
@@ -195,7 +195,7 @@ class HostLink:
         rep = RankReport(rank=self.rank, session=self.session, host=self.host, pid=self.pid,
                          robots=self.robots, state=state, reason=reason,
                          cpu_percent=res.get("cpu_percent"), peak_rss_mb=res.get("peak_rss_mb"),
-                         restarts=restarts)
+                         restarts=restarts, fault_restarts=fault_restarts)
         self._report_pub.publish(self._string(data=rep.encode()))
 
     def others(self, rank: int, within_s: float) -> list[RankReport]:

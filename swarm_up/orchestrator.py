@@ -115,7 +115,7 @@ class Orchestrator:
         if self.cfg.faults:
             from swarm_up.faults import ProcessFaults
 
-            per_robot = self.cfg.robots if self.cfg.groups is None else ()
+            per_robot = self.cfg.local_robots if self.cfg.groups is None else ()
             self.faults = ProcessFaults(self.sup, per_robot, self._announce().ack, say,
                                         serving=self._coordinators_serving)
         if self.live is not None:
@@ -221,7 +221,8 @@ class Orchestrator:
                                      "peak_rss_mb": per * len(self.cfg.local_robots)
                                      if per else None}, restarts=self.sup.restarts)
         twins = [t for t in link.others(0, self.cfg.rank_timeout) if t.session < link.session]
-        if twins:  # another rank 0 came up meanwhile: the later one goes (discovery was slow)
+        if twins:  # another rank 0 came up meanwhile (discovery was slow): the one with the
+            # greater run id goes (a rule both sides agree on)
             return Outcome(EXIT_BAD_INPUT, f"--host-rank: rank 0 of this run already runs on "
                            f"host {twins[0].host} (pid {twins[0].pid}); every rank runs once",
                            "rank started twice")
@@ -268,7 +269,9 @@ class Orchestrator:
         rows = [{"rank": 0, "host": socket.gethostname(), "robots": len(self.cfg.local_robots),
                  "cpu_percent": res.get("cpu_percent"),
                  "peak_rss_mb": round(per * len(self.cfg.local_robots), 1) if per else None,
-                 "restarts": self.sup.restarts, "lost": False}]
+                 "restarts": self.sup.restarts,
+                 "fault_restarts": self.faults.fault_restarts if self.faults else 0,
+                 "lost": False}]
         latest = self.link.latest() if self.link is not None else {}
         for rank in range(1, self.cfg.hosts):
             rep = latest.get(rank, (None, 0))[0]
@@ -277,6 +280,7 @@ class Orchestrator:
                          "cpu_percent": rep.cpu_percent if rep else None,
                          "peak_rss_mb": rep.peak_rss_mb if rep else None,
                          "restarts": rep.restarts if rep else None,
+                         "fault_restarts": rep.fault_restarts if rep else None,
                          "lost": rank in self._lost_ranks})
         return rows
 
@@ -440,18 +444,23 @@ class Orchestrator:
             for w in warnings:
                 warn(w)
         stations, holding = self._workstations()
+        hosts = self.hosts_figures() if cfg.hosts > 1 else []
+        # every host's supervisor: a restart anywhere decides the run as much as one here
+        restarts = sum(h["restarts"] or 0 for h in hosts) if hosts else self.sup.restarts
+        fault_restarts = (sum(h["fault_restarts"] or 0 for h in hosts) if hosts
+                          else self.faults.fault_restarts if self.faults is not None else 0)
         with self.listener.lock:
             metrics = aggregate(
                 self.listener.recorder, summary, world=cfg.world_name, seed=cfg.seed,
                 coordination=cfg.coordination, wall_time_s=wall_s,
-                resources=self.sampler.result(), restarts=self.sup.restarts,
-                fault_restarts=self.faults.fault_restarts if self.faults is not None else 0,
+                resources=self.sampler.result(), restarts=restarts,
+                fault_restarts=fault_restarts,
                 map_deliveries=self._map_deliveries(summary),
                 workstations=stations, holding=holding, models=cfg.models,
                 extra={"ended_by": outcome.ended_by, "run_dir": str(cfg.run_dir),
                        "processes": PER_ROBOT if cfg.groups is None else len(cfg.groups),
                        "commanders": cfg.commanders, "rtf_requested": cfg.rtf,
-                       **({"hosts": self.hosts_figures()} if cfg.hosts > 1 else {}),
+                       **({"hosts": hosts} if hosts else {}),
                        **({"recording": str(cfg.record_path)} if cfg.record_path else {})},
             )
         files = [cfg.run_dir / "metrics.json"]

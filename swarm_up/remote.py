@@ -114,6 +114,11 @@ def run_remote(cfg: RunConfig) -> int:
         joined = True
         say(f"rank 0 is up (run {identity.session}); starting this host's robots")
         write_params_files(cfg, template)
+        if cfg.faults:  # this host's group processes and commanders read it
+            from swarm_common.faults import dump_faults
+            from swarm_up.children import faults_file
+
+            dump_faults(cfg.faults, faults_file(cfg))
         for spec in child_specs(cfg):
             try:
                 sup.start(spec)
@@ -124,7 +129,7 @@ def run_remote(cfg: RunConfig) -> int:
             from swarm_up.faults import Announcer, ProcessFaults
 
             announcer = Announcer()
-            faults = ProcessFaults(sup, local, announcer.ack, say)
+            faults = ProcessFaults(sup, local, announcer.ack, say, coordinator=False)
         leader_seen = time.monotonic()
         while stop.signum is None:
             for ev in sup.poll():
@@ -142,7 +147,8 @@ def run_remote(cfg: RunConfig) -> int:
             link.spin(0.0)
             twins = [t for t in link.others(cfg.rank, cfg.rank_timeout)
                      if t.session < link.session and t.state == UP]
-            if twins:  # came up meanwhile (discovery was slow): the later one goes
+            if twins:  # came up meanwhile (discovery was slow): the one with the greater run
+                # id goes (a rule both sides agree on; the later start is mostly refused above)
                 raise InputError(f"--host-rank: rank {cfg.rank} already runs on host "
                                  f"{twins[0].host} (pid {twins[0].pid}); every rank runs once")
             if faults is not None:
@@ -153,7 +159,8 @@ def run_remote(cfg: RunConfig) -> int:
             per = res.get("peak_rss_mb_per_robot")
             link.report(UP, resources={"cpu_percent": res.get("cpu_percent"),
                                        "peak_rss_mb": per * len(local) if per else None},
-                        restarts=sup.restarts)
+                        restarts=sup.restarts,
+                        fault_restarts=faults.fault_restarts if faults is not None else 0)
             ident = link.identity
             if ident is not None and (ident.state == ENDING or ident.session
                                       != identity.session):

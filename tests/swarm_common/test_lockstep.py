@@ -53,9 +53,14 @@ def test_in_the_lockstep_a_wait_never_ends_by_the_wall_clock_and_a_stall_is_only
     assert not over and stalled is not None  # reported again, every STALL_REPORT_S
     assert hs.timeouts == 0
     assert hs.awaits_goal(11 * TICK, False, yes)  # still waiting
-    # a commander that left ends the wait, not counted as a timeout
+    # a lockstep commander that left (crashed, or stopped beyond DDS's lease) ends the wait:
+    # counted, the tick goes on without the goal the run would have had
     assert hs.poll(11 * TICK, 200.0, commander=False) == (True, None)
-    assert not hs.awaits_goal(11 * TICK, False, yes) and hs.timeouts == 0
+    assert not hs.awaits_goal(11 * TICK, False, yes) and hs.timeouts == 1
+    # out of the lockstep a commander that leaves is a script that ended: not counted
+    user = _ended_at(10 * TICK, lockstep=False)
+    user.waiting(0.0)
+    assert user.poll(11 * TICK, 0.1, commander=False) == (True, None) and user.timeouts == 0
 
 
 def test_out_of_the_lockstep_the_wait_ends_at_the_timeout_and_is_counted():

@@ -90,3 +90,8 @@ def test_per_robot_processes_are_refused_beyond_what_one_host_serves():
     # in group processes, 60 robots are a handful of participants
     assert run("--swarm-size", "60", "--commanders").groups is not None
     assert participants(60, True, False, False, groups=2) == 5
+    # another rank of a run over two hosts runs no simulator and no metrics listener, but a
+    # link to the other hosts; rank 0 with the Discovery Server runs one more
+    assert participants(10, True, False, False, leader=False, hosts=2) == 22
+    assert participants(10, True, True, True, leader=True, hosts=2,
+                        discovery_server=True) == 27
