@@ -35,12 +35,11 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from nav_msgs.msg import Path as PathMsg
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-from swarm_common.stamps import NS_PER_S
+from swarm_common.stamps import NS_PER_S, parse_stamp
 from tests.swarm_nav.test_node_behaviour import (
     LOADER3,
+    TICK_NS,
     Swarm,
     assert_no_collisions,
     assert_reached,
@@ -97,24 +96,18 @@ def test_head_on_swap_through_a_one_lane_corridor(swarm, n):
 # half, for which the south corridor is the short way (5 m against 14 m round the north).
 BLOCKER = (0.0, -2.5, 0.0)
 VIA_SOUTH = {"Srobot2": (4.3, -2.5, 0.0), "Srobot3": (3.6, -1.2, 0.0)}
-PLANS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
-                   durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
-def _way(path: PathMsg) -> str:
-    """Which corridor a plan takes between the rooms: ``"south"``, ``"north"`` or ``""``."""
-    ys = [ps.pose.position.y for ps in path.poses if -2.0 < ps.pose.position.x < 2.0]
+def _way(xy) -> str:
+    """Which corridor a plan, (N, 2) x, y [m], takes between the rooms: ``"south"``,
+    ``"north"`` or ``""``."""
+    ys = [y for x, y in xy if -2.0 < x < 2.0]
     return "south" if any(y < -2.0 for y in ys) else "north" if any(y > 2.0 for y in ys) else ""
 
 
 def test_a_corridor_blocked_while_robots_drive_through_it_is_left_for_the_other(swarm):
-    sw = swarm(3, world=str(TWO_CORRIDORS), poi=TWO_CORRIDORS.with_suffix(".yaml"))
-    plans = {ns: [] for ns in VIA_SOUTH}  # (stamp [ns], way) of every plan the follower made
-    for ns in VIA_SOUTH:
-        sw.node.create_subscription(
-            PathMsg, f"/{ns}/plan",
-            lambda m, ns=ns: plans[ns].append((m.header.stamp.sec * NS_PER_S
-                                               + m.header.stamp.nanosec, _way(m))), PLANS)
+    # the plans are read from before the navigators start: none is missed
+    sw = swarm(3, world=str(TWO_CORRIDORS), poi=TWO_CORRIDORS.with_suffix(".yaml"), plans=True)
     goals = {"Srobot1": BLOCKER, **VIA_SOUTH}
     ids = sw.send_together(goals)
     results = {ns: sw.wait_result(ns, ids[ns], 240) for ns in sw.names}
@@ -132,10 +125,11 @@ def test_a_corridor_blocked_while_robots_drive_through_it_is_left_for_the_other(
     # the processes' timing, so it is printed, not asserted.)
     turned = {}
     for ns in VIA_SOUTH:
-        ways = [(t, way) for t, way in plans[ns] if way]  # not the empty plan before the goal
-        assert ways and ways[0][1] == "south", (ns, "first plan", plans[ns])
+        plans = [(t, _way(xy)) for t, xy in sw.plans[ns]]
+        ways = [(t, way) for t, way in plans if way]  # not the empty plan before the goal
+        assert ways and ways[0][1] == "south", (ns, "first plan", plans)
         north = [t for t, way in ways if way == "north"]
-        assert north, (ns, "never planned the north way", plans[ns])
+        assert north, (ns, "never planned the north way", plans)
         start, at = sw.pose_at(ns, 0), sw.pose_at(ns, north[0])
         turned[ns] = (round(north[0] / NS_PER_S, 1),
                       round(math.hypot(at[0] - start[0], at[1] - start[1]), 2))
@@ -164,17 +158,22 @@ def test_goals_in_a_wall_or_off_the_map_are_refused_and_nothing_else_is_disturbe
     sw = swarm(3)
     ns = "Srobot1"
     ids = sw.send_together({ns: FIRST, **OTHERS})
+    # Three simulated seconds on its way, it gets the bad goals one after the other: the first
+    # stamped then (sent now, so that it is there in time), each next one as the one before
+    # ends (the probe is its commander in the lockstep: the navigator holds the simulator for
+    # it), then its next goal.
+    bad = [sw.send(ns, *BAD[0][0], 0.0, stamp_ns=parse_stamp(ids[ns]) + 3 * NS_PER_S)]
+    bad += [sw.then(ns, x, y, 0.0) for (x, y), _ in BAD[1:]]
+    following = sw.then(ns, *NEXT)
     sw.spin_until(lambda: "DRIVING" in sw.states(ns, ids[ns]), 30, f"{ns} to drive")
-    # Three simulated seconds on its way, it gets the bad goals one after the other.
-    sw.pose_at(ns, round((float(ids[ns]) + 3.0) * NS_PER_S))
-    for (x, y), reason in BAD:
-        gid = sw.send(ns, x, y, 0.0)
-        result = sw.wait_result(ns, gid, 10)
+    for goal, (_, reason) in zip(bad, BAD, strict=True):
+        result = sw.wait_result(ns, goal, 30)
+        gid = goal if isinstance(goal, str) else goal.id
         assert result.state == "ABORTED" and result.values["reason"] == reason, result
-        assert result.t - float(gid) <= 1.0, result  # at once (the stamp is the last status's)
+        assert result.t_ns == parse_stamp(gid) + TICK_NS, result  # at once: the next tick
         assert "HOLDING" not in sw.states(ns, gid) and "DRIVING" not in sw.states(ns, gid)
     # The same robot takes its next goal ...
-    assert_reached(sw, ns, sw.wait_result(ns, sw.send(ns, *NEXT), 90), NEXT)
+    assert_reached(sw, ns, sw.wait_result(ns, following, 90), NEXT)
     # ... and the others were never disturbed: no other goal, no abort, no recovery.
     for other, goal in OTHERS.items():
         result = sw.wait_result(other, ids[other], 120)

@@ -268,10 +268,8 @@ def test_six_robots_with_commanders_run_clean(run_180):
 def test_same_seed_gives_same_simulated_figures(run_180, tmp_path):
     first, diag1 = run_180
     _, second, diag2 = _run_to_end(RUN_180, tmp_path, "second", 180)
-    if second.get("reproducible") is False:
-        # The run says wall-clock timing decided something (a commander slower than
-        # goal_wait_timeout on a machine busy with other work): run it once more.
-        _, second, diag2 = _run_to_end(RUN_180, tmp_path, "third", 180)
+    # No wall-clock timeout decides anything simulated (the commanders are in the lockstep):
+    # however busy the machine, the run is reproducible, the first time.
     assert second.get("reproducible") is True, f"the repeated run is not reproducible\n{diag2}"
     a, b = _simulated(first), _simulated(second)
     assert a["goals_reached"] > 0, f"the run did nothing\n{diag1}"
