@@ -148,11 +148,14 @@ RUN = Topic("/swarm/run", "std_msgs/msg/String", LATCHED,
             ("swarm-up of rank 0 (--hosts)",), ("swarm-up of every other rank",))
 """Rank 0's run identity (:class:`swarm_common.ranks.RunIdentity`), and ``state: ending`` when
 its run ends; only with ``--hosts`` above 1."""
-RANKS = Topic("/swarm/ranks", "std_msgs/msg/String", LATCHED,
+RANKS = Topic("/swarm/ranks", "std_msgs/msg/String", Qos(100, durability=TRANSIENT_LOCAL),
               ("swarm-up of every rank (--hosts), once a second",),
               ("swarm-up of every rank",))
 """Every rank's report (:class:`swarm_common.ranks.RankReport`): alive, its robots, CPU,
-memory, restarts; latched, so a rank that starts later hears the others at once."""
+memory, restarts; transient local, so a rank that starts later hears the others at once. The
+topic has no key, so a reader keeps one history for all the ranks' writers: its depth (100) must
+hold a report of every rank between two takes (with depth 1, a busy rank 2 of 3 kept taking
+rank 1's report over rank 0's, and judged rank 0 silent)."""
 FAULT_ACKS = Topic("/swarm/fault_acks", "diagnostic_msgs/msg/DiagnosticStatus",
                    Qos(100, durability=TRANSIENT_LOCAL),
                    ("swarm-up's fault injection", "group processes with --faults"),

@@ -171,6 +171,7 @@ def test_ctrl_c_on_rank_0_ends_every_rank(hosts3, tmp_path):
         took = time.monotonic() - t0
     assert codes == [0, 0], f"{codes}\n{r0.diagnostics()}\n{r1.diagnostics()}"
     assert "rank 0's run ended" in r1.stdout(), r1.diagnostics()
-    # within 5 s on a quiet machine (measured: see docs/guides/multi_host.md); a loaded CI
-    # machine may take longer to stop every process, so the bound here is generous
+    print(f"every rank ended {took:.1f} s after Ctrl-C on rank 0")
+    # The contract's 5 s holds on a quiet machine (docs/results/scaling.md, "Rank loss and
+    # Ctrl-C"); stopping every process takes longer on a loaded CI machine, hence 30 s here.
     assert took < 30, f"every rank ended only after {took:.1f} s"
