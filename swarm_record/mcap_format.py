@@ -132,6 +132,13 @@ def recorder_subscriptions(robots, selected) -> tuple[RecordedTopic, ...]:
     return tuple(wanted.values())
 
 
+def from_simulator(topic: RecordedTopic) -> bool:
+    """Whether ``swarm-sim`` publishes ``topic`` (:data:`SIMULATOR_TOPICS`,
+    :data:`SIMULATOR_ROBOT_TOPICS`)."""
+    return topic.name in SIMULATOR_TOPICS or bool(
+        topic.robot and topic.name.rsplit("/", 1)[-1] in SIMULATOR_ROBOT_TOPICS)
+
+
 def simulator_readers(robots, pattern: str | None) -> int:
     """How many of the recorder's subscriptions (``--record-topics pattern``) are to topics the
     simulator publishes: the simulator's start gate waits until that many are matched
@@ -142,9 +149,7 @@ def simulator_readers(robots, pattern: str | None) -> int:
         re.error: ``pattern`` is not a regular expression.
     """
     subs = recorder_subscriptions(robots, select_topics(recorded_topics(robots), pattern))
-    return sum(1 for t in subs
-               if t.name in SIMULATOR_TOPICS
-               or (t.robot and t.name.rsplit("/", 1)[-1] in SIMULATOR_ROBOT_TOPICS))
+    return sum(1 for t in subs if from_simulator(t))
 
 
 # ------------------------------------------------------------------------------------ metadata

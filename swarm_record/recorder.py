@@ -14,6 +14,12 @@ its queue instead of dropping.  Log and publish times are simulated time (as ``r
 --use-sim-time``): a message's ``header.stamp`` when it has one (the value itself for
 ``/clock``), else the latest ``/clock``.
 
+The simulator's start gate holds the first tick until the recorder's subscriptions to its topics
+are matched; it sees only its writers' side of each match, so one of those subscriptions is made
+last, once every other one has matched its writer on the recorder's side (a reader drops what
+comes before it has: once, under load, a recording lost every robot's first two ticks of
+``odom`` and ``ground_truth``).
+
 On SIGINT or SIGTERM, or when its parent process has gone, it takes what is still queued (up to
 :data:`DRAIN_S`), writes the file's summary and exits 0.  Killed, it leaves every finished chunk.
 """
@@ -112,11 +118,41 @@ def make_node(recording: rec.McapRecording, robots, selected, tf: rec.TfBuilder 
             self._tf_topic = next((t for t in selected if t.name == rec.TF_TOPIC), None)
             # subscriptions
             self.subs = []
-            for t in rec.recorder_subscriptions(robots, selected):
-                self.subs.append(self.create_subscription(
-                    message_class(t.type), t.name,
-                    self._callback(t, t.name in {s.name for s in selected}),
-                    profile(_subscription_qos(t.qos)), raw=True))
+            self._from_sim = []  # the subscriptions to the simulator's topics, made so far
+            wanted = rec.recorder_subscriptions(robots, selected)
+            sim = [t for t in wanted if rec.from_simulator(t)]
+            # The simulator's start gate waits until all of these are matched, but it sees only
+            # its writers' side: a reader drops what comes before it has matched the writer on
+            # its own side. So one of them (a transient-local one where there is: its history
+            # makes up for its own late match) is made only once every other one has matched
+            # its writer here (:meth:`make_deferred`): until then the gate holds the first tick.
+            self.deferred = min(sim, key=lambda t: t.qos.get("durability") != "transient_local",
+                                default=None)
+            for t in wanted:
+                if t is not self.deferred:
+                    self._subscribe(t, t.name in {s.name for s in selected})
+            self._deferred_write = self.deferred is not None and self.deferred.name in {
+                s.name for s in selected}
+
+        def _subscribe(self, t: rec.RecordedTopic, write: bool) -> None:
+            sub = self.create_subscription(message_class(t.type), t.name, self._callback(t, write),
+                                           profile(_subscription_qos(t.qos)), raw=True)
+            self.subs.append(sub)
+            if rec.from_simulator(t):
+                self._from_sim.append(sub)
+
+        def make_deferred(self) -> bool:
+            """Make the deferred subscription once every other subscription to the simulator's
+            topics has matched its writer on the reader's side; True once it is made."""
+            if self.deferred is None:
+                return True
+            if any(sub.get_publisher_count() < 1 for sub in self._from_sim):
+                return False
+            self._subscribe(self.deferred, self._deferred_write)
+            print(f"every simulator topic matched; subscribed to {self.deferred.name} last",
+                  flush=True)
+            self.deferred = None
+            return True
 
         def _callback(self, topic: rec.RecordedTopic, write: bool):
             name = topic.name
@@ -208,9 +244,11 @@ def _record(args, robots, selected, tf) -> int:
         executor.add_node(node)
         print(f"{READY_LINE}: {len(node.subs)} subscriptions, writing {args.out}", flush=True)
         next_check = time.monotonic() + PARENT_CHECK_S
+        made = False
         try:
             while stop["why"] is None and rclpy.ok():
                 executor.spin_once(timeout_sec=0.1)
+                made = made or node.make_deferred()
                 now = time.monotonic()
                 if now >= next_check:
                     next_check = now + PARENT_CHECK_S
