@@ -188,14 +188,20 @@ def _int(data: Mapping, key: str, default: int | None = None) -> int:
     return value
 
 
-def _load(text: str) -> dict:
+def load_object(text: str, error: type[ValueError] = ContractError) -> dict:
+    """The JSON object a ``std_msgs/String`` of a swarm contract carries.
+
+    Raises:
+        error: not JSON, or not an object.
+    """
     try:
         data = json.loads(text)
     except (TypeError, ValueError):
-        raise ContractError("not JSON") from None
+        raise error("not JSON") from None
     if not isinstance(data, dict):
-        raise ContractError("not a JSON object")
+        raise error("not a JSON object")
     return data
+
 
 
 def encode_request(req: Request) -> str:
@@ -215,7 +221,7 @@ def decode_request(text: str) -> Request:
     Raises:
         ContractError: malformed (names the key).
     """
-    d = _load(text)
+    d = load_object(text)
     kind = _choice(d, "kind", REQUEST_KINDS)
     outcome = _choice(d, "outcome", OUTCOMES, "")
     holds = d.get("holds", [])
@@ -251,7 +257,7 @@ def decode_assignment(text: str) -> Assignment:
     Raises:
         ContractError: malformed (names the key).
     """
-    d = _load(text)
+    d = load_object(text)
     kind = _choice(d, "kind", ASSIGNMENT_KINDS)
     pose = []
     for key in ("x", "y", "yaw"):
@@ -279,7 +285,7 @@ def decode_state(text: str) -> str:
     Raises:
         ContractError: malformed.
     """
-    return _text(_load(text), "epoch")
+    return _text(load_object(text), "epoch")
 
 
 def check_reservations(events: Sequence[Mapping[str, str]]) -> list[str]:

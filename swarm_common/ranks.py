@@ -16,6 +16,8 @@ from __future__ import annotations
 import json
 from dataclasses import asdict, dataclass, fields
 
+from swarm_common.coordination import load_object
+
 UP, ENDING = "up", "ending"
 STARTING, REFUSED = "starting", "refused"
 RANK_STATES = (STARTING, UP, REFUSED, ENDING)
@@ -170,10 +172,4 @@ def _show(value) -> str:
 
 
 def _load(text: str) -> dict:
-    try:
-        d = json.loads(text)
-    except (TypeError, ValueError):
-        raise RankContractError("not JSON") from None
-    if not isinstance(d, dict):
-        raise RankContractError("not a JSON object")
-    return d
+    return load_object(text, RankContractError)

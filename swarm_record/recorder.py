@@ -244,11 +244,10 @@ def _record(args, robots, selected, tf) -> int:
         executor.add_node(node)
         print(f"{READY_LINE}: {len(node.subs)} subscriptions, writing {args.out}", flush=True)
         next_check = time.monotonic() + PARENT_CHECK_S
-        made = False
         try:
             while stop["why"] is None and rclpy.ok():
                 executor.spin_once(timeout_sec=0.1)
-                made = made or node.make_deferred()
+                node.make_deferred()
                 now = time.monotonic()
                 if now >= next_check:
                     next_check = now + PARENT_CHECK_S
