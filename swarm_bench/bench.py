@@ -245,7 +245,9 @@ def git_commit() -> dict:
 
 
 def machine_info() -> dict:
-    """Cores, Python, rclpy version, platform, RMW, and the load average now."""
+    """Cores, CPU model, Python, ROS 2 distribution (``ROS_DISTRO``, else ``jazzy`` for the
+    ``ros-jazzy-rclpy`` wheels), rclpy and Fast DDS versions, platform, RMW, and the load
+    average now."""
     from importlib import metadata
 
     rclpy_version = None
@@ -255,10 +257,27 @@ def machine_info() -> dict:
             break
         except metadata.PackageNotFoundError:
             continue
+    fastdds = None
+    for dist in ("ros-fastrtps", "fastdds"):
+        try:
+            fastdds = metadata.version(dist)
+            break
+        except metadata.PackageNotFoundError:
+            continue
+    cpu_model = None
+    try:
+        with open("/proc/cpuinfo") as f:
+            cpu_model = next((line.split(":", 1)[1].strip() for line in f
+                              if line.startswith("model name")), None)
+    except OSError:
+        pass
     return {
         "cores": os.cpu_count(),
+        "cpu_model": cpu_model or platform.processor() or None,
         "python": platform.python_version(),
+        "ros_distro": os.environ.get("ROS_DISTRO") or ("jazzy" if rclpy_version else None),
         "rclpy": rclpy_version,
+        "fastdds": fastdds,
         "platform": platform.platform(),
         "rmw": os.environ.get("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp (default)"),
         "load_average_start": [round(x, 2) for x in os.getloadavg()],

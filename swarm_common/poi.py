@@ -19,6 +19,12 @@ schema (all coordinates in ``map``, metres and radians)::
       area: [-3.0, -1.0, 8.5, 8.6]  # required [m]: xmin, ymin, xmax, ymax
     points:                       # optional named points: [x, y] or [x, y, yaw]
       unload: [5.0, 5.0]
+    waiting:                      # optional: the coordinator's waiting spots near the
+      - [-5.7, -2.4]              #   workstations, out of the lane: [x, y] or [x, y, yaw] [m]
+
+``waiting`` is read only by the central coordinator (``--waiting-spots near``, the default):
+where queued robots wait, besides each workstation's own holding spot. Without it, or with
+``--waiting-spots hall``, they park on the spawn grid.
 """
 
 from __future__ import annotations
@@ -33,7 +39,7 @@ import yaml
 
 from swarm_common.errors import InputError, did_you_mean
 
-TOP_KEYS = ("frame_id", "workstations", "spawn", "points")
+TOP_KEYS = ("frame_id", "workstations", "spawn", "points", "waiting")
 WORKSTATION_KEYS = ("name", "x", "y", "yaw", "holding")
 SPAWN_KEYS = ("origin", "spacing", "yaw", "area")
 
@@ -105,12 +111,15 @@ class PointsOfInterest:
         workstations: in file order.
         spawn: the spawn grid, or None (then robots spawn in the largest free area).
         points: name → (2,) x, y [m] or (3,) x, y [m], yaw [rad], read-only, in ``map``.
+        waiting: (K, 3) read-only waiting spots x, y [m], yaw [rad] in ``map`` for the central
+            coordinator's queues (yaw 0 where the file gives none); (0, 3) when none.
         source: the file read, or None.
     """
 
     workstations: tuple[Workstation, ...] = ()
     spawn: SpawnArea | None = None
     points: dict[str, np.ndarray] = field(default_factory=dict)
+    waiting: np.ndarray = field(default_factory=lambda: _frozen(np.zeros((0, 3))))
     source: Path | None = None
 
     def workstation(self, name: str) -> Workstation:
@@ -284,7 +293,16 @@ def _parse_poi(path: Path, text: str) -> PointsOfInterest:
             raise check.fail(f"points: names must be strings, got {_show(name)}")
         points[name] = _frozen(check.vector(value, (2, 3), f"points.{name}",
                                             "[x, y] or [x, y, yaw]"))
-    return PointsOfInterest(workstations=workstations, spawn=spawn, points=points, source=path)
+    raw_waiting = doc.get("waiting") or []
+    if not isinstance(raw_waiting, list):
+        raise check.fail(f"waiting must be a list of [x, y] or [x, y, yaw] points, got "
+                         f"{_show(raw_waiting)}")
+    waiting = [check.vector(v, (2, 3), f"waiting[{i}]", "[x, y] or [x, y, yaw]")
+               for i, v in enumerate(raw_waiting)]
+    waiting = np.array([[*w[:2], w[2] if len(w) > 2 else 0.0] for w in waiting],
+                       float).reshape(-1, 3)
+    return PointsOfInterest(workstations=workstations, spawn=spawn, points=points,
+                            waiting=_frozen(waiting), source=path)
 
 
 def poi_for_world(world_path: str | Path) -> PointsOfInterest | None:

@@ -1,4 +1,4 @@
-"""The coordinator's logic: task assignment and first-come-first-served reservations (pure).
+"""The coordinator's logic: a task scheduler with first-come-first-served reservations (pure).
 
 No ROS here (STYLE.md rule 1): :class:`CoordinatorCore` takes decoded
 :class:`~swarm_common.coordination.Request` records and returns the
@@ -13,20 +13,45 @@ first to ask gets it, later askers are queued and parked at a waiting spot until
   commander would visit (:func:`swarm_commander.route.build_route`), so both modes do the same
   tasks. When a robot asks for its next task (``ready`` or ``done``) the core takes the next
   workstation W of its route.
-- W free: W is reserved for the robot, which is sent there (``go``).
-- W reserved by another robot: the robot joins W's queue (first come, first served: ordered by
-  the simulated time of its request, then by robot number) and is sent to a free waiting spot
-  (``wait``), reserved for it: W's own holding spots first, then the parking spots nearest W.
-  No two robots are ever sent to one spot. When a holding spot of W frees up, the first robot
-  of W's queue that waits at a parking spot moves up to it (the next hand-over is short).
-- A robot that reports ``done`` at W leaves it: W is released at the request's stamp t, and the
-  first robot of W's queue that lives gets W (its spot is released) with a goal stamped
+- W free (and nobody queued for it): W is reserved for the robot, which is sent there (``go``).
+- W taken (or, ``nearest-free``, W is where the robot stands: its route's next stop after it
+  was sent elsewhere), assignment ``nearest-free`` (:data:`ASSIGN_NEAREST_FREE`, the
+  default): the robot is sent to the free workstation of W's kind
+  (:func:`~swarm_nav.holding.workstation_kind`, the kinds the decentralized navigators'
+  ``swap_range`` swaps within) nearest to where it is by path length on the map (ties: the
+  workstation's order in the world), other than the one it has just left, if there is one.
+  This is the scheduler the decentralized side's goal flexibility is matched with: it alone
+  knows which workstations are free.
+- Otherwise the robot joins W's queue (first come, first served: ordered by the simulated time
+  of its request, then by robot number) and is sent to a free waiting spot (``wait``), reserved
+  for it; no two robots are ever sent to one spot. ``route``: W's own holding spot, else the
+  other spot nearest W (straight line). ``nearest-free``: the best :meth:`~CoordinatorCore.rank`
+  first (a holding spot of W's kind, W's own first; then the world's waiting spots near the
+  workstations, ``waiting`` of the points of interest; then parking on the spawn grid, the
+  hall), nearest W within a rank.
+- Moving up. ``route``: when a holding spot of W frees up, the first robot of W's queue that
+  waits farther away moves up to it. ``nearest-free``: whenever a spot frees up, the robot of
+  the kind's queues that has waited longest of those at a worse-ranked spot takes it, and the
+  spot it leaves goes the same way, so the queue moves up from the hall to the waiting spots
+  to the holding spots in queue order.
+- A robot that reports ``done`` at W leaves it: W is released at the request's stamp t and
+  handed over. ``route``: to the first robot of W's queue. ``nearest-free``: to the robot at
+  W's own holding spot, else the nearest (path length) of those at holding or waiting spots,
+  else the one that has waited longest in the hall; a robot that has just left W only when no
+  other waits. Nobody starves: robots move up in queue order, and the one at W's holding spot
+  is the next to get W. The hand-over's goal is stamped
   ``t + period`` (``handover_ticks``), the tick at which the batch is handled, so it moves off
   its spot at tick ``t + 2 period``, whatever the wall-clock latency: the node sends the batch's
   answers, which the simulator waits for at ``t + period``, only once that robot's navigator
   has the goal (:mod:`swarm_coordinator.node`).
 - A goal that failed or was canceled releases its workstation too; the robot moves on to the next
   stop of its route (as the decentralized commander does).
+- A dead robot loses what it holds: one the ``alive`` predicate of :meth:`CoordinatorCore.handle`
+  says is dead (a ``kill-robot`` fault, the supervisor's word) at the batch's time, and one that
+  has held a workstation for ``silence_timeout_ns`` of simulated time without a word (its
+  navigator would have said ``done`` long before; Open-RMF's reservation node likewise expires a
+  reservation). Its workstation and spot are released and handed over; a silent robot that
+  speaks again is taken at its word (its task still counts).
 - A robot the core has not heard from (a coordinator restarted with empty tables) is taken at its
   word: the resources it reports are reserved for it if free; a workstation held by another robot
   meanwhile sends it to a waiting spot instead. What every such robot of a batch holds is taken
@@ -82,11 +107,22 @@ class Spot:
     yaw: float = 0.0
 
 
+ASSIGN_ROUTE = "route"
+ASSIGN_NEAREST_FREE = "nearest-free"
+ASSIGNMENTS = (ASSIGN_NEAREST_FREE, ASSIGN_ROUTE)
+SILENCE_TIMEOUT_S = 600.0
+"""[s] simulated: a robot that holds a workstation this long without a word has died. Five times
+the longest time to task of a run at 100 robots on slim_blockage (decentralized p95 109 s, 120 s
+run), so a robot stuck in traffic keeps its reservation."""
+
+
 @dataclass(frozen=True)
 class CoordinatorConfig:
     """Settings of the coordinator's core.
 
     Attributes:
+        assignment: :data:`ASSIGN_NEAREST_FREE` or :data:`ASSIGN_ROUTE` (the module doc).
+        silence_timeout_ns: [ns] simulated; 0: never expire a reservation for silence.
         period_ns: [ns] the simulator's control tick.
         handover_ticks: a goal handed to a waiting robot is stamped this many ticks after the
             release, the tick at which the batch is handled (so it takes effect one tick later
@@ -96,18 +132,30 @@ class CoordinatorConfig:
 
     period_ns: int = NS_PER_S // 10
     handover_ticks: int = 1  # [ticks] a handed-over goal's stamp after the release
+    assignment: str = ASSIGN_NEAREST_FREE
+    silence_timeout_ns: int = round(SILENCE_TIMEOUT_S * NS_PER_S)
+
+    def __post_init__(self) -> None:
+        if self.assignment not in ASSIGNMENTS:
+            raise ValueError(f"assignment must be one of {ASSIGNMENTS}, got {self.assignment!r}")
 
 
-def spots_from_poi(poi, parking: np.ndarray | None = None) -> tuple[Spot, ...]:
-    """The waiting spots of a world: every holding point of every workstation, then parking.
+def spots_from_poi(poi, parking: np.ndarray | None = None,
+                   near: bool = True) -> tuple[Spot, ...]:
+    """The waiting spots of a world: every holding point of every workstation, the world's
+    waiting spots, then parking.
 
     Args:
-        poi: a :class:`swarm_common.poi.PointsOfInterest` (workstations with ``holding``).
+        poi: a :class:`swarm_common.poi.PointsOfInterest` (workstations with ``holding``,
+            ``waiting``).
         parking: (K, 2) or (K, 3) parking spots x, y [, yaw] in ``map`` (e.g. the spawn grid:
             free of walls by construction), or None.
+        near: include the points of interest's ``waiting`` spots (``--waiting-spots near``);
+            False: only holding spots and parking (``hall``).
 
     Returns:
-        The spots, holding spots first (``loader1.0`` ...), then ``park1`` ... ``parkK``.
+        The spots, holding spots first (``loader1.0`` ...), then ``wait1`` ... (``near``), then
+        ``park1`` ... ``parkK``.
     """
     spots = []
     for w in poi.workstations:
@@ -115,6 +163,10 @@ def spots_from_poi(poi, parking: np.ndarray | None = None) -> tuple[Spot, ...]:
         for i, (x, y) in enumerate(np.asarray(w.holding, float).reshape(-1, 2)):
             spots.append(Spot(f"{w.name}.{i}", (float(x), float(y)), w.name,
                               math.atan2(wy - y, wx - x)))
+    if near:
+        for k, row in enumerate(np.asarray(getattr(poi, "waiting", ()), float).reshape(-1, 3),
+                                start=1):
+            spots.append(Spot(f"wait{k}", (float(row[0]), float(row[1])), "", float(row[2])))
     if parking is not None:
         for k, row in enumerate(np.asarray(parking, float), start=1):
             yaw = float(row[2]) if len(row) > 2 else 0.0
@@ -134,6 +186,12 @@ class _Robot:
     last_seq: int = 0  # last request answered
     last_answer: Assignment | None = None
     sent: int = 0  # assignments sent
+    xy: tuple[float, float] | None = None  # where it is, as far as we know (map, m)
+    left: str = ""  # the workstation it left last (a task's end)
+    held_since_ns: int = 0  # when it got its workstation
+    heard_ns: int = 0  # its latest request's stamp
+    lapsed: str = ""  # the workstation it lost for silence (its task still counts)
+    dead: bool = False  # it lost what it held for good (dead at a batch's time)
 
 
 @dataclass
@@ -154,6 +212,12 @@ class CoordinatorCore:
         next_stop: ``next_stop(robot)`` -> the name of the robot's next workstation.
         cfg: the settings.
         epoch: this coordinator's run id, copied into its messages.
+        distance: ``distance(xy, workstation)`` -> [m] the path length from ``xy`` (x, y in
+            ``map``) to a workstation's docking pose (:func:`swarm_coordinator.node.build_core`
+            plans it on the map); None: the straight line.
+        start_xy: robot -> (x, y) [m] where it starts (its spawn pose), for the first
+            ``nearest-free`` choice; a robot without one is taken to stand at its route's first
+            workstation.
 
     Raises:
         ValueError: no workstations, or duplicate names.
@@ -161,7 +225,9 @@ class CoordinatorCore:
 
     def __init__(self, robots: Sequence[str], stations: Sequence[Station],
                  spots: Sequence[Spot], next_stop: Callable[[str], str],
-                 cfg: CoordinatorConfig = CoordinatorConfig(), epoch: str = ""):
+                 cfg: CoordinatorConfig = CoordinatorConfig(), epoch: str = "",
+                 distance: Callable[[tuple[float, float], str], float] | None = None,
+                 start_xy: dict[str, tuple[float, float]] | None = None):
         if not stations:
             raise ValueError("the coordinator needs at least one workstation")
         self.stations: dict[str, Station] = {s.name: s for s in stations}
@@ -175,6 +241,14 @@ class CoordinatorCore:
         self._alive: Callable[[str, int], bool] = lambda ns, t: True
         self.holder: dict[str, str] = {}  # resource -> robot
         self.queues: dict[str, list[str]] = {name: [] for name in self.stations}
+        self._distance = distance or self._straight
+        for ns, xy in (start_xy or {}).items():
+            if ns in self.robots:
+                self.robots[ns].xy = (float(xy[0]), float(xy[1]))
+        from swarm_nav.holding import workstation_kind
+
+        self.kind = {name: workstation_kind(name) for name in self.stations}
+        self.expired = 0  # reservations released because their robot fell silent or died
 
     # ------------------------------------------------------------------------------ queries
     def holder_of(self, resource: str) -> str | None:
@@ -184,6 +258,10 @@ class CoordinatorCore:
     def queue(self, workstation: str) -> tuple[str, ...]:
         """The robots waiting for ``workstation``, first in line first."""
         return tuple(self.queues.get(workstation, ()))
+
+    def _straight(self, xy: tuple[float, float], name: str) -> float:
+        wx, wy = self.stations[name].pose[:2]
+        return math.hypot(xy[0] - wx, xy[1] - wy)
 
     @property
     def heard(self) -> set[str]:
@@ -217,6 +295,8 @@ class CoordinatorCore:
         self._alive = alive or (lambda ns, t: True)
         ordered = self.order(requests)
         self._adopt_batch(ordered, out)
+        if ordered:
+            self._expire(ordered[0].stamp_ns, {r.robot for r in ordered}, out)
         answered = set()
         for req in ordered:
             rob = self.robots.get(req.robot)
@@ -229,6 +309,7 @@ class CoordinatorCore:
                     answered.add(req.robot)
                 continue
             answered.add(req.robot)
+            rob.heard_ns = max(rob.heard_ns, req.stamp_ns)
             if req.kind == "report":
                 continue
             rob.last_seq = req.seq
@@ -283,7 +364,7 @@ class CoordinatorCore:
             if kind == "workstation" and name in self.stations:
                 if self.holder.get(res) in (None, req.robot):
                     self._reserve(req.robot, res, t, out)
-                    rob.workstation = name
+                    rob.workstation, rob.held_since_ns = name, t
                 elif req.kind == "report":
                     taken.append(name)
             elif kind == "spot" and name in self.spots:
@@ -309,6 +390,15 @@ class CoordinatorCore:
         """A task's goal ended: count the task, release the workstation, hand it over."""
         t = req.stamp_ns
         name = req.target
+        if name in self.stations:
+            rob.left, rob.xy = name, tuple(self.stations[name].pose[:2])
+        if rob.lapsed and rob.lapsed == name and not rob.workstation:
+            if req.outcome == "succeeded":  # it got there after all: the task counts
+                out.events.append(CoordinatorEvent(EVENT_TASK, req.robot, t, {
+                    "workstation": name, "t_start": format_stamp_ns(rob.task_start_ns),
+                    "duration_s": f"{(t - rob.task_start_ns) / NS_PER_S:.3f}"}, self.epoch))
+            rob.lapsed = ""
+            return
         if rob.workstation and rob.workstation == name:
             if req.outcome == "succeeded":
                 out.events.append(CoordinatorEvent(EVENT_TASK, req.robot, t, {
@@ -316,8 +406,7 @@ class CoordinatorCore:
                     "duration_s": f"{(t - rob.task_start_ns) / NS_PER_S:.3f}"}, self.epoch))
             self._release(req.robot, workstation_resource(name), t, out)
             rob.workstation = ""
-            if self.queues[name]:
-                self._hand_over(name, t, out)
+            self._hand_over(name, t, out)
 
     def _next_task(self, ns: str, rob: _Robot, t: int, reply_to: int, out: _Out) -> None:
         name = self._next_stop(ns)
@@ -326,13 +415,36 @@ class CoordinatorCore:
         rob.task_start_ns = t
         self._queue_or_go(ns, rob, name, t, reply_to, out)
 
+    def _free(self, name: str, ns: str) -> bool:
+        """Whether workstation ``name`` may go to robot ``ns`` now: nobody else holds it and
+        nobody is queued for it."""
+        return self.holder.get(workstation_resource(name)) in (None, ns) \
+            and not self.queues[name]
+
+    def choose(self, ns: str, name: str) -> str:
+        """The workstation robot ``ns`` is sent to when its route says ``name`` (the module
+        doc): ``name`` if free, else (``nearest-free``) the nearest free one of its kind other
+        than the one it has just left, else ``name`` (it queues there). ``name`` itself when the
+        robot has just left it (its route's stop after a diversion) counts as taken."""
+        rob = self.robots[ns]
+        if self.cfg.assignment == ASSIGN_ROUTE or (self._free(name, ns) and name != rob.left):
+            return name
+        xy = rob.xy if rob.xy is not None else tuple(self.stations[name].pose[:2])
+        free = [w for w in self.stations if self.kind[w] == self.kind[name] and w != rob.left
+                and self._free(w, ns)]
+        if not free:
+            return name
+        order = {w: i for i, w in enumerate(self.stations)}
+        return min(free, key=lambda w: (self._distance(xy, w), order[w]))
+
     def _queue_or_go(self, ns: str, rob: _Robot, name: str, t: int, reply_to: int,
                      out: _Out) -> None:
+        name = self.choose(ns, name)
         res = workstation_resource(name)
-        if self.holder.get(res) in (None, ns) and not self.queues[name]:
+        if self._free(name, ns):
             if self.holder.get(res) is None:
                 self._reserve(ns, res, t, out)
-            rob.workstation = name
+            rob.workstation, rob.held_since_ns = name, t
             self._send(ns, rob, "go", name, self.stations[name].pose, t, reply_to, "", out)
             return
         rob.waits_for, rob.since_ns = name, t
@@ -342,40 +454,94 @@ class CoordinatorCore:
             rob.last_answer = None
             return
         self._reserve(ns, spot_resource(spot.id), t, out)
-        rob.spot = spot.id
+        rob.spot, rob.xy = spot.id, spot.xy
         self._send(ns, rob, "wait", spot.id, (*spot.xy, spot.yaw), t, reply_to, name, out)
 
+    def next_waiter(self, name: str, t: int) -> str | None:
+        """The robot a free workstation ``name`` goes to at simulated time ``t`` [ns] (the
+        module doc), or None; dead robots are dropped from the queues on the way."""
+        kinds = [name] if self.cfg.assignment == ASSIGN_ROUTE else [
+            w for w in self.stations if self.kind[w] == self.kind[name]]
+        for w in kinds:
+            self.queues[w] = [ns for ns in self.queues[w] if self._alive(ns, t)]
+        waiters = [ns for w in kinds for ns in self.queues[w]]
+        if not waiters:
+            return None
+        own = [ns for ns in self.queues[name] if ns in waiters]
+        if self.cfg.assignment == ASSIGN_ROUTE or own:
+            return min(own or waiters, key=self._fifo)
+        others = [ns for ns in waiters if self.robots[ns].left != name] or waiters
+        here = tuple(self.stations[name].pose[:2])
+        return min(others, key=lambda ns: (self._distance(self.robots[ns].xy or here, name),
+                                           *self._fifo(ns)))
+
+    def _fifo(self, ns: str) -> tuple[int, int]:
+        """Queue order: when the robot began to wait, then its number."""
+        return self.robots[ns].since_ns, self.robots[ns].index
+
     def _hand_over(self, name: str, t: int, out: _Out) -> None:
-        """Give a free workstation to the first robot of its queue that lives (goal one tick
-        later); dead ones are dropped from the queue."""
+        """Give a free workstation to the robot that has waited longest for it (goal one tick
+        later; :meth:`next_waiter`)."""
         start = t + self.cfg.handover_ticks * self.cfg.period_ns
-        while self.queues[name] and not self._alive(self.queues[name][0], start):
-            self.queues[name].pop(0)
-        if not self.queues[name]:
+        if self.holder.get(workstation_resource(name)) is not None:
             return
-        ns = self.queues[name].pop(0)
+        ns = self.next_waiter(name, start)
+        if ns is None:
+            return
         rob = self.robots[ns]
+        self.queues[rob.waits_for].remove(ns)
         freed = self.spots.get(rob.spot)
         if rob.spot:
             self._release(ns, spot_resource(rob.spot), start, out)
             rob.spot = ""
         self._reserve(ns, workstation_resource(name), start, out)
         rob.workstation, rob.waits_for, rob.since_ns = name, "", 0
+        rob.held_since_ns = start
         self._send(ns, rob, "go", name, self.stations[name].pose, start, 0, "", out)
-        if freed is not None and freed.near == name:
-            self._move_up(name, freed, start, out)
+        if freed is not None and freed.near:
+            self._move_up(freed.near, freed, start, out)
 
     def _move_up(self, name: str, freed: Spot, t: int, out: _Out) -> None:
-        """The first robot of ``name``'s queue that waits farther away (parking) moves up to
-        the workstation's freed holding spot, so the next hand-over is a short drive."""
+        """The first robot of ``name``'s queue that waits farther away moves up to the
+        workstation's freed holding spot, so the next hand-over is a short drive."""
         for ns in self.queues[name]:
             rob = self.robots[ns]
             if rob.spot and self.spots[rob.spot].near != name and self._alive(ns, t):
                 self._release(ns, spot_resource(rob.spot), t, out)
                 self._reserve(ns, spot_resource(freed.id), t, out)
-                rob.spot = freed.id
+                rob.spot, rob.xy = freed.id, freed.xy
                 self._send(ns, rob, "wait", freed.id, (*freed.xy, freed.yaw), t, 0, name, out)
                 return
+
+    def _expire(self, t: int, speaking: set[str], out: _Out) -> None:
+        """Release what dead and silent robots hold at simulated time ``t`` [ns] (the module
+        doc), then hand the freed workstations over; ``speaking``: the robots of this batch."""
+        freed = []
+        for ns, rob in self.robots.items():
+            if rob.dead or not (rob.workstation or rob.spot or rob.waits_for):
+                continue
+            dead = not self._alive(ns, t)
+            silent = (self.cfg.silence_timeout_ns > 0 and ns not in speaking
+                      and rob.workstation
+                      and t - max(rob.held_since_ns, rob.heard_ns) >= self.cfg.silence_timeout_ns)
+            if not (dead or silent):
+                continue
+            rob.dead = dead
+            if rob.workstation:
+                self.expired += 1
+                rob.lapsed = rob.workstation
+                self._release(ns, workstation_resource(rob.workstation), t, out)
+                freed.append(rob.workstation)
+                rob.workstation = ""
+            if dead:
+                if rob.spot:
+                    self._release(ns, spot_resource(rob.spot), t, out)
+                    rob.spot = ""
+                if rob.waits_for and ns in self.queues[rob.waits_for]:
+                    self.queues[rob.waits_for].remove(ns)
+                rob.waits_for = ""
+        for name in freed:
+            self._hand_over(name, t, out)
 
     # ------------------------------------------------------------------------------ helpers
     def _enqueue(self, ns: str, name: str) -> None:

@@ -4,7 +4,8 @@
 
     swarm-coordinator --swarm-size N [--name-prefix Srobot] [--world NAME|PATH] [--seed S]
                       [--robot NAME|PATH] [--control-period SEC] [--faults FILE]
-                      [--stall-report SEC] [--ros-args ...]
+                      [--assignment nearest-free|route] [--waiting-spots near|hall]
+                      [--silence-timeout SEC] [--stall-report SEC] [--ros-args ...]
 
 A thin ROS 2 shell (node ``/swarm_coordinator``) around
 :class:`swarm_coordinator.core.CoordinatorCore`; the contract (topics, JSON records, events) is
@@ -31,9 +32,11 @@ it, so the same seed gives the same answers on a busy machine too:
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 import uuid
+from collections.abc import Callable
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy._rclpy_pybind11 import RCLInvalidROSArgsError
@@ -328,6 +331,7 @@ def build_parser() -> cli.ArgumentParser:
     p.add_argument("--faults", default=None, metavar="SPEC",
                    help="the run's fault schedule (swarm-up's --faults, inline or a YAML file): "
                    "robots a kill-robot fault kills are not waited for (default: none)")
+    add_policy_args(p)
     p.add_argument("--stall-report", type=cli.positive_float, default=10.0, metavar="SEC",
                    help="wall seconds the first answers (every robot's first word) or a "
                    "hand-over's delivery may wait before it is reported; it goes on waiting, "
@@ -335,10 +339,83 @@ def build_parser() -> cli.ArgumentParser:
     return p
 
 
+WAITING_SPOTS = ("near", "hall")
+
+
+POLICY_FLAGS = ("assignment", "waiting_spots", "silence_timeout")
+
+
+def add_policy_args(p, defaults: bool = True) -> None:
+    """The coordinator's policy flags (``swarm-coordinator``'s, and ``swarm-up``'s, which passes
+    them on: ``defaults=False`` leaves them None when not given): ``--assignment``,
+    ``--waiting-spots``, ``--silence-timeout`` (attributes :data:`POLICY_FLAGS`)."""
+    from swarm_coordinator.core import ASSIGNMENTS, SILENCE_TIMEOUT_S
+
+    p.add_argument("--assignment", choices=ASSIGNMENTS,
+                   default=ASSIGNMENTS[0] if defaults else None,
+                   help="centralized: nearest-free (default) sends a robot whose route's "
+                   "workstation is taken to the nearest free one of its kind (path length), and "
+                   "a freed workstation to the longest waiter of its kind; route: only the "
+                   "route's workstation, queued for it")
+    p.add_argument("--waiting-spots", choices=WAITING_SPOTS,
+                   default=WAITING_SPOTS[0] if defaults else None,
+                   help="centralized: where queued robots wait after each workstation's holding "
+                   "spot: near (default) the world's waiting spots (the points of interest's "
+                   "'waiting'), then the spawn grid; hall: the spawn grid only")
+    p.add_argument("--silence-timeout", type=cli.non_negative_float,
+                   default=SILENCE_TIMEOUT_S if defaults else None,
+                   metavar="SEC", help="centralized: simulated seconds a robot may hold a "
+                   "workstation without a word before the coordinator frees it (0: never) "
+                   f"(default: {SILENCE_TIMEOUT_S:g})")
+
+
+def policy_argv(args) -> tuple[str, ...]:
+    """The policy flags given in ``args`` (a parsed namespace) as ``swarm-coordinator``
+    arguments, in a fixed order; those not given (None) are left out."""
+    out = []
+    for key in POLICY_FLAGS:
+        value = getattr(args, key, None)
+        if value is not None:
+            out += [f"--{key.replace('_', '-')}", f"{value:g}" if isinstance(value, float)
+                    else str(value)]
+    return tuple(out)
+
+
+def path_lengths(world_path, stations) -> Callable[[tuple[float, float], str], float]:
+    """``distance(xy, workstation)`` [m]: the global planner's path length on the world's map
+    (:func:`swarm_nav.planner.plan_path` with the navigator's default costmap and planner
+    settings), the straight line where there is no map or no path; cached per 0.5 m cell."""
+    from swarm_common import paths
+    from swarm_common.map_io import load_map
+    from swarm_nav.config import CostmapConfig, PlannerConfig
+    from swarm_nav.costmap import build_costmap
+    from swarm_nav.planner import path_length, plan_path
+
+    map_path = paths.default_map_for(world_path)
+    costmap = build_costmap(load_map(map_path), CostmapConfig()) if map_path else None
+    poses = {s.name: s.pose for s in stations}
+    cache: dict[tuple[int, int, str], float] = {}
+
+    def distance(xy: tuple[float, float], name: str) -> float:
+        key = (round(xy[0] * 2), round(xy[1] * 2), name)
+        if key not in cache:
+            goal = poses[name]
+            res = plan_path(costmap, xy, goal[:2], PlannerConfig()) if costmap else None
+            cache[key] = (path_length(res.path) if res is not None and res.path is not None
+                          else math.hypot(xy[0] - goal[0], xy[1] - goal[1]))
+        return cache[key]
+
+    return distance
+
+
 def build_core(world: str, seed: int, robots: tuple[str, ...], robot_model: str,
-               control_period: float, epoch: str) -> CoordinatorCore:
-    """The core for a world: its workstations, holding spots, parking on the spawn grid, and
-    each robot's route (:func:`swarm_commander.route.build_route`, as the commanders').
+               control_period: float, epoch: str, assignment: str = "nearest-free",
+               waiting_spots: str = "near", silence_timeout: float | None = None
+               ) -> CoordinatorCore:
+    """The core for a world: its workstations, holding spots, its waiting spots (``near``),
+    parking on the spawn grid, each robot's route (:func:`swarm_commander.route.build_route`,
+    as the commanders') and start (the spawn grid's pose of its number), and path lengths on
+    the map (:func:`path_lengths`).
 
     Raises:
         InputError: the world is unknown or has no workstations (names ``--world``).
@@ -373,9 +450,17 @@ def build_core(world: str, seed: int, robots: tuple[str, ...], robot_model: str,
             stop = next(loops[ns])
         return stop.name
 
-    return CoordinatorCore(robots, stations, spots_from_poi(poi, parking), next_stop,
-                           CoordinatorConfig(period_ns=round(control_period * NS_PER_S)),
-                           epoch=epoch)
+    from swarm_coordinator.core import SILENCE_TIMEOUT_S
+
+    timeout = SILENCE_TIMEOUT_S if silence_timeout is None else silence_timeout
+    cfg = CoordinatorConfig(period_ns=round(control_period * NS_PER_S), assignment=assignment,
+                            silence_timeout_ns=round(timeout * NS_PER_S))
+    start = ({ns: (float(p[0]), float(p[1])) for ns, p in zip(robots, parking, strict=False)}
+             if parking is not None else None)
+    distance = path_lengths(path, stations) if assignment != "route" else None
+    return CoordinatorCore(robots, stations,
+                           spots_from_poi(poi, parking, near=waiting_spots == "near"),
+                           next_stop, cfg, epoch=epoch, distance=distance, start_xy=start)
 
 
 def _run(argv: list[str]) -> int:
@@ -386,7 +471,8 @@ def _run(argv: list[str]) -> int:
     opts = build_parser().parse_args(plain)
     robots = tuple(f"{opts.name_prefix}{i}" for i in range(1, opts.swarm_size + 1))
     epoch = uuid.uuid4().hex[:12]  # fixed length: message sizes do not depend on it
-    core = build_core(opts.world, opts.seed, robots, opts.robot, opts.control_period, epoch)
+    core = build_core(opts.world, opts.seed, robots, opts.robot, opts.control_period, epoch,
+                      opts.assignment, opts.waiting_spots, opts.silence_timeout)
     dead = {}
     if opts.faults:
         from swarm_common.faults import KILL_ROBOT, parse_faults
@@ -400,7 +486,8 @@ def _run(argv: list[str]) -> int:
         node = CoordinatorNode(core, dead, opts.stall_report)
         nodes.append(node)
         print(f"{PROG}: up (epoch {epoch}): {len(robots)} robots, {len(core.stations)} "
-              f"workstations, {len(core.spots)} waiting spots", flush=True)
+              f"workstations, {len(core.spots)} waiting spots; assignment {opts.assignment}, "
+              f"waiting spots {opts.waiting_spots}", flush=True)
         executor = EventsExecutor()
         executor.add_node(node)
         spin_forever(executor, node.context)

@@ -29,7 +29,8 @@ Definitions (``docs/ARCHITECTURE.md``, ``/<ns>/nav_status``):
 - *task*: one goal reached (every commander goal is one workstation visit), so
   ``tasks_completed == goals_reached`` and ``throughput_per_hour`` is tasks per simulated hour;
   ``task_times_s`` lists the simulated time of every task's first ``SUCCEEDED`` status, sorted
-  (tasks over time, e.g. around a fault).
+  (tasks over time, e.g. around a fault), and ``task_durations_s`` each one's time to task, in
+  the same order (their distribution).
 - *faults*: injected faults (:mod:`swarm_common.faults`) that started: ``faults`` in all,
   ``faults_by_kind``, and ``fault_log`` (every start and end: id, kind, phase, robot, simulated
   time [s] and the robot's x, y [m] in ``map``), from the simulator's summary (its log of what
@@ -797,6 +798,7 @@ def aggregate(
         "time_to_task_median_s": _percentile(durations, 50.0),
         "time_to_task_p95_s": _percentile(durations, 95.0),
         "task_times_s": [round(t, 3) for t, _, _ in tasks],
+        "task_durations_s": [round(d, 3) for _, d, _ in tasks],
         **tasks_per_window([t for t, _, _ in tasks], sim_time),
         "tasks_per_robot": tasks_per_robot([per_robot[ns]["tasks"] for ns in robots]),
         "workstations": workstation_table(recorder, workstations or {}),

@@ -106,6 +106,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="decentralized (default): every robot chooses its tasks; centralized: "
                    "a coordinator (swarm-coordinator, child 'coordinator') assigns tasks and "
                    "reserves workstations and waiting spots; needs --commanders")
+    from swarm_coordinator.node import add_policy_args
+
+    add_policy_args(p.add_argument_group(
+        "centralized coordination", "the coordinator's policy (with --coordination "
+        "centralized; docs/guides/coordination.md)"), defaults=False)
     p.add_argument("--metrics", type=Path, default=None, metavar="PATH",
                    help="write the run's figures as JSON here at exit (always also "
                    "RUN/metrics.json)")
@@ -371,6 +376,12 @@ def validate(args: argparse.Namespace) -> RunConfig:
     Raises:
         InputError: the first bad flag or file (the one line shown, naming it).
     """
+    from swarm_coordinator.node import policy_argv
+
+    policy = policy_argv(args)
+    if policy and args.coordination != "centralized":
+        raise InputError(f"{policy[0]}: needs --coordination centralized (only the "
+                         "coordinator has a policy)")
     if args.coordination == "centralized" and not args.commanders:
         raise InputError("--coordination: centralized needs --commanders (the coordinator "
                          "assigns the commanders' tasks)")
@@ -431,6 +442,7 @@ def validate(args: argparse.Namespace) -> RunConfig:
         duration=args.duration,
         commanders=args.commanders,
         coordination=args.coordination,
+        coordinator_args=policy,
         metrics_path=args.metrics.expanduser().resolve() if args.metrics else None,
         groups=groups,
         gui=args.gui,

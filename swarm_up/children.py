@@ -243,7 +243,8 @@ def coordinator_spec(cfg: RunConfig, env: dict):
 
     argv = command("swarm-coordinator", "swarm_coordinator.node") + [
         "--swarm-size", str(len(cfg.robots)), "--name-prefix", cfg.name_prefix,
-        "--world", str(cfg.world_path), "--seed", str(cfg.seed), "--robot", cfg.robot]
+        "--world", str(cfg.world_path), "--seed", str(cfg.seed), "--robot", cfg.robot,
+        *cfg.coordinator_args]
     if cfg.faults:
         argv += ["--faults", str(faults_file(cfg))]
     return ChildSpec(COORDINATOR, tuple(argv), cfg.run_dir / "logs" / f"{COORDINATOR}.log",

@@ -31,6 +31,8 @@ class RunConfig:
         duration: simulated seconds, or None (until Ctrl-C) [s].
         commanders: start commanders.
         coordination: ``decentralized`` | ``centralized`` (with commanders).
+        coordinator_args: the coordinator's policy flags given to swarm-up (``--assignment``
+            ...), passed on to ``swarm-coordinator`` as they are.
         metrics_path: ``--metrics`` file or None.
         groups: None for one process per robot, else the robots of every group process.
         gui: open the PyBullet window.
@@ -90,6 +92,7 @@ class RunConfig:
     discovery_server: str | None = None
     rank_timeout: float = 10.0
     on_rank_loss: str = "end"
+    coordinator_args: tuple[str, ...] = ()
 
     @property
     def local_robots(self) -> tuple[str, ...]:

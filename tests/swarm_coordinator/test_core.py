@@ -245,3 +245,118 @@ def test_the_next_in_line_moves_up_to_the_freed_holding_spot():
         ("r1", "go", "B", 40 * T)]
     assert core.holder_of("spot:A.0") == "r3" and core.holder_of("spot:park3") is None
     assert check_reservations(reservations(events)) == []
+
+
+# ------------------------------------------------------------------ the scheduler (nearest-free)
+LOADERS = [Station("loader1", (0.0, 0.0, 0.0)), Station("loader2", (0.0, 4.0, 0.0)),
+           Station("loader3", (0.0, 8.0, 0.0))]
+LOADER_SPOTS = [Spot("loader1.0", (1.0, 0.0), "loader1"), Spot("wait1", (2.0, 4.0)),
+                Spot("park1", (10.0, 0.0)), Spot("park2", (10.0, 4.0))]
+
+
+def scheduler(routes, assignment="nearest-free", start_xy=None, silence_s=0.0):
+    its = {ns: itertools.cycle(stops) for ns, stops in routes.items()}
+    cfg = CoordinatorConfig(period_ns=T // 10, handover_ticks=1, assignment=assignment,
+                            silence_timeout_ns=round(silence_s * T))
+    return CoordinatorCore(list(routes), LOADERS, LOADER_SPOTS, lambda ns: next(its[ns]), cfg,
+                           epoch="e1", start_xy=start_xy)
+
+
+def test_scheduler_sends_a_robot_to_the_nearest_free_workstation_of_the_kind():
+    # all three want loader1; r1 gets it, r2 (nearest loader2) and r3 (nearest loader3) are
+    # sent to the free loaders nearest to where they start, by the distance rule
+    start = {"r1": (5.0, 0.0), "r2": (5.0, 9.0), "r3": (5.0, 3.0)}
+    core = scheduler({ns: ["loader1"] for ns in start}, start_xy=start)
+    out, events = core.handle([ready("r1"), ready("r2"), ready("r3")])
+    by = {a.robot: (a.kind, a.target) for a in out}
+    assert by == {"r1": ("go", "loader1"), "r2": ("go", "loader3"), "r3": ("go", "loader2")}
+    assert check_reservations(reservations(events)) == []
+
+
+def test_route_assignment_queues_for_the_route_workstation_as_before():
+    start = {"r1": (5.0, 0.0), "r2": (5.0, 9.0)}
+    core = scheduler({ns: ["loader1"] for ns in start}, assignment="route", start_xy=start)
+    out, _ = core.handle([ready("r1"), ready("r2")])
+    by = {a.robot: (a.kind, a.target) for a in out}
+    assert by == {"r1": ("go", "loader1"), "r2": ("wait", "loader1.0")}
+
+
+def test_scheduler_never_sends_a_robot_back_to_the_workstation_it_has_just_left():
+    # r2 wanted loader2 (r1's) and was sent to loader3; its route's next stop is loader3, where
+    # it stands: it is sent to the nearest free other loader (loader2 is free again by then)
+    core = scheduler({"r1": ["loader2", "loader1"], "r2": ["loader2", "loader3"]},
+                     start_xy={"r1": (0.0, 3.0), "r2": (0.0, 5.0)})
+    out, _ = core.handle([ready("r1"), ready("r2")])
+    assert {a.robot: a.target for a in out} == {"r1": "loader2", "r2": "loader3"}
+    core.handle([done("r1", "loader2", 10 * T, seq=2)])  # r1 to loader1, loader2 free
+    out, _ = core.handle([done("r2", "loader3", 20 * T, seq=2)])
+    assert [(a.robot, a.kind, a.target) for a in out] == [("r2", "go", "loader2")]
+    # with every other loader taken it goes where its route says, although it has just left it
+    core.handle([done("r2", "loader2", 30 * T, seq=3)])  # route: loader2 -> nearest: loader3
+    assert core.robots["r2"].workstation == "loader3"
+
+
+def test_a_freed_workstation_goes_to_the_longest_waiter_of_its_kind():
+    # four robots, three loaders: r4 waits (for loader1, its route's); loader3 frees first
+    # and goes to r4 although r4 queued for loader1: first come, first served over the kind
+    start = {"r1": (0.0, 0.5), "r2": (0.0, 4.5), "r3": (0.0, 8.5), "r4": (5.0, 0.0)}
+    core = scheduler({"r1": ["loader1", "loader2"], "r2": ["loader2", "loader1"],
+                      "r3": ["loader3", "loader1"], "r4": ["loader1", "loader2"]},
+                     start_xy=start)
+    out, first = core.handle([ready(ns) for ns in start])
+    by = {a.robot: (a.kind, a.target, a.waits_for) for a in out}
+    assert by["r4"] == ("wait", "loader1.0", "loader1")
+    out, events = core.handle([done("r3", "loader3", 30 * T, seq=2)])
+    assert (out[0].robot, out[0].kind, out[0].target, out[0].reply_to) == \
+        ("r4", "go", "loader3", 0)
+    assert out[0].stamp_ns == 30 * T + T // 10  # one tick after the release
+    assert core.holder_of("workstation:loader3") == "r4"
+    # r3's next stop (loader1) is taken, every loader is: it waits
+    assert (out[1].robot, out[1].kind) == ("r3", "wait")
+    assert check_reservations(reservations(first + events)) == []
+
+
+def test_a_dead_robot_loses_its_workstation_to_the_next_waiter():
+    start = {"r1": (0.0, 0.5), "r2": (0.0, 4.5), "r3": (0.0, 8.5), "r4": (5.0, 0.0)}
+    core = scheduler({ns: ["loader1", "loader2", "loader3"] for ns in start}, start_xy=start)
+    _, first = core.handle([ready(ns) for ns in start])
+    waiting = [ns for ns in start if core.robots[ns].waits_for]
+    assert len(waiting) == 1
+    holder = core.holder_of("workstation:loader1")
+    dead_at = 50 * T
+    alive = lambda ns, t: not (ns == holder and t >= dead_at)  # noqa: E731
+    other = next(ns for ns in start if ns not in (holder, *waiting))
+    target = core.robots[other].workstation
+    out, events = core.handle([done(other, target, 60 * T, seq=2)], alive=alive)
+    assert core.holder_of("workstation:loader1") != holder
+    assert core.holder_of("workstation:loader1") == waiting[0]
+    assert core.expired == 1
+    assert check_reservations(reservations(first + events)) == []
+
+
+def test_a_silent_robot_loses_its_workstation_after_the_timeout_and_its_task_still_counts():
+    start = {"r1": (0.0, 0.5), "r2": (0.0, 4.5)}
+    core = scheduler({"r1": ["loader1", "loader2"], "r2": ["loader2", "loader1"]},
+                     start_xy=start, silence_s=100.0)
+    core.handle([ready("r1"), ready("r2")])
+    core.handle([done("r2", "loader2", 50 * T, seq=2)])  # r2 goes to loader1? taken: nearest
+    assert core.holder_of("workstation:loader1") == "r1"
+    core.handle([done("r2", core.robots["r2"].workstation or "loader3", 99 * T, seq=3)])
+    assert core.holder_of("workstation:loader1") == "r1"  # 99 s: not yet
+    core.handle([done("r2", core.robots["r2"].workstation or "loader3", 101 * T, seq=4)])
+    assert core.holder_of("workstation:loader1") != "r1"  # 101 s: lapsed
+    _, events = core.handle([done("r1", "loader1", 120 * T, seq=2)])
+    tasks = [e for e in events if e.kind == "task" and e.robot == "r1"]
+    assert len(tasks) == 1 and tasks[0].fields["workstation"] == "loader1"
+
+
+def test_spots_from_poi_puts_the_worlds_waiting_spots_before_the_hall():
+    from swarm_common.poi import poi_for_world
+    from swarm_common.world import resolve_world
+
+    poi = poi_for_world(resolve_world("slim_blockage"))
+    near = spots_from_poi(poi, [[0.0, 0.0]])
+    hall = spots_from_poi(poi, [[0.0, 0.0]], near=False)
+    assert [s.id for s in near if s.id.startswith("wait")] == [f"wait{k}" for k in range(1, 10)]
+    assert not [s for s in hall if s.id.startswith("wait")]
+    assert near[-1].id == hall[-1].id == "park1"

@@ -1,0 +1,743 @@
+"""The report of ``swarm-experiment``, rebuilt from its run records alone.
+
+:func:`write_report` reads the records of one or more directories (``plan.json`` and
+``records/*.json`` of a sweep or a shard; or the ``experiment.json`` of a report), merges them
+(one record per cell and seed; a run that ended well wins over one that did not, then the newer)
+and writes, deterministically (the same records give the same bytes):
+
+- ``experiment.json``: the plan's settings, every record, the cell summaries and the paired
+  statistics;
+- ``report.md``: the header (commands, commits, software, CPU, times), the primary measure
+  with its paired tests, the ablations, the horizons, the secondary measures, Little's law,
+  the faults, the threats to validity;
+- the figures, PNG and SVG, each variant with a fixed colour and marker (:data:`STYLE`).
+
+Statistics (:mod:`swarm_bench.experiment_stats`): mean and 95 % Student's-t interval across
+seeds per cell; per pair of variants, the per-seed differences with their interval, the paired
+t-test (primary) and Wilcoxon's signed-rank test (check); Holm's correction over the family of
+claims of the report (every comparison of the primary measure, the main pairs of the secondary
+measures).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from swarm_bench.experiment import (
+    PROG,
+    RECORDS,
+    VARIANTS,
+    Plan,
+    load_record,
+    plan_from_settings,
+)
+from swarm_bench.experiment_stats import (
+    MEASURES,
+    WINDOW_S,
+    fault_effect,
+    holm,
+    littles_law,
+    paired,
+    run_figures,
+    t_interval,
+    tasks_by,
+    window_counts,
+)
+from swarm_common.errors import EXIT_OK, InputError
+
+STYLE = {  # variant -> (colour, marker): fixed, so every figure reads alike
+    "decentralized": ("#1f77b4", "o"),
+    "decentralized-no-swap": ("#17becf", "v"),
+    "centralized-scheduler": ("#d62728", "s"),
+    "centralized-scheduler-hall": ("#ff7f0e", "D"),
+    "centralized-fifo-hall": ("#7f7f7f", "^"),
+}
+PRIMARY = "throughput"
+SECONDARY = ("ttt_mean", "ttt_p95", "holding_per_robot", "idle_robots", "comm_bytes")
+ALPHA = 0.05
+ABLATION_PAIRS = (  # (A, B, the factor B differs from A in)
+    ("decentralized", "decentralized-no-swap", "decentralized: taking another workstation"),
+    ("centralized-scheduler-hall", "centralized-fifo-hall",
+     "centralized: the scheduler's assignment (hall spots both)"),
+    ("centralized-scheduler", "centralized-scheduler-hall",
+     "centralized: waiting spots near the workstations against the hall"),
+    ("decentralized", "centralized-scheduler", "the whole gap at the ablation size"),
+)
+
+
+# ------------------------------------------------------------------------------------ loading
+def load_dirs(dirs: list[Path]) -> tuple[Plan, dict, list[dict]]:
+    """The merged plan, its settings and the records of ``dirs``.
+
+    Raises:
+        InputError: a directory without records, or plans that disagree on the world, the
+            duration, the warm-up or the seeds.
+    """
+    settings, records = [], []
+    for d in dirs:
+        doc = d / "experiment.json"
+        plan = d / "plan.json"
+        recs = sorted((d / RECORDS).glob("*.json")) if (d / RECORDS).is_dir() else []
+        if plan.is_file() and recs:
+            settings.append(json.loads(plan.read_text())["settings"])
+            records += [r for r in (load_record(p) for p in recs) if r is not None]
+        elif doc.is_file():
+            data = json.loads(doc.read_text())
+            if not isinstance(data, dict) or "settings" not in data:
+                raise InputError(f"DIR: '{doc}' is not an experiment report")
+            settings.append(data["settings"])
+            records += [r for r in data.get("records", []) if isinstance(r, dict)]
+        else:
+            raise InputError(f"DIR: '{d}' holds no records (no plan.json with records/, no "
+                             "experiment.json)")
+    first = settings[0]
+    for other in settings[1:]:
+        for key in ("world", "duration_s", "warmup_s", "seed", "runs"):
+            if other.get(key) != first.get(key):
+                raise InputError(f"DIR: the experiments differ in {key} ({first.get(key)} vs "
+                                 f"{other.get(key)}): their records do not merge")
+    merged = dict(first)
+    for key in ("sizes", "variants", "ablations", "faults"):
+        merged[key] = list(dict.fromkeys(x for s in settings for x in s.get(key, [])))
+    merged["sizes"] = sorted(merged["sizes"])
+    for key in ("fault_times_s", "fault_variants"):
+        merged[key] = next((s[key] for s in settings if s.get("faults") == merged["faults"]),
+                           first.get(key, []))
+    merged["overrides"] = {k: v for s in settings for k, v in s.get("overrides", {}).items()}
+    plan = plan_from_settings(merged)
+    best: dict[tuple[str, int], dict] = {}
+    for r in records:
+        key = (r["label"], r["seed"])
+        old = best.get(key)
+        rank = (r.get("exit_code") == EXIT_OK, str(r.get("finished") or ""))
+        if old is None or rank > (old.get("exit_code") == EXIT_OK,
+                                  str(old.get("finished") or "")):
+            best[key] = r
+    return plan, merged, [best[k] for k in sorted(best)]
+
+
+# ---------------------------------------------------------------------------------- summaries
+def cell_figures(plan: Plan, records: list[dict]) -> dict[str, dict[int, dict]]:
+    """label -> seed -> :func:`run_figures` (runs that ended well only)."""
+    out: dict[str, dict[int, dict]] = {}
+    for r in records:
+        f = run_figures(r, plan.warmup_s)
+        if f is not None:
+            out.setdefault(r["label"], {})[r["seed"]] = f
+    return out
+
+
+def summarize(plan: Plan, records: list[dict], figs: dict) -> list[dict]:
+    """Per cell of the plan that has records: runs, mean and 95 % half-width of every measure,
+    Little's law, the tasks by each horizon."""
+    out = []
+    horizons = horizons_of(plan)
+    for cell in plan.cells():
+        recs = [r for r in records if r["label"] == cell.label]
+        if not recs:
+            continue
+        fs = figs.get(cell.label, {})
+        row = {"label": cell.label, "variant": cell.variant, "mode": cell.mode,
+               "size": cell.size, "fault": cell.fault, "role": cell.role, "runs": len(recs),
+               "runs_ok": len(fs), "seeds": sorted(fs),
+               "reproducible_runs": sum(1 for f in fs.values() if f["reproducible"]),
+               "reservation_conflicts": sum(f["reservation_conflicts"] or 0
+                                            for f in fs.values())}
+        for key, _, _ in MEASURES:
+            mean, half = t_interval([f[key] for f in fs.values() if f[key] is not None])
+            row[key] = {"mean": mean, "ci95": half}
+        laws = [littles_law(f["task_times"], f["task_durations"], f["robots"], plan.warmup_s,
+                            f["sim_time"])["ratio"] for f in fs.values()]
+        row["littles_ratio"] = t_interval([v for v in laws if v is not None])[0]
+        row["horizons"] = {f"{h:g}": t_interval([tasks_by(f["task_times"], h)
+                                                  for f in fs.values()])[0] for h in horizons}
+        row["robots_without_task"] = [f["idle_robots"] for _, f in sorted(fs.items())]
+        out.append(row)
+    return out
+
+
+def horizons_of(plan: Plan) -> list[float]:
+    """The horizons tasks are counted by: every 300 simulated s, and the run's end."""
+    hs = [float(h) for h in range(300, int(plan.duration_s), 300)]
+    return [*hs, plan.duration_s]
+
+
+def comparisons(plan: Plan, figs: dict) -> list[dict]:
+    """Every paired comparison the report claims on, Holm-corrected together.
+
+    The family: the primary measure for the main pair at every size (and the fault size's
+    faults), every ablation pair, and the secondary measures for the main pair at every size.
+    """
+    rows = []
+    main = [v for v in ("decentralized", "centralized-scheduler") if v in plan.variants]
+    pairs = []
+    if len(main) == 2:
+        for n in plan.sizes:
+            pairs.append((f"{main[0]}-n{n}", f"{main[1]}-n{n}", n, "main", ""))
+    elif len(plan.variants) >= 2:
+        for n in plan.sizes:
+            pairs.append((f"{plan.variants[0]}-n{n}", f"{plan.variants[1]}-n{n}", n, "main", ""))
+    if plan.ablation_size is not None:
+        n = plan.ablation_size
+        for a, b, what in ABLATION_PAIRS:
+            pairs.append((f"{a}-n{n}", f"{b}-n{n}", n, "ablation", what))
+    for a, b, n, role, what in pairs:
+        if a not in figs or b not in figs:
+            continue
+        measures = (PRIMARY, *SECONDARY) if role == "main" else (PRIMARY,)
+        for key in measures:
+            st = paired({s: f[key] for s, f in figs[a].items()},
+                        {s: f[key] for s, f in figs[b].items()})
+            rows.append({"a": a, "b": b, "size": n, "role": role, "what": what,
+                         "measure": key, **st})
+    adjusted = holm([r["p_t"] for r in rows])
+    for r, p in zip(rows, adjusted, strict=True):
+        r["p_holm"] = p
+        r["claim"] = p is not None and p < ALPHA
+    return rows
+
+
+# ------------------------------------------------------------------------------------ figures
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    plt.rcParams["svg.hashsalt"] = "swarm-experiment"  # fixed ids: the same SVG bytes
+    return plt
+
+
+def _save(fig, out: Path, stem: str) -> str:
+    fig.savefig(out / f"{stem}.png", format="png", dpi=100, metadata={"Software": None})
+    fig.savefig(out / f"{stem}.svg", format="svg", metadata={"Date": None, "Creator": None})
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+    return f"{stem}.png"
+
+
+def _variants_in(summaries: list[dict]) -> list[str]:
+    return [v for v in VARIANTS if any(s["variant"] == v for s in summaries)]
+
+
+def plot_against_size(out: Path, stem: str, plan: Plan, summaries: list[dict], figs: dict,
+                      key: str, label: str) -> str:
+    """A measure against swarm size: every seed's point (small), the mean with its 95 %
+    interval (error bar), one colour and marker per variant."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6.4, 4.2), constrained_layout=True)
+    plain = [s for s in summaries if not s["fault"]]
+    sizes = sorted({s["size"] for s in plain})
+    vs = _variants_in(plain)
+    for i, v in enumerate(vs):
+        colour, marker = STYLE[v]
+        rows = sorted((s for s in plain if s["variant"] == v and s[key]["mean"] is not None),
+                      key=lambda s: s["size"])
+        if not rows:
+            continue
+        dx = (i - (len(vs) - 1) / 2) * 0.012 * (max(sizes) - min(sizes) or 10)
+        xs = [s["size"] + dx for s in rows]
+        ax.errorbar(xs, [s[key]["mean"] for s in rows],
+                    yerr=[s[key]["ci95"] or 0.0 for s in rows], color=colour, marker=marker,
+                    capsize=4, label=v, linestyle="-" if len(rows) > 1 else "none")
+        for s, x in zip(rows, xs, strict=True):
+            pts = [f[key] for f in figs.get(s["label"], {}).values() if f[key] is not None]
+            ax.scatter([x] * len(pts), pts, color=colour, marker=marker, s=12, alpha=0.45,
+                       linewidths=0)
+    ax.set_xticks(sizes)
+    ax.set_xlabel("swarm size [robots]")
+    ax.set_ylabel(label)
+    ax.set_title(f"{label}: mean ± 95 % interval, points: seeds", fontsize=10)
+    ax.grid(True, alpha=0.3)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=8)
+    return _save(fig, out, stem)
+
+
+def _panels(plt, n: int):
+    fig, axes = plt.subplots(1, n, figsize=(4.2 * n + 1.0, 3.8), constrained_layout=True,
+                             squeeze=False)
+    return fig, axes[0]
+
+
+def plot_tasks_over_time(out: Path, plan: Plan, summaries: list[dict], figs: dict) -> str:
+    """Cumulative tasks over simulated time (mean over seeds), one panel per size, the
+    warm-up marked: where the rate settles."""
+    plt = _plt()
+    plain = [s for s in summaries if not s["fault"]]
+    sizes = sorted({s["size"] for s in plain})
+    fig, axes = _panels(plt, len(sizes))
+    step = 10.0
+    grid = [step * k for k in range(int(plan.duration_s // step) + 1)]
+    for ax, n in zip(axes, sizes, strict=True):
+        for s in (s for s in plain if s["size"] == n):
+            runs = figs.get(s["label"], {}).values()
+            if not runs:
+                continue
+            mean = [sum(tasks_by(f["task_times"], t) for f in runs) / len(runs) for t in grid]
+            colour, _ = STYLE[s["variant"]]
+            ax.plot(grid, mean, color=colour, label=s["variant"])
+        ax.axvline(plan.warmup_s, color="black", linestyle=":", linewidth=1.0,
+                   label=f"warm-up {plan.warmup_s:g} s")
+        ax.set_title(f"{n} robots", fontsize=10)
+        ax.set_xlabel("simulated time [s]")
+        ax.grid(True, alpha=0.3)
+    axes[0].set_ylabel("tasks completed (mean over seeds)")
+    axes[0].legend(fontsize=7)
+    return _save(fig, out, "tasks_over_time")
+
+
+def plot_ecdf(out: Path, plan: Plan, summaries: list[dict], figs: dict) -> str:
+    """The distribution (ECDF) of time to task after the warm-up, every seed pooled."""
+    plt = _plt()
+    plain = [s for s in summaries if not s["fault"]]
+    sizes = sorted({s["size"] for s in plain})
+    fig, axes = _panels(plt, len(sizes))
+    for ax, n in zip(axes, sizes, strict=True):
+        for s in (s for s in plain if s["size"] == n):
+            ds = sorted(d for f in figs.get(s["label"], {}).values()
+                        for t, d in zip(f["task_times"], f["task_durations"], strict=False)
+                        if t > plan.warmup_s)
+            if not ds:
+                continue
+            colour, _ = STYLE[s["variant"]]
+            ax.step(ds, [(i + 1) / len(ds) for i in range(len(ds))], where="post",
+                    color=colour, label=s["variant"])
+        ax.set_title(f"{n} robots", fontsize=10)
+        ax.set_xlabel("time to task [s]")
+        ax.grid(True, alpha=0.3)
+    axes[0].set_ylabel("fraction of tasks (after the warm-up)")
+    axes[0].legend(fontsize=7)
+    return _save(fig, out, "time_to_task_ecdf")
+
+
+def plot_tasks_per_robot(out: Path, plan: Plan, summaries: list[dict], figs: dict) -> str:
+    """Tasks per robot over the whole run: a box per cell, every seed's robots pooled."""
+    plt = _plt()
+    plain = [s for s in summaries if not s["fault"]]
+    fig, ax = plt.subplots(figsize=(max(6.4, 0.9 * len(plain) + 2), 4.2),
+                           constrained_layout=True)
+    data, labels, colours = [], [], []
+    for s in sorted(plain, key=lambda s: (s["size"], list(VARIANTS).index(s["variant"]))):
+        vals = [v for f in figs.get(s["label"], {}).values() for v in f["robot_tasks"]]
+        if vals:
+            data.append(vals)
+            labels.append(f"{s['variant']}\n{s['size']}")
+            colours.append(STYLE[s["variant"]][0])
+    if data:
+        box = ax.boxplot(data, patch_artist=True, widths=0.6)
+        ax.set_xticks(range(1, len(labels) + 1), labels, fontsize=6, rotation=30)
+        for patch, c in zip(box["boxes"], colours, strict=True):
+            patch.set_facecolor(c)
+            patch.set_alpha(0.5)
+    ax.set_ylabel("tasks of a robot (whole run)")
+    ax.set_title("tasks per robot (every robot of every seed)", fontsize=10)
+    ax.grid(True, alpha=0.3, axis="y")
+    return _save(fig, out, "tasks_per_robot")
+
+
+def plot_standstill_map(out: Path, plan: Plan, summaries: list[dict], figs: dict,
+                        size: int) -> str | None:
+    """Where robots wait: robot-seconds of standstills >= 60 s (the simulator's episodes) per
+    0.5 m cell over the map, summed over the seeds, one panel per variant at ``size``."""
+    import numpy as np
+
+    cells = [s for s in summaries if not s["fault"] and s["size"] == size]
+    if not cells:
+        return None
+    plt = _plt()
+    fig, axes = _panels(plt, len(cells))
+    occ = _map_image(plan.world)
+    for ax, s in zip(axes, cells, strict=True):
+        eps = [e for f in figs.get(s["label"], {}).values() for e in f["standstills"]]
+        if occ is not None:
+            img, extent = occ
+            ax.imshow(img, cmap="gray", extent=extent, origin="upper", alpha=0.6)
+        if eps:
+            xs = np.array([float(e["x"]) for e in eps])
+            ys = np.array([float(e["y"]) for e in eps])
+            ws = np.array([float(e["duration_s"]) for e in eps])
+            if occ is not None:
+                x0, x1, y0, y1 = occ[1]
+            else:
+                x0, x1, y0, y1 = xs.min() - 1, xs.max() + 1, ys.min() - 1, ys.max() + 1
+            bins = [np.arange(x0, x1 + 0.5, 0.5), np.arange(y0, y1 + 0.5, 0.5)]
+            h, xe, ye = np.histogram2d(xs, ys, bins=bins, weights=ws)
+            h = np.ma.masked_where(h <= 0, h)
+            mesh = ax.pcolormesh(xe, ye, h.T, cmap="magma_r", alpha=0.85)
+            fig.colorbar(mesh, ax=ax, shrink=0.8, label="robot-s standing (all seeds)")
+        ax.set_title(f"{s['variant']}, {size} robots", fontsize=9)
+        ax.set_xlabel("x [m] (map)")
+        ax.set_aspect("equal")
+    axes[0].set_ylabel("y [m] (map)")
+    return _save(fig, out, f"standstill_map_n{size}")
+
+
+def _map_image(world: str):
+    """The world's occupancy map as (image, extent) for imshow, or None."""
+    try:
+        from swarm_common import paths
+        from swarm_common.map_io import load_map
+        from swarm_common.world import resolve_world
+
+        m = load_map(paths.default_map_for(resolve_world(world)))
+    except (InputError, OSError, TypeError, ValueError):
+        return None
+    import numpy as np
+
+    grid = np.asarray(m.data)
+    h, w = grid.shape
+    x0, y0 = float(m.origin[0]), float(m.origin[1])
+    img = np.where(grid >= 50, 0.0, 1.0)[::-1]  # row 0 of the grid is y0: flip for imshow
+    return img, (x0, x0 + w * m.resolution, y0, y0 + h * m.resolution)
+
+
+def plot_standing_over_time(out: Path, plan: Plan, summaries: list[dict], figs: dict,
+                            size: int) -> str | None:
+    """Robots standing still (in an episode that lasts >= 60 s) over simulated time, mean over
+    seeds: the queue lengths of both modes measured alike."""
+    cells = [s for s in summaries if not s["fault"] and s["size"] == size]
+    if not cells:
+        return None
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(7.5, 4.2), constrained_layout=True)
+    step = 10.0
+    grid = [step * k for k in range(int(plan.duration_s // step) + 1)]
+    for s in cells:
+        runs = list(figs.get(s["label"], {}).values())
+        if not runs:
+            continue
+        mean = [sum(sum(1 for e in f["standstills"]
+                        if float(e["start_s"]) <= t < float(e["start_s"]) + float(e["duration_s"]))
+                    for f in runs) / len(runs) for t in grid]
+        colour, marker = STYLE[s["variant"]]
+        ax.plot(grid, mean, color=colour, label=s["variant"])
+    ax.axvline(plan.warmup_s, color="black", linestyle=":", linewidth=1.0, label="warm-up")
+    ax.set_xlabel("simulated time [s]")
+    ax.set_ylabel("robots standing still (episodes >= 60 s)")
+    ax.set_title(f"queues: robots standing still, {size} robots (mean over seeds)", fontsize=10)
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    return _save(fig, out, f"standing_over_time_n{size}")
+
+
+def plot_fault(out: Path, stem: str, curves: dict[str, tuple[str, list[float]]],
+               fault_s: float, title: str) -> str:
+    """Tasks per 30 s window over simulated time (mean over seeds), the fault marked."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(7.5, 4.2), constrained_layout=True)
+    for name, (variant, counts) in curves.items():
+        xs = [(i + 0.5) * WINDOW_S for i in range(len(counts))]
+        colour, marker = STYLE[variant]
+        ax.plot(xs, counts, color=colour, marker=marker, markersize=3, label=name,
+                linestyle="--" if "no fault" in name else "-")
+    ax.axvline(fault_s, color="red", linewidth=1.0, label=f"fault at {fault_s:g} s")
+    ax.set_xlabel("simulated time [s]")
+    ax.set_ylabel(f"tasks completed per {WINDOW_S:g} s")
+    ax.set_title(title, fontsize=10)
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7)
+    return _save(fig, out, stem)
+
+
+# ------------------------------------------------------------------------------------- report
+def _fmt(stat: dict | None, digits: int) -> str:
+    if not stat or stat.get("mean") is None:
+        return "-"
+    text = f"{stat['mean']:.{digits}f}"
+    return text if stat.get("ci95") is None else f"{text} ± {stat['ci95']:.{digits}f}"
+
+
+def _p(p: float | None) -> str:
+    return "-" if p is None else ("< 0.001" if p < 0.001 else f"{p:.3f}")
+
+
+def _cmd(argv) -> str:
+    import shlex
+
+    return " ".join(shlex.quote(str(a)) for a in argv)
+
+
+def _header(plan: Plan, settings: dict, records: list[dict]) -> list[str]:
+    commits = sorted({(r.get("commit") or "?") + (" (dirty)" if r.get("dirty") else "")
+                      for r in records})
+    machines = {}
+    for r in records:
+        m = r.get("machine") or {}
+        key = (m.get("cpu_model"), m.get("cores"), m.get("python"), m.get("ros_distro"),
+               m.get("rclpy"), m.get("fastdds"), m.get("platform"))
+        machines[key] = machines.get(key, 0) + 1
+    started = min((r["started"] for r in records if r.get("started")), default="?")
+    finished = max((r["finished"] for r in records if r.get("finished")), default="?")
+    lines = ["## How this was made", "",
+             "Every run (the seeds are the same in every variant):", "", "```bash",
+             f"swarm-up --swarm-size N --world {Path(plan.world).stem} --seed S --commanders "
+             f"--rtf 0 --duration {plan.duration_s:g} --coordination MODE [overrides] "
+             "[--faults SPEC]", "```", "",
+             "The sweep, in slices (`--shard I/N` on as many machines or sittings as there "
+             "are; `--resume DIR` goes on where a slice stopped), and this report from the "
+             "records alone:", "", "```bash",
+             f"{PROG} --world {Path(plan.world).stem} --sizes "
+             f"{','.join(map(str, plan.sizes))} --runs {plan.runs} --seed {plan.seed} "
+             f"--duration {plan.duration_s:g} --warmup {plan.warmup_s:g} --variants "
+             f"{','.join(plan.variants)}"
+             + (f" --ablations {','.join(plan.ablations)} --ablation-size {plan.ablation_size}"
+                if plan.ablations else " --no-ablations")
+             + ("".join(f" --fault-spec {f}" for f in plan.faults) + f" --fault-size "
+                f"{plan.fault_size}" if plan.faults else " --no-faults")
+             + " --resume DIR --shard I/N",
+             f"{PROG} report DIR [DIR ...]", "```", "",
+             f"- commit(s) of the runs: {', '.join(f'`{c}`' for c in commits)}",
+             f"- runs from {started} to {finished}"]
+    for (cpu, cores, py, distro, rclpy, fastdds, plat), n in sorted(
+            machines.items(), key=lambda kv: -kv[1]):
+        lines.append(f"- machine ({n} runs): {cpu or '?'}, {cores} cores; Python {py}; ROS 2 "
+                     f"{distro or '?'}, rclpy {rclpy}, Fast DDS {fastdds}; {plat}")
+    lines += ["- every swarm-up command is in `experiment.json` (`records[i].command`)", "",
+              "Variants (a coordination mode plus recorded overrides):", "",
+              "| variant | mode | overrides | what |", "|---|---|---|---|"]
+    overrides = settings.get("overrides", {})
+    for name in sorted(overrides, key=lambda v: list(VARIANTS).index(v)):
+        o = overrides[name]
+        ov = " ".join(o.get("swarm_up", [])) + "".join(
+            f" {k}={v:g}" for k, v in (o.get("navigator") or {}).items())
+        lines.append(f"| {name} | {o.get('mode')} | `{ov.strip() or '-'}` | {o.get('what')} |")
+    return lines + [""]
+
+
+def build_report(plan: Plan, settings: dict, records: list[dict], summaries: list[dict],
+                 stats: list[dict], figures: dict[str, str]) -> str:
+    """The Markdown of the report (deterministic in its inputs)."""
+    world = Path(plan.world).stem
+    lines = [f"# Decentralized vs centralized coordination: {world}", ""]
+    lines += _header(plan, settings, records)
+    expected = len(plan.runs_in_order())
+    ok = sum(s["runs_ok"] for s in summaries)
+    repro = sum(s["reproducible_runs"] for s in summaries)
+    lines += [f"**Runs.** {len(records)} of the plan's {expected} runs are here, {ok} ended "
+              f"well, {repro} reproducible (their simulated figures depend on the seed alone: "
+              "no late tick, goal-wait timeout, late goal or restart but the faults'). CPU and "
+              "RTF depend on the machine's load; everything else on the seed.", ""]
+    if len(records) < expected:
+        lines += [f"**This report is partial**: {expected - len(records)} runs of the plan are "
+                  "still missing; a cell with fewer than 5 seeds claims nothing.", ""]
+    lines += ["## Primary measure: throughput after the warm-up", "",
+              f"Tasks completed per simulated hour after the first {plan.warmup_s:g} s (the "
+              "warm-up: the tasks-over-time figure shows the rate settled by then). Mean ± "
+              "half-width of the 95 % interval across seeds (Student's t).", ""]
+    plain = [s for s in summaries if not s["fault"]]
+    vs = _variants_in(plain)
+    sizes = sorted({s["size"] for s in plain})
+    lines += ["| variant | " + " | ".join(f"{n} robots" for n in sizes) + " |",
+              "|---|" + "---|" * len(sizes)]
+    for v in vs:
+        cells = {s["size"]: s for s in plain if s["variant"] == v}
+        lines.append(f"| {v} | " + " | ".join(
+            f"{_fmt(cells[n]['throughput'], 0)} ({cells[n]['runs_ok']})" if n in cells else ""
+            for n in sizes) + " |")
+    lines += ["", "(in brackets: seeds)", "", f"![throughput]({figures['throughput']})", "",
+              f"![tasks over time]({figures['tasks_over_time']})", ""]
+    lines += _stats_table(stats, "main", "Paired differences, main variants", PRIMARY)
+    lines += _stats_table(stats, "ablation", "Ablations: how much of the gap each factor "
+                          f"explains ({plan.ablation_size} robots)", PRIMARY)
+    lines += _horizons(plan, plain)
+    lines += ["## Secondary measures", "",
+              "Mean ± 95 % interval across seeds; the paired tests of the main pair are in the "
+              "table after.", ""]
+    cols = sorted(plain, key=lambda s: (s["size"], list(VARIANTS).index(s["variant"])))
+    zero = []
+    lines += ["| measure | " + " | ".join(f"{s['variant']} {s['size']}" for s in cols) + " |",
+              "|---|" + "---|" * len(cols)]
+    for key, label, digits in MEASURES:
+        vals = [s[key]["mean"] for s in cols if s[key]["mean"] is not None]
+        if vals and all(v == 0 for v in vals):
+            zero.append(label)
+        lines.append(f"| {label} | " + " | ".join(_fmt(s[key], digits) for s in cols) + " |")
+    lines += [""]
+    if zero:
+        lines += [f"Zero in every run (so not plotted): {', '.join(zero)}.", ""]
+    lines += _stats_table(stats, "main", "Paired differences of the secondary measures",
+                          None)
+    for key in ("ttt_mean", "holding_per_robot", "comm_bytes", "rtf", "cpu_per_robot_ms"):
+        if key in figures:
+            lines += [f"![{key}]({figures[key]})", ""]
+    for key in ("time_to_task_ecdf", "tasks_per_robot", "standstill_map",
+                "standing_over_time"):
+        if key in figures:
+            lines += [f"![{key}]({figures[key]})", ""]
+    lines += ["Robots that never completed a task are counted in every throughput (they are "
+              "part of the swarm) and listed per seed:", "",
+              "| cell | robots without a task, per seed |", "|---|---|"]
+    lines += [f"| {s['label']} | {', '.join(str(x) for x in s['robots_without_task'])} |"
+              for s in plain]
+    lines += ["", "## Sanity check: Little's law", "",
+              "After the warm-up every robot always has a task, so λ·W (tasks per second × "
+              "mean time to task) should be near N; tasks still open at the end are censored, "
+              "so the ratio λ·W / N stays a little below 1.", "",
+              "| cell | N | λ·W / N |", "|---|---|---|"]
+    for s in summaries:
+        ratio = s["littles_ratio"]
+        lines.append(f"| {s['label']} | {s['size']} | "
+                     f"{'-' if ratio is None else f'{ratio:.2f}'} |")
+    lines += [""]
+    lines += _fault_section(plan, summaries, figures)
+    lines += ["## Threats to validity", "",
+              "- One machine type with 2 cores; CPU and RTF figures depend on its load (other "
+              "work ran beside some runs), the simulated figures do not.",
+              "- Simulated perfect odometry and lidar; one robot model.",
+              f"- {len({Path(plan.world).stem})} world in this report; the other world's report "
+              "is beside it.",
+              "- The centralized policy is one reasonable scheduler (nearest free workstation "
+              "of the kind, queue order for moving up, the nearest waiter for a freed "
+              "workstation), not an optimal one; the decentralized navigator's parameters were "
+              "tuned on this world, the coordinator's were not.",
+              "- The waiting spots near the workstations are few where the world is narrow "
+              "(slim_blockage: nine beside the blockage); the rest of a long queue parks in "
+              "the hall.",
+              "- Standstill maps and queue curves count only episodes of 60 s or more.",
+              "- Communication counts serialized message bytes, not DDS headers, discovery or "
+              "acknowledgements.", ""]
+    return "\n".join(lines) + "\n"
+
+
+def _stats_table(stats: list[dict], role: str, title: str, measure: str | None) -> list[str]:
+    rows = [r for r in stats if r["role"] == role
+            and (r["measure"] == measure if measure else r["measure"] != PRIMARY)]
+    if not rows:
+        return []
+    label = {k: lab for k, lab, _ in MEASURES}
+    out = [f"### {title}", "",
+           "A − B per seed: mean and 95 % interval; p: paired t-test (two-sided; the primary "
+           "test), Wilcoxon signed-rank (a check: with 5 seeds it cannot go below 0.0625), "
+           "and t's p after Holm's correction over every comparison of this report. A "
+           f"difference is claimed where Holm's p < {ALPHA:g}.", "",
+           "| A | B | measure | seeds | A − B | B vs A | p (t) | p (Wilcoxon) | p (Holm) | "
+           "claim |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        digits = 0 if r["measure"] in ("throughput", "comm_bytes") else 1
+        diff = _fmt({"mean": r["diff"], "ci95": r["ci95"]}, digits)
+        rel = "-" if r["rel"] is None else f"{100 * r['rel']:+.0f} %"
+        claim = ("**yes**" if r["claim"] else "no") if r["n"] >= 5 else "no (< 5 seeds)"
+        what = f" ({r['what']})" if r["what"] else ""
+        out.append(f"| {r['a']} | {r['b']}{what} | {label.get(r['measure'], r['measure'])} | "
+                   f"{r['n']} | {diff} | {rel} | {_p(r['p_t'])} | {_p(r['p_wilcoxon'])} | "
+                   f"{_p(r['p_holm'])} | {claim} |")
+    return out + [""]
+
+
+def _horizons(plan: Plan, plain: list[dict]) -> list[str]:
+    hs = horizons_of(plan)
+    out = ["### Tasks by a horizon", "",
+           "Tasks completed from the start to each simulated time (mean over seeds), as the "
+           "League of Robot Runners reports throughput.", "",
+           "| cell | " + " | ".join(f"{h:g} s" for h in hs) + " |", "|---|" + "---|" * len(hs)]
+    for s in sorted(plain, key=lambda s: (s["size"], list(VARIANTS).index(s["variant"]))):
+        out.append(f"| {s['label']} | " + " | ".join(
+            "-" if s["horizons"].get(f"{h:g}") is None else f"{s['horizons'][f'{h:g}']:.1f}"
+            for h in hs) + " |")
+    return out + [""]
+
+
+def _fault_section(plan: Plan, summaries: list[dict], figures: dict) -> list[str]:
+    if not plan.faults:
+        return []
+    lines = ["## Faults", "",
+             f"At {plan.fault_size} robots. Tasks lost: tasks the no-fault run of the same "
+             "seed completed after the fault minus the faulted run's. Back within 10 %: from "
+             f"the fault to the first {WINDOW_S:g} s window from which every window reaches "
+             "90 % of the no-fault run's mean rate after the fault.", ""]
+    for k, spec in enumerate(plan.faults, start=1):
+        lines += [f"### `--faults {spec}`", ""]
+        for s in summaries:
+            if s["fault"] != spec:
+                continue
+            eff = s.get("fault_effects") or []
+            if not eff:
+                continue
+            lost = t_interval([e["tasks_lost"] for e in eff])
+            rec = ", ".join("never" if e["recovery_s"] is None else f"{e['recovery_s']:g} s"
+                            for e in eff)
+            lines.append(f"- {s['variant']}: tasks lost "
+                         f"{_fmt({'mean': lost[0], 'ci95': lost[1]}, 1)} ({len(eff)} seeds); "
+                         f"back within 10 % after: {rec}")
+        if f"fault_{k}" in figures:
+            lines += ["", f"![fault {k}]({figures[f'fault_{k}']})"]
+        lines += [""]
+    return lines
+
+
+def _fault_effects(plan: Plan, summaries: list[dict], figs: dict) -> dict[int, dict]:
+    """Per fault spec k: the curves (mean tasks per window) and, per faulted cell, the
+    per-seed effects (stored into the summaries as ``fault_effects``)."""
+    out = {}
+    for k, (spec, fault_s) in enumerate(zip(plan.faults, plan.fault_times, strict=True),
+                                        start=1):
+        curves = {}
+        for s in summaries:
+            if s["fault"] != spec:
+                continue
+            base_label = f"{s['variant']}-n{plan.fault_size}"
+            base, hit = figs.get(base_label, {}), figs.get(s["label"], {})
+            s["fault_effects"] = [fault_effect(base[x]["task_times"], hit[x]["task_times"],
+                                               fault_s, plan.duration_s)
+                                  for x in sorted(set(base) & set(hit))]
+            for name, runs in ((f"{s['variant']}, no fault", base),
+                               (f"{s['variant']}, fault", hit)):
+                counts = [window_counts(f["task_times"], plan.duration_s)
+                          for f in runs.values()]
+                if counts:
+                    curves[name] = (s["variant"], [sum(c) / len(counts)
+                                                   for c in zip(*counts, strict=True)])
+        out[k] = {"curves": curves, "fault_s": fault_s, "spec": spec}
+    return out
+
+
+def write_report(dirs: list[Path], out: Path) -> dict:
+    """Merge the records of ``dirs`` and write ``experiment.json``, ``report.md`` and the
+    figures into ``out``.
+
+    Returns:
+        ``report`` (its path), ``records`` (runs merged), ``missing`` (runs of the plan not
+        among them).
+
+    Raises:
+        InputError: see :func:`load_dirs`.
+    """
+    plan, settings, records = load_dirs([Path(d) for d in dirs])
+    figs = cell_figures(plan, records)
+    summaries = summarize(plan, records, figs)
+    stats = comparisons(plan, figs)
+    faults = _fault_effects(plan, summaries, figs)
+    out.mkdir(parents=True, exist_ok=True)
+    figures: dict[str, str] = {}
+    if summaries:
+        label = {k: lab for k, lab, _ in MEASURES}
+        for key in ("throughput", "ttt_mean", "holding_per_robot", "comm_bytes", "rtf",
+                    "cpu_per_robot_ms"):
+            figures[key] = plot_against_size(out, key, plan, summaries, figs, key, label[key])
+        figures["tasks_over_time"] = plot_tasks_over_time(out, plan, summaries, figs)
+        figures["time_to_task_ecdf"] = plot_ecdf(out, plan, summaries, figs)
+        figures["tasks_per_robot"] = plot_tasks_per_robot(out, plan, summaries, figs)
+        size = plan.ablation_size or max(plan.sizes)
+        for key, fn in (("standstill_map", plot_standstill_map),
+                        ("standing_over_time", plot_standing_over_time)):
+            name = fn(out, plan, summaries, figs, size)
+            if name:
+                figures[key] = name
+        for k, f in faults.items():
+            if f["curves"]:
+                figures[f"fault_{k}"] = plot_fault(
+                    out, f"fault_{k}", f["curves"], f["fault_s"],
+                    f"tasks per {WINDOW_S:g} s, {plan.fault_size} robots, faults: {f['spec']}")
+    text = build_report(plan, settings, records, summaries, stats, figures) if summaries \
+        else f"# {PROG}: no runs yet\n"
+    (out / "report.md").write_text(text)
+    doc = {"experiment": PROG, "settings": settings, "records": records,
+           "summary": summaries, "statistics": stats, "figures": figures}
+    (out / "experiment.json").write_text(json.dumps(doc, indent=1, sort_keys=True,
+                                                    default=str) + "\n")
+    return {"report": out / "report.md", "records": len(records),
+            "missing": len(plan.runs_in_order()) - len(records)}
+
