@@ -123,6 +123,8 @@ def test_unknown_keys_are_errors_with_did_you_mean(tmp_path, text, message):
      "spawn.spacing must be positive [m], got 0"),
     ("points: {dock: [1]}\n", "points.dock must be [x, y] or [x, y, yaw], got [1]"),
     ("points: [1, 2]\n", "points must be a mapping of keys, got [1, 2]"),
+    ("waiting: [[1]]\n", "waiting[0] must be [x, y] or [x, y, yaw], got [1]"),
+    ("waiting: 5\n", "waiting must be a list of [x, y] or [x, y, yaw] points, got 5"),
     ("frame_id: odom\n", "frame_id must be 'map'"),
     ("- a\n- b\n", "the file must be a mapping of keys"),
     ("workstations: [unclosed\n", "invalid YAML at line"),
@@ -184,6 +186,25 @@ def test_slim_blockage_holding_spots_leave_the_corridor_lane_free():
         assert -8.325 < spot[0] < -5.262 and -4.824 < spot[1] < 7.484
 
 
+def test_slim_blockage_waiting_spots_leave_a_two_way_lane_beside_the_docks():
+    poi = poi_for_world(resolve_world("slim_blockage"))
+    assert poi.waiting.shape == (9, 3)
+    docks = np.array([ws.pose[:2] for ws in poi.workstations])
+    for x, y, _ in poi.waiting:
+        # the lane between a docked robot (x <= -7.53) and a waiting one: two bodies pass
+        assert (x - ROBOT_RADIUS) - (docks[0, 0] + ROBOT_RADIUS) >= 2 * 2 * ROBOT_RADIUS
+        assert -5.262 - (x + ROBOT_RADIUS) >= 0.15  # clear of the blockage
+        assert -4.824 < y < 7.484
+    gaps = np.diff(np.sort(poi.waiting[:, 1]))
+    assert gaps.min() >= 2 * ROBOT_RADIUS + 0.3  # no two waiting robots touch
+
+
+def test_waiting_spots_default_yaw_and_empty(tmp_path):
+    poi = load_poi(_write(tmp_path, "waiting:\n  - [1, 2]\n  - [3, 4, 1.5]\n"))
+    assert poi.waiting.tolist() == [[1.0, 2.0, 0.0], [3.0, 4.0, 1.5]]
+    assert load_poi(_write(tmp_path, "points: {a: [0, 0]}\n")).waiting.shape == (0, 3)
+
+
 def test_slim_blockage_spawn_avoids_pocket_and_holds_100():
     poi = poi_for_world(resolve_world("slim_blockage"))
     grid = poi.spawn.grid_points()
@@ -216,6 +237,7 @@ def test_bundled_poi_clear_of_walls(name, min_workstations, min_spawn):
     points += [p for ws in poi.workstations for p in ws.holding]
     points += list(poi.spawn.grid_points())
     points += [p[:2] for p in poi.points.values()]
+    points += [p[:2] for p in poi.waiting]
     for p in points:
         clearance = min(_distance_to_polygon(np.asarray(p), poly) for poly in polygons)
         assert clearance >= CLEARANCE, (name, p.tolist(), clearance)

@@ -101,3 +101,32 @@ def test_a_mixed_fleet_gets_its_parking_spots():
     waffles = build_core("slim_blockage", 0, robots, "turtlebot3_waffle", 0.1, "e")
     park = [s.xy for s in mixed.spots.values() if not s.near]
     assert park and park == [s.xy for s in waffles.spots.values() if not s.near]
+
+
+def test_build_core_takes_the_policy_and_plans_path_lengths_on_the_map():
+    """The scheduler's distance is the planner's path length: around the blockage, longer than
+    the straight line; the hall variant has no waiting spots; route has no distance at all."""
+    import math
+
+    from swarm_coordinator.node import build_core, policy_argv
+
+    robots = tuple(f"Srobot{i}" for i in range(1, 4))
+    near = build_core("slim_blockage", 0, robots, "turtlebot3_waffle", 0.1, "e")
+    hall = build_core("slim_blockage", 0, robots, "turtlebot3_waffle", 0.1, "e",
+                      waiting_spots="hall", silence_timeout=0.0)
+    assert sum(s.startswith("wait") for s in near.spots) == 9
+    assert not any(s.startswith("wait") for s in hall.spots)
+    assert hall.cfg.silence_timeout_ns == 0 and near.cfg.assignment == "nearest-free"
+    # from the hall's right of the blockage to loader3 (x -7.7): around the blockage's end
+    here, loader = (-3.0, 1.0), near.stations["loader3"].pose
+    straight = math.hypot(here[0] - loader[0], here[1] - loader[1])
+    assert near._distance(here, "loader3") > straight + 4.0
+    assert near.robots["Srobot1"].xy is not None  # its spawn pose
+    route = build_core("slim_blockage", 0, robots, "turtlebot3_waffle", 0.1, "e",
+                       assignment="route")
+    assert route._distance(here, "loader3") == straight
+
+    class Args:
+        assignment, waiting_spots, silence_timeout = "route", None, 120.0
+
+    assert policy_argv(Args()) == ("--assignment", "route", "--silence-timeout", "120")
