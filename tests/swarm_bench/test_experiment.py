@@ -189,11 +189,13 @@ def fake_record(label, variant, mode, size, seed, tasks_per_100s, role="main", f
             "finished": f"2026-11-27T03:10:0{seed}+00:00", "metrics": m}
 
 
-def write_fake_sweep(out, sizes=(20,), seeds=range(5), rates=None, missing=()):
+def write_fake_sweep(out, sizes=(20,), seeds=range(5), rates=None, missing=(),
+                     ablations=False):
     from swarm_bench.bench import _write_json
 
     argv = ["--output", str(out), "--sizes", ",".join(map(str, sizes)), "--no-faults",
-            "--no-ablations", "--warmup", "300"]
+            "--warmup", "300", *(["--ablation-size", str(sizes[0])] if ablations
+                                 else ["--no-ablations"])]
     plan = validate(build_parser().parse_args(argv)).plan
     (out / "records").mkdir(parents=True, exist_ok=True)
     _write_json(out / "plan.json", {"settings": plan.settings()})
@@ -232,6 +234,25 @@ def test_report_is_rebuilt_byte_for_byte_from_its_json(tmp_path):
                                               "centralized-scheduler-n20", 5)
     assert row["claim"] and row["p_holm"] >= row["p_t"]
     assert (b / "throughput.png").read_bytes()[:8] == PNG_MAGIC
+
+
+def test_the_ablation_chain_adds_up_to_the_whole_gap(tmp_path):
+    from swarm_bench.experiment_report import write_report
+
+    rates = {"decentralized": [3.0] * 5, "decentralized-no-swap": [2.8] * 5,
+             "centralized-fifo-hall": [2.0] * 5, "centralized-scheduler-hall": [2.2] * 5,
+             "centralized-scheduler": [2.4] * 5}
+    write_fake_sweep(tmp_path / "a", rates=rates, ablations=True)
+    write_report([tmp_path / "a"], tmp_path / "a")
+    report = (tmp_path / "a" / "report.md").read_text()
+    # tasks after the 300 s warm-up, over 600 s: rate 3.0 -> 27 tasks every 33.3 s, 18 after
+    # 300 s: 108/h; 2.8 -> 17: 102/h; 2.0 -> 12: 72/h; 2.2 -> 13: 78/h; 2.4 -> 14: 84/h
+    line = next(x for x in report.splitlines() if x.startswith("The chain decentralized"))
+    assert "whole gap of +24 tasks/h" in line
+    assert "taking another workstation (decentralized) +6 tasks/h (25 %)" in line
+    assert "queues in the hall) +30 tasks/h (125 %)" in line
+    assert "the scheduler's assignment -6 tasks/h (-25 %)" in line
+    assert "instead of the hall -6 tasks/h (-25 %)" in line
 
 
 def test_shards_merge_into_one_report(tmp_path):
