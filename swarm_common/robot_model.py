@@ -471,8 +471,11 @@ def _process(source: Path, args: dict[str, str]) -> str:
     if source.name.endswith(".xacro") or _XACRO_NS in raw:
         import xacro  # imported lazily: it is only needed for xacro files
 
+        from swarm_common.resources import ament_index_with_ros_package_path
+
         try:
-            doc = xacro.process_file(str(source), mappings=dict(args))
+            with ament_index_with_ros_package_path():  # $(find pkg): ROS_PACKAGE_PATH too
+                doc = xacro.process_file(str(source), mappings=dict(args))
         except Exception as exc:  # noqa: BLE001 - xacro raises many types; all are bad input
             detail = " ".join(str(exc).split()) or type(exc).__name__
             if type(exc).__name__ == "ExpatError":
@@ -535,29 +538,24 @@ def _say_missing_meshes(source: Path, missing: tuple[str, ...], need_meshes: boo
     if (source, need_meshes) in _meshes_said:
         return
     _meshes_said.add((source, need_meshes))
+    from swarm_common.resources import describe, resolve
+
+    first = describe(missing[0], resolve(missing[0], source.parent)[1])
     if need_meshes:
         _log.warning("%s: %d mesh file(s) not found (e.g. %s); the robot is drawn without them",
-                     _display(source), len(missing), missing[0])
+                     _display(source), len(missing), first)
     else:
         _log.debug("%s: %d mesh file(s) not found (e.g. %s); meshes are only drawn, not needed "
-                   "headless: going on without them", _display(source), len(missing), missing[0])
+                   "headless: going on without them", _display(source), len(missing), first)
 
 
 def _resolve_mesh(filename: str, source: Path) -> Path | None:
-    if filename.startswith("package://"):
-        package, _, rest = filename[len("package://"):].partition("/")
-        ament = os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep)
-        roots = [Path(p) / "share" for p in ament if p]
-        roots += [Path(p) for p in os.environ.get("ROS_PACKAGE_PATH", "").split(os.pathsep) if p]
-        for root in roots:
-            candidate = root / package / rest
-            if candidate.is_file():
-                return candidate
-        return None
-    path = Path(filename[len("file://"):] if filename.startswith("file://") else filename)
-    if not path.is_absolute():
-        path = source.parent / path
-    return path if path.is_file() else None
+    """A mesh file of the URDF (:func:`swarm_common.resources.resolve`: ``package://`` through
+    the ament index and ``ROS_PACKAGE_PATH``), or None."""
+    from swarm_common.resources import resolve
+
+    path = resolve(filename, source.parent)[0]
+    return path if path is not None and path.is_file() else None
 
 
 # --------------------------------------------------------------------------------------------

@@ -401,9 +401,11 @@ class _Loader:
         uri = (uri_el.text or "").strip() if uri_el is not None else ""
         if not uri:
             raise self.fail(where, "<mesh> without <uri>", src)
-        path = _resolve_uri(uri, base)
+        from swarm_common.resources import describe, resolve
+
+        path, looked = resolve(uri, base)
         if path is None or not path.is_file():
-            return None, uri, f"{uri} not found"
+            return None, uri, describe(uri, looked)
         if path.suffix.lower() not in MESH_SUFFIXES:
             return None, uri, f"{path.suffix or uri}: only STL and OBJ are loaded"
         try:
@@ -557,30 +559,11 @@ def _include_base_name(uri: str) -> str:
     return last.strip().lower().replace(" ", "_")
 
 
-def _model_search_path(base: Path) -> list[Path]:
-    dirs: list[Path] = []
-    for var in ("GZ_SIM_RESOURCE_PATH", "IGN_GAZEBO_RESOURCE_PATH", "GAZEBO_MODEL_PATH",
-                "SDF_PATH"):
-        dirs += [Path(p) for p in os.environ.get(var, "").split(os.pathsep) if p]
-    dirs += [base, base / "models", Path.home() / ".gazebo" / "models"]
-    return dirs
-
-
 def _resolve_uri(uri: str, base: Path) -> Path | None:
-    """A file path for a ``model://``, ``file://``, absolute or relative URI; None if remote."""
-    if uri.startswith("model://"):
-        rest = uri[len("model://"):]
-        for d in _model_search_path(base):
-            candidate = d / rest
-            if candidate.exists():
-                return candidate
-        return None
-    if uri.startswith("file://"):
-        return Path(uri[len("file://"):])
-    if "://" in uri:
-        return None  # package://, http(s):// (Fuel): not resolvable here
-    path = Path(uri).expanduser()
-    return path if path.is_absolute() else base / path
+    """A file or directory for a URI (:func:`swarm_common.resources.resolve`), or None."""
+    from swarm_common.resources import resolve
+
+    return resolve(uri, base)[0]
 
 
 def _find_model_file(uri: str, base: Path) -> Path | None:

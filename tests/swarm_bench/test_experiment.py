@@ -387,3 +387,20 @@ def test_tiny_sweep_writes_the_report(tmp_path):
         assert (out / png.replace(".png", ".svg")).is_file()
         assert f"]({png})" in report
     assert "report:" in res.stdout
+
+
+@pytest.mark.parametrize("world", ["slim_blockage"])
+def test_the_committed_report_is_rebuilt_from_its_json(world, tmp_path):
+    """docs/experiments/<world>/: report.md and experiment.json are what ``swarm-experiment
+    report`` makes of the committed experiment.json, byte for byte."""
+    from swarm_bench.experiment_report import write_report
+
+    committed = Path(__file__).resolve().parents[2] / "docs" / "experiments" / world
+    (tmp_path / "in").mkdir()
+    (tmp_path / "in" / "experiment.json").write_bytes(
+        (committed / "experiment.json").read_bytes())
+    write_report([tmp_path / "in"], tmp_path / "out")
+    for name in ("report.md", "experiment.json"):
+        assert (tmp_path / "out" / name).read_bytes() == (committed / name).read_bytes(), name
+    for fig in json.loads((committed / "experiment.json").read_text())["figures"].values():
+        assert (committed / fig).is_file() and (committed / fig).with_suffix(".svg").is_file()

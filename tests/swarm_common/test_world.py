@@ -431,27 +431,38 @@ def _link_model(name: str, link_body: str, pose: str = "0 0 0 0 0 0") -> str:
             f'<link name="l">{link_body}</link></model>')
 
 
-def test_missing_mesh_with_a_sibling_box_collision_is_reported_once(tmp_path):
+@pytest.fixture
+def no_model_path(monkeypatch):
+    """No Gazebo model path variable set: the places looked in are the world's own."""
+    from swarm_common.resources import MODEL_PATH_VARS
+
+    for var in MODEL_PATH_VARS:
+        monkeypatch.delenv(var, raising=False)
+
+
+def test_missing_mesh_with_a_sibling_box_collision_is_reported_once(tmp_path, no_model_path):
     body = ('<collision name="mesh"><geometry><mesh><uri>model://crate/meshes/crate.dae</uri>'
             '</mesh></geometry></collision>'
             '<collision name="box"><pose>0 0 0.5 0 0 0</pose><geometry><box><size>1 1 1</size>'
             '</box></geometry></collision>')
     world = load_world(_write_world(tmp_path, _link_model("crate", body, "3 0 0 0 0 0")))
     assert world.skipped == (
-        "mesh 'crate::l::mesh' (model://crate/meshes/crate.dae not found; the link's other "
-        "collisions stand for it)",)
+        f"mesh 'crate::l::mesh' (model://crate/meshes/crate.dae not found (looked in: {tmp_path}, "
+        f"{tmp_path}/models, {Path.home()}/.gazebo/models); the link's other collisions stand "
+        "for it)",)
     assert [s.name for s in world.shapes] == ["crate::l::box"]
 
 
-def test_missing_collision_mesh_replaced_by_the_visual_box(tmp_path):
+def test_missing_collision_mesh_replaced_by_the_visual_box(tmp_path, no_model_path):
     body = ('<collision name="c"><geometry><mesh><uri>model://bench/meshes/bench.dae</uri>'
             '</mesh></geometry></collision>'
             '<visual name="v"><pose>0 0.5 0.4 0 0 0</pose><geometry><box><size>2 0.6 0.8'
             '</size></box></geometry></visual>')
     world = load_world(_write_world(tmp_path, _link_model("bench", body, "1 2 0 0 0 1.5707963")))
     assert world.skipped == (
-        "mesh 'bench::l::c' (model://bench/meshes/bench.dae not found; replaced by the link's "
-        "visual box 'v')",)
+        f"mesh 'bench::l::c' (model://bench/meshes/bench.dae not found (looked in: {tmp_path}, "
+        f"{tmp_path}/models, {Path.home()}/.gazebo/models); replaced by the link's visual box "
+        "'v')",)
     (shape,) = world.shapes
     assert shape.name == "bench::l::v" and shape.kind == "box"
     # model yaw 90 deg: the visual's (0, 0.5) offset goes to -x in the world
@@ -477,7 +488,8 @@ def test_dae_collision_replaced_by_an_stl_visual_mesh(tmp_path):
     assert shape.kind == "mesh" and shape.mesh_path == tmp_path / "cube.stl"
 
 
-def test_the_same_missing_mesh_in_many_includes_is_one_report(tmp_path, monkeypatch):
+def test_the_same_missing_mesh_in_many_includes_is_one_report(tmp_path, monkeypatch,
+                                                             no_model_path):
     model_dir = tmp_path / "models" / "rack"
     model_dir.mkdir(parents=True)
     (model_dir / "model.sdf").write_text(
@@ -489,7 +501,9 @@ def test_the_same_missing_mesh_in_many_includes_is_one_report(tmp_path, monkeypa
                        f"<pose>{i} 0 0 0 0 0</pose></include>" for i in range(5))
     world = load_world(_write_world(tmp_path, includes))
     assert world.skipped == (
-        "mesh 'rack_0::l::c' and 4 more (model://rack/meshes/rack.dae not found)",)
+        "mesh 'rack_0::l::c' and 4 more (model://rack/meshes/rack.dae not found (looked in: "
+        f"{tmp_path / 'models'}, {model_dir}, {model_dir / 'models'}, "
+        f"{Path.home()}/.gazebo/models))",)
     assert world.shapes == ()
 
 
