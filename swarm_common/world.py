@@ -41,7 +41,6 @@ Sources: SDFormat specification (sdformat.org/spec, world/model/link/collision/g
 
 from __future__ import annotations
 
-import functools
 import math
 import os
 import xml.etree.ElementTree as ET
@@ -58,6 +57,7 @@ from swarm_common.geometry import (
     quaternion_to_matrix,
     rpy_to_matrix,
 )
+from swarm_common.meshes import MESH_SUFFIXES
 from swarm_common.paths import WORLDS_DIR, find_named
 
 WORLD_SUFFIXES = (".world", ".sdf")
@@ -67,7 +67,6 @@ FLOOR_TOLERANCE = 0.05  # [m] a shape whose top is at or below this is floor (ab
 # step height: TurtleBot3's ground clearance is about 0.01 m, its wheels 0.066 m across)
 BAND_TOP = 2.0  # [m] top of the band: above every robot body and lidar we simulate
 POLYGON_SIDES = 32  # cylinders and spheres become circumscribed 32-gons in world_polygons
-MESH_SUFFIXES = (".stl", ".obj")
 
 # World children that carry no geometry: ignored without a report.
 _WORLD_SETTINGS = {
@@ -407,7 +406,7 @@ class _Loader:
         if path is None or not path.is_file():
             return None, uri, describe(uri, looked)
         if path.suffix.lower() not in MESH_SUFFIXES:
-            return None, uri, f"{path.suffix or uri}: only STL and OBJ are loaded"
+            return None, uri, f"{path.suffix or uri}: only STL, OBJ and Collada are loaded"
         try:
             _mesh_vertices(path)
         except ValueError as exc:
@@ -595,24 +594,12 @@ def _find_model_file(uri: str, base: Path) -> Path | None:
     return None
 
 
-@functools.lru_cache(maxsize=64)
-def _mesh_vertices_cached(path: str, mtime: float) -> np.ndarray:
-    import trimesh
-
-    try:
-        mesh = trimesh.load(path, force="mesh", process=False)
-    except Exception as exc:  # trimesh raises many kinds on bad files
-        raise ValueError(f"cannot load mesh: {exc}") from None
-    vertices = np.asarray(getattr(mesh, "vertices", np.zeros((0, 3))), dtype=float)
-    if vertices.ndim != 2 or vertices.shape[0] < 3:
-        raise ValueError("mesh has no vertices")
-    vertices.setflags(write=False)
-    return vertices
-
-
 def _mesh_vertices(path: Path) -> np.ndarray:
-    """(V, 3) vertices [mesh units] of an STL/OBJ file (cached); ValueError if unreadable."""
-    return _mesh_vertices_cached(str(path), path.stat().st_mtime)
+    """(V, 3) vertices [m], z up, of a mesh file (:func:`swarm_common.meshes.load_mesh`);
+    ValueError if unreadable."""
+    from swarm_common.meshes import load_mesh
+
+    return load_mesh(path).vertices
 
 
 def load_world(name_or_path: str | Path) -> World:
@@ -731,11 +718,19 @@ def world_polygons(world: World, z_min: float = FLOOR_TOLERANCE,
         One convex polygon per shape whose z-extent overlaps ``(z_min, z_max)``, in the order of
         ``world.shapes``: a (K, 2) array of x, y [m] in ``map``, counter-clockwise. Boxes are
         exact (the hull of the projected corners, any orientation); cylinders and spheres are
-        circumscribed 32-gons (so they contain the true outline); meshes are the convex hull of
-        their projected vertices. Shapes with no area in plan view are left out.
+        circumscribed 32-gons (so they contain the true outline); a mesh gives one polygon per
+        part (:func:`swarm_common.meshes.part_polygons`: a convex part's hull, a non-convex
+        part's triangles). Shapes with no area in plan view are left out.
     """
     polygons = []
     for shape in obstacle_shapes(world, z_min, z_max):
+        if shape.kind == "mesh":
+            from swarm_common.meshes import load_mesh, part_polygons
+
+            tf = pose_to_matrix(shape.pose)
+            for part in load_mesh(shape.mesh_path).parts:
+                polygons += part_polygons(part, tf, shape.size, z_min, z_max)
+            continue
         hull = convex_hull_2d(_shape_points(shape)[:, :2])
         if hull is not None:
             polygons.append(hull)

@@ -225,6 +225,9 @@ class SimEngine:
         p, cid = pybullet, self.client
         for shape in obstacle_shapes(world):
             kind, size = shape.kind, shape.size
+            if kind == "mesh" and shape.mesh_path is not None:
+                self._build_mesh(shape)
+                continue
             if kind == "box":
                 col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[s / 2 for s in size],
                                              physicsClientId=cid)
@@ -233,14 +236,32 @@ class SimEngine:
                                              physicsClientId=cid)
             elif kind == "sphere":
                 col = p.createCollisionShape(p.GEOM_SPHERE, radius=size[0], physicsClientId=cid)
-            elif kind == "mesh" and shape.mesh_path is not None:
-                col = p.createCollisionShape(p.GEOM_MESH, fileName=str(shape.mesh_path),
-                                             meshScale=list(size), physicsClientId=cid)
             else:
                 continue
             if col < 0:
                 continue
             x, y, z, roll, pitch, yaw = shape.pose
+            body = p.createMultiBody(
+                baseMass=0.0, baseCollisionShapeIndex=col, basePosition=[x, y, z],
+                baseOrientation=p.getQuaternionFromEuler([roll, pitch, yaw]),
+                physicsClientId=cid)
+            self._wall_names[body] = shape.name
+
+    def _build_mesh(self, shape) -> None:
+        """One static body per part of a mesh (:mod:`swarm_common.meshes`): a convex part as
+        its hull, a non-convex one as a concave triangle mesh (static bodies only)."""
+        from swarm_common.meshes import load_mesh
+
+        p, cid = pybullet, self.client
+        x, y, z, roll, pitch, yaw = shape.pose
+        for part in load_mesh(shape.mesh_path).parts:
+            kwargs = {"vertices": part.vertices.tolist(), "meshScale": list(shape.size)}
+            if not part.convex:
+                kwargs.update(indices=part.faces.ravel().tolist(),
+                              flags=p.GEOM_FORCE_CONCAVE_TRIMESH)
+            col = p.createCollisionShape(p.GEOM_MESH, physicsClientId=cid, **kwargs)
+            if col < 0:
+                continue
             body = p.createMultiBody(
                 baseMass=0.0, baseCollisionShapeIndex=col, basePosition=[x, y, z],
                 baseOrientation=p.getQuaternionFromEuler([roll, pitch, yaw]),

@@ -205,7 +205,7 @@ def test_vertical_plane_reported_dae_mesh_reported(tmp_path):
                         + _collision_model("statue", "<mesh><uri>statue.dae</uri></mesh>"))
     world = load_world(path)
     assert world.skipped == ("plane 'screen::l::c'",
-                             "mesh 'statue::l::c' (.dae: only STL and OBJ are loaded)")
+                             "mesh 'statue::l::c' (statue.dae: a Collada file without geometry)")
     assert world.shapes == ()
 
 
@@ -482,8 +482,8 @@ def test_dae_collision_replaced_by_an_stl_visual_mesh(tmp_path):
             '</visual>')
     world = load_world(_write_world(tmp_path, _link_model("cube", body)))
     assert world.skipped == (
-        "mesh 'cube::l::c' (.dae: only STL and OBJ are loaded; replaced by the link's visual "
-        "mesh 'v')",)
+        "mesh 'cube::l::c' (cube.dae: a Collada file without geometry; replaced by the link's "
+        "visual mesh 'v')",)
     (shape,) = world.shapes
     assert shape.kind == "mesh" and shape.mesh_path == tmp_path / "cube.stl"
 
