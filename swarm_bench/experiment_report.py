@@ -566,10 +566,18 @@ def build_report(plan: Plan, settings: dict, records: list[dict], summaries: lis
     for key in ("ttt_mean", "holding_per_robot", "comm_bytes", "rtf", "cpu_per_robot_ms"):
         if key in figures:
             lines += [f"![{key}]({figures[key]})", ""]
-    for key in ("time_to_task_ecdf", "tasks_per_robot", "standstill_map",
-                "standing_over_time"):
+    for key in ("time_to_task_ecdf", "tasks_per_robot"):
         if key in figures:
             lines += [f"![{key}]({figures[key]})", ""]
+    lines += ["Where robots wait: the simulator's standstills of 60 s or more (a robot within "
+              "0.1 m of where it stopped), as robot-seconds per 0.5 m cell summed over the "
+              "seeds, and how many robots stand so over time; the same measure in both modes "
+              "(the decentralized holding pattern and the coordinator's waiting spots alike).",
+              ""]
+    for n in plan.sizes:
+        for key in (f"standstill_map_n{n}", f"standing_over_time_n{n}"):
+            if key in figures:
+                lines += [f"![{key}]({figures[key]})", ""]
     lines += ["Robots that never completed a task are counted in every throughput (they are "
               "part of the swarm) and listed per seed:", "",
               "| cell | robots without a task, per seed |", "|---|---|"]
@@ -669,6 +677,8 @@ def _fault_section(plan: Plan, summaries: list[dict], figures: dict) -> list[str
              "90 % of the no-fault run's mean rate after the fault.", ""]
     for k, spec in enumerate(plan.faults, start=1):
         lines += [f"### `--faults {spec}`", ""]
+        if not any(s.get("fault_effects") for s in summaries if s["fault"] == spec):
+            lines += ["No pair of a faulted run and its no-fault run yet.", ""]
         for s in summaries:
             if s["fault"] != spec:
                 continue
@@ -739,12 +749,12 @@ def write_report(dirs: list[Path], out: Path) -> dict:
         figures["tasks_over_time"] = plot_tasks_over_time(out, plan, summaries, figs)
         figures["time_to_task_ecdf"] = plot_ecdf(out, plan, summaries, figs)
         figures["tasks_per_robot"] = plot_tasks_per_robot(out, plan, summaries, figs)
-        size = plan.ablation_size or max(plan.sizes)
-        for key, fn in (("standstill_map", plot_standstill_map),
-                        ("standing_over_time", plot_standing_over_time)):
-            name = fn(out, plan, summaries, figs, size)
-            if name:
-                figures[key] = name
+        for size in plan.sizes:
+            for key, fn in (("standstill_map", plot_standstill_map),
+                            ("standing_over_time", plot_standing_over_time)):
+                name = fn(out, plan, summaries, figs, size)
+                if name:
+                    figures[f"{key}_n{size}"] = name
         for k, f in faults.items():
             if f["curves"]:
                 figures[f"fault_{k}"] = plot_fault(
