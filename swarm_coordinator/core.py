@@ -24,22 +24,17 @@ first to ask gets it, later askers are queued and parked at a waiting spot until
   knows which workstations are free.
 - Otherwise the robot joins W's queue (first come, first served: ordered by the simulated time
   of its request, then by robot number) and is sent to a free waiting spot (``wait``), reserved
-  for it; no two robots are ever sent to one spot. ``route``: W's own holding spot, else the
-  other spot nearest W (straight line). ``nearest-free``: the best :meth:`~CoordinatorCore.rank`
-  first (a holding spot of W's kind, W's own first; then the world's waiting spots near the
-  workstations, ``waiting`` of the points of interest; then parking on the spawn grid, the
-  hall), nearest W within a rank.
-- Moving up. ``route``: when a holding spot of W frees up, the first robot of W's queue that
-  waits farther away moves up to it. ``nearest-free``: whenever a spot frees up, the robot of
-  the kind's queues that has waited longest of those at a worse-ranked spot takes it, and the
-  spot it leaves goes the same way, so the queue moves up from the hall to the waiting spots
-  to the holding spots in queue order.
+  for it: W's own holding spot first, else the free spot nearest W (straight line) among the
+  world's waiting spots near the workstations (``waiting`` of the points of interest; the
+  coordinator's ``--waiting-spots near``) and the parking spots on the spawn grid (the hall).
+  No two robots are ever sent to one spot.
+- Moving up: when a holding spot frees up, the first robot of its workstation's queue that waits
+  farther away moves up to it, so the next hand-over is a short drive.
 - A robot that reports ``done`` at W leaves it: W is released at the request's stamp t and
-  handed over. ``route``: to the first robot of W's queue. ``nearest-free``: to the robot at
-  W's own holding spot, else the nearest (path length) of those at holding or waiting spots,
-  else the one that has waited longest in the hall; a robot that has just left W only when no
-  other waits. Nobody starves: robots move up in queue order, and the one at W's holding spot
-  is the next to get W. The hand-over's goal is stamped
+  handed over to the first robot of W's queue; with nobody queued for W, ``nearest-free`` hands
+  it to the nearest robot (path length from where it waits) of those queued for another
+  workstation of W's kind, one that has not just left W if there is one. The hand-over's goal
+  is stamped
   ``t + period`` (``handover_ticks``), the tick at which the batch is handled, so it moves off
   its spot at tick ``t + 2 period``, whatever the wall-clock latency: the node sends the batch's
   answers, which the simulator waits for at ``t + period``, only once that robot's navigator
@@ -480,8 +475,8 @@ class CoordinatorCore:
         return self.robots[ns].since_ns, self.robots[ns].index
 
     def _hand_over(self, name: str, t: int, out: _Out) -> None:
-        """Give a free workstation to the robot that has waited longest for it (goal one tick
-        later; :meth:`next_waiter`)."""
+        """Give a free workstation to the next waiter (:meth:`next_waiter`), with a goal one
+        tick later."""
         start = t + self.cfg.handover_ticks * self.cfg.period_ns
         if self.holder.get(workstation_resource(name)) is not None:
             return

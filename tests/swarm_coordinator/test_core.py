@@ -296,9 +296,9 @@ def test_scheduler_never_sends_a_robot_back_to_the_workstation_it_has_just_left(
     assert core.robots["r2"].workstation == "loader3"
 
 
-def test_a_freed_workstation_goes_to_the_longest_waiter_of_its_kind():
-    # four robots, three loaders: r4 waits (for loader1, its route's); loader3 frees first
-    # and goes to r4 although r4 queued for loader1: first come, first served over the kind
+def test_a_freed_workstation_nobody_queued_for_goes_to_a_waiter_of_its_kind():
+    # four robots, three loaders: r4 waits (for loader1, its route's); loader3 frees first,
+    # nobody queued for it: it goes to r4, queued for another loader of the kind
     start = {"r1": (0.0, 0.5), "r2": (0.0, 4.5), "r3": (0.0, 8.5), "r4": (5.0, 0.0)}
     core = scheduler({"r1": ["loader1", "loader2"], "r2": ["loader2", "loader1"],
                       "r3": ["loader3", "loader1"], "r4": ["loader1", "loader2"]},
@@ -314,6 +314,26 @@ def test_a_freed_workstation_goes_to_the_longest_waiter_of_its_kind():
     # r3's next stop (loader1) is taken, every loader is: it waits
     assert (out[1].robot, out[1].kind) == ("r3", "wait")
     assert check_reservations(reservations(first + events)) == []
+
+
+def test_of_the_waiters_of_the_kind_the_nearest_gets_the_free_workstation():
+    # r4 and r5 queue for loader1 (r4 first, at loader1's holding spot (1, 0)); r5 waits at
+    # wait1 (2, 4). loader3 (0, 8) frees with nobody queued for it: the nearer r5 gets it.
+    start = {"r1": (0.0, 0.5), "r2": (0.0, 4.5), "r3": (0.0, 8.5), "r4": (5.0, 0.0),
+             "r5": (5.0, 1.0)}
+    core = scheduler({"r1": ["loader1", "loader2"], "r2": ["loader2", "loader3"],
+                      "r3": ["loader3", "loader1"], "r4": ["loader1", "loader2"],
+                      "r5": ["loader1", "loader2"]}, start_xy=start)
+    out, _ = core.handle([ready(ns) for ns in start])
+    by = {a.robot: (a.kind, a.target) for a in out}
+    assert by["r4"] == ("wait", "loader1.0") and by["r5"] == ("wait", "wait1")
+    assert core.queue("loader1") == ("r4", "r5")
+    out, _ = core.handle([done("r3", "loader3", 30 * T, seq=2)])
+    assert (out[0].robot, out[0].kind, out[0].target) == ("r5", "go", "loader3")
+    assert core.queue("loader1") == ("r4", "r3")  # r4 keeps its place; r3 now queues too
+    # loader1 frees: its own queue first, whoever is nearer
+    out, _ = core.handle([done("r1", "loader1", 40 * T, seq=2)])
+    assert (out[0].robot, out[0].target) == ("r4", "loader1")
 
 
 def test_a_dead_robot_loses_its_workstation_to_the_next_waiter():
