@@ -723,6 +723,18 @@ def _fault_effects(plan: Plan, summaries: list[dict], figs: dict) -> dict[int, d
     return out
 
 
+def _rounded(obj):
+    """Computed figures to 9 significant digits: the same bytes from the same records across
+    numpy and scipy releases that differ in the last bits."""
+    if isinstance(obj, float):
+        return float(f"{obj:.9g}")
+    if isinstance(obj, dict):
+        return {k: _rounded(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_rounded(v) for v in obj]
+    return obj
+
+
 def write_report(dirs: list[Path], out: Path) -> dict:
     """Merge the records of ``dirs`` and write ``experiment.json``, ``report.md`` and the
     figures into ``out``.
@@ -764,7 +776,7 @@ def write_report(dirs: list[Path], out: Path) -> dict:
         else f"# {PROG}: no runs yet\n"
     (out / "report.md").write_text(text)
     doc = {"experiment": PROG, "settings": settings, "records": records,
-           "summary": summaries, "statistics": stats, "figures": figures}
+           "summary": _rounded(summaries), "statistics": _rounded(stats), "figures": figures}
     (out / "experiment.json").write_text(json.dumps(doc, indent=1, sort_keys=True,
                                                     default=str) + "\n")
     return {"report": out / "report.md", "records": len(records),
