@@ -266,8 +266,19 @@ class Plan:
         return out
 
     def runs_in_order(self) -> list[tuple[Cell, int]]:
-        """Every (cell, seed) run, in the plan's order (cells, then seeds)."""
-        return [(c, self.seed + r) for c in self.cells() for r in range(self.runs)]
+        """Every (cell, seed) run, in the plan's order: block by block (each size of the main
+        variants, the ablations, each fault spec), seed by seed within a block, every variant
+        of the block for one seed before the next seed, so that a sweep cut short leaves pairs
+        (the same seed in every variant) rather than whole cells of one variant."""
+        cells = self.cells()
+        role = {"main": 0, "ablation": 1, "fault": 2}
+
+        def block(c: Cell) -> tuple:
+            return (role[c.role], c.size if c.role == "main" else 0, c.fault)
+
+        order = sorted(((c, self.seed + r) for c in cells for r in range(self.runs)),
+                       key=lambda cs: (block(cs[0]), cs[1], cells.index(cs[0])))
+        return order
 
 
 @dataclass(frozen=True)
