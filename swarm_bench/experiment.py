@@ -43,62 +43,31 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
+from swarm_bench.experiment_plan import (  # noqa: F401 - the runner's public names
+    ABLATIONS,
+    MAIN_VARIANTS,
+    METRICS_KEPT,
+    PROG,
+    RECORDS,
+    VARIANTS,
+    Cell,
+    Plan,
+    Variant,
+    load_record,
+    plan_from_settings,
+    record_path,
+    slim_record,
+)
 from swarm_common import cli
 from swarm_common.errors import EXIT_OK, InputError
 from swarm_common.faults import KILL_COORDINATOR
 from swarm_up.args import default_run_dir
 
-PROG = "swarm-experiment"
 SCHEMA_VERSION = 2
 DEFAULT_FAULTS = ("kill-robot:3@360", "kill-coordinator@360+30")
 """The protocol's fault kinds that decide the comparison (experiment_protocol.md, "Faults"): a
 whole robot dead, and the coordinator dead then restarted 30 s later by its supervisor; both
 60 s after the default 300 s warm-up."""
-
-
-@dataclass(frozen=True)
-class Variant:
-    """A coordination mode plus the overrides that make it (recorded with every run).
-
-    Attributes:
-        name: the variant's name (``--variants``, the figures' legend).
-        mode: ``decentralized`` | ``centralized`` (swarm-up's ``--coordination``).
-        swarm_up: more ``swarm-up`` flags (the coordinator's policy).
-        navigator: navigator parameter overrides, (name, value) pairs.
-        what: one line for the report.
-    """
-
-    name: str
-    mode: str
-    swarm_up: tuple[str, ...] = ()
-    navigator: tuple[tuple[str, float], ...] = ()
-    what: str = ""
-
-    def overrides(self) -> dict:
-        """The recorded overrides: ``{"swarm_up": [...], "navigator": {...}}``."""
-        return {"swarm_up": list(self.swarm_up), "navigator": dict(self.navigator)}
-
-
-VARIANTS = {v.name: v for v in (
-    Variant("decentralized", "decentralized", what="every navigator decides; a holding robot "
-            "takes another free workstation of its goal's kind within swap_range (2.5 m)"),
-    Variant("decentralized-no-swap", "decentralized", navigator=(("swap_range", 0.0),),
-            what="decentralized, but a robot only ever docks at the workstation it was sent "
-            "to (swap_range 0)"),
-    Variant("centralized-scheduler", "centralized",
-            ("--assignment", "nearest-free", "--waiting-spots", "near"),
-            what="the coordinator sends a robot to the nearest free workstation of its kind, "
-            "queues the rest at the world's waiting spots near the workstations"),
-    Variant("centralized-scheduler-hall", "centralized",
-            ("--assignment", "nearest-free", "--waiting-spots", "hall"),
-            what="the scheduler, but queued robots park in the hall (the spawn grid)"),
-    Variant("centralized-fifo-hall", "centralized",
-            ("--assignment", "route", "--waiting-spots", "hall"),
-            what="the route's workstation only, first come first served, queues parked in the "
-            "hall (the coordinator before the scheduler)"),
-)}
-MAIN_VARIANTS = ("decentralized", "centralized-scheduler")
-ABLATIONS = ("decentralized-no-swap", "centralized-fifo-hall", "centralized-scheduler-hall")
 
 
 # ---------------------------------------------------------------------------------------- flags
@@ -190,98 +159,6 @@ def report_parser() -> argparse.ArgumentParser:
 
 
 @dataclass(frozen=True)
-class Cell:
-    """One (variant, size, fault) cell.
-
-    Attributes:
-        variant: the variant's name.
-        size: robots.
-        fault: the ``--faults`` spec, or ``""`` for none.
-        label: ``<variant>-n<size>`` (``-f<k>`` for the k-th fault spec).
-        role: ``main``, ``ablation`` or ``fault``.
-    """
-
-    variant: str
-    size: int
-    fault: str
-    label: str
-    role: str = "main"
-
-    @property
-    def mode(self) -> str:
-        """The variant's coordination mode."""
-        return VARIANTS[self.variant].mode
-
-
-@dataclass(frozen=True)
-class Plan:
-    """What an experiment runs: the validated flags that decide its records.
-
-    ``plan.json`` holds :meth:`settings`; a resumed experiment must have the same.
-    """
-
-    sizes: tuple[int, ...]
-    duration_s: float
-    runs: int
-    seed: int
-    world: str
-    variants: tuple[str, ...]
-    ablations: tuple[str, ...]
-    ablation_size: int | None
-    faults: tuple[str, ...]
-    fault_size: int | None
-    fault_times: tuple[float, ...]  # [s] simulated, one per spec of ``faults``
-    fault_variants: tuple[tuple[str, ...], ...]  # the variants each spec runs in
-    warmup_s: float
-
-    def settings(self) -> dict:
-        """The plan as JSON-able settings (with every variant's overrides)."""
-        used = dict.fromkeys((*self.variants, *self.ablations))
-        return {"sizes": list(self.sizes), "duration_s": self.duration_s, "runs": self.runs,
-                "seed": self.seed, "world": self.world, "variants": list(self.variants),
-                "ablations": list(self.ablations), "ablation_size": self.ablation_size,
-                "faults": list(self.faults), "fault_size": self.fault_size,
-                "fault_times_s": list(self.fault_times),
-                "fault_variants": [list(v) for v in self.fault_variants],
-                "warmup_s": self.warmup_s,
-                "overrides": {v: {"mode": VARIANTS[v].mode, **VARIANTS[v].overrides(),
-                                  "what": VARIANTS[v].what} for v in used}}
-
-    def cells(self) -> list[Cell]:
-        """Every cell, in run order: sizes ascending with every main variant, the ablations,
-        the fault runs' baselines (if their size is not among the sizes), then the faults."""
-        out = [Cell(v, n, "", f"{v}-n{n}") for n in self.sizes for v in self.variants]
-        labels = {c.label for c in out}
-        if self.ablations and self.ablation_size is not None:
-            out += [Cell(v, self.ablation_size, "", f"{v}-n{self.ablation_size}", "ablation")
-                    for v in self.ablations if f"{v}-n{self.ablation_size}" not in labels]
-        labels = {c.label for c in out}
-        if self.faults:
-            out += [Cell(v, self.fault_size, "", f"{v}-n{self.fault_size}")
-                    for v in self.variants if f"{v}-n{self.fault_size}" not in labels]
-        for k, (spec, variants) in enumerate(zip(self.faults, self.fault_variants, strict=True),
-                                             start=1):
-            out += [Cell(v, self.fault_size, spec, f"{v}-n{self.fault_size}-f{k}", "fault")
-                    for v in variants]
-        return out
-
-    def runs_in_order(self) -> list[tuple[Cell, int]]:
-        """Every (cell, seed) run, in the plan's order: block by block (each size of the main
-        variants, the ablations, each fault spec), seed by seed within a block, every variant
-        of the block for one seed before the next seed, so that a sweep cut short leaves pairs
-        (the same seed in every variant) rather than whole cells of one variant."""
-        cells = self.cells()
-        role = {"main": 0, "ablation": 1, "fault": 2}
-
-        def block(c: Cell) -> tuple:
-            return (role[c.role], c.size if c.role == "main" else 0, c.fault)
-
-        order = sorted(((c, self.seed + r) for c in cells for r in range(self.runs)),
-                       key=lambda cs: (block(cs[0]), cs[1], cells.index(cs[0])))
-        return order
-
-
-@dataclass(frozen=True)
 class ExperimentConfig:
     """The validated flags: the plan and how to run it."""
 
@@ -291,29 +168,6 @@ class ExperimentConfig:
     shard: tuple[int, int]
     processes: str | int | None
     swarm_up: Path
-
-
-def plan_from_settings(settings: dict) -> Plan:
-    """A :class:`Plan` back from :meth:`Plan.settings` (``plan.json``, ``experiment.json``).
-
-    Raises:
-        InputError: a key is missing or a variant unknown.
-    """
-    try:
-        for v in (*settings["variants"], *settings["ablations"]):
-            if v not in VARIANTS:
-                raise InputError(f"unknown variant '{v}' in the records' plan")
-        return Plan(sizes=tuple(settings["sizes"]), duration_s=float(settings["duration_s"]),
-                    runs=int(settings["runs"]), seed=int(settings["seed"]),
-                    world=str(settings["world"]), variants=tuple(settings["variants"]),
-                    ablations=tuple(settings["ablations"]),
-                    ablation_size=settings["ablation_size"], faults=tuple(settings["faults"]),
-                    fault_size=settings["fault_size"],
-                    fault_times=tuple(float(t) for t in settings["fault_times_s"]),
-                    fault_variants=tuple(tuple(v) for v in settings["fault_variants"]),
-                    warmup_s=float(settings["warmup_s"]))
-    except (KeyError, TypeError, ValueError) as exc:
-        raise InputError(f"the records' plan is malformed ({exc})") from None
 
 
 def validate(args: argparse.Namespace) -> ExperimentConfig:
@@ -391,58 +245,6 @@ def _parse_spec(spec: str, size: int, duration: float):
         return parse_faults(spec, robots, duration=duration)
     except InputError as exc:
         raise InputError(f"--fault-spec: {exc}") from None
-
-
-# ------------------------------------------------------------------------------------ records
-RECORDS = "records"
-METRICS_KEPT = (
-    "robots", "world", "seed", "coordination", "sim_time_s", "wall_time_s", "rtf",
-    "tasks_completed", "goals_reached", "goals_aborted", "goals_at_another_workstation",
-    "time_to_task_mean_s", "time_to_task_median_s", "time_to_task_p95_s", "task_times_s",
-    "task_durations_s", "tasks_per_robot", "standstills", "standstill_s", "collisions",
-    "min_separation_m", "holding_time_s", "late_ticks", "goal_wait_timeouts", "late_goals",
-    "reproducible", "coordinator_wait_s", "reservation_conflicts", "coordinator_starts",
-    "cpu_percent", "peak_rss_mb_per_robot", "restarts", "faults", "fault_log", "ended_by")
-"""The metrics a record keeps (``metrics.json`` has more: per-robot details, tables)."""
-
-
-def slim_record(rec: dict, cell: Cell, seed: int, git: dict, machine: dict) -> dict:
-    """The record of one run as ``records/<cell>-s<seed>.json`` keeps it.
-
-    Args:
-        rec: :func:`swarm_bench.bench.run_swarm_up`'s record.
-        cell: its cell; seed: its seed; git, machine: where it ran.
-    """
-    m = rec.get("metrics") if isinstance(rec.get("metrics"), dict) else None
-    slim = None
-    if m is not None:
-        slim = {k: m.get(k) for k in METRICS_KEPT}
-        comm = m.get("comm") or {}
-        slim["comm"] = {k: comm.get(k) for k in ("messages", "bytes", "messages_per_s",
-                                                 "bytes_per_s", "by_topic")}
-        per = m.get("per_robot") or {}
-        slim["robot_tasks"] = [int((per.get(ns) or {}).get("tasks") or 0) for ns in sorted(
-            per, key=lambda ns: (len(ns), ns))]
-    keep = ("command", "exit_code", "error", "cpu_s", "cpu_per_robot")
-    return {"label": cell.label, "variant": cell.variant, "mode": cell.mode,
-            "size": cell.size, "fault": cell.fault, "role": cell.role, "seed": seed,
-            **{k: rec.get(k) for k in keep}, "commit": git.get("commit"),
-            "dirty": git.get("dirty"), "machine": machine, "started": rec.get("started"),
-            "finished": rec.get("finished"), "metrics": slim}
-
-
-def record_path(out: Path, label: str, seed: int) -> Path:
-    """Where the record of one run lives."""
-    return out / RECORDS / f"{label}-s{seed}.json"
-
-
-def load_record(path: Path) -> dict | None:
-    """A record file, or None if it is not one (unreadable, not JSON, no label)."""
-    try:
-        rec = json.loads(path.read_text())
-    except (OSError, ValueError):
-        return None
-    return rec if isinstance(rec, dict) and "label" in rec and "seed" in rec else None
 
 
 def nav_params_file(out: Path, variant: Variant) -> Path | None:

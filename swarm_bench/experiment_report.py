@@ -24,7 +24,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from swarm_bench.experiment import (
+from swarm_bench.experiment_plan import (
     PROG,
     RECORDS,
     VARIANTS,
