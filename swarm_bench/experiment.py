@@ -311,7 +311,7 @@ def experiment(cfg: ExperimentConfig, argv: list[str]) -> int:
             if not cfg.resume or (load_record(record_path(out, c.label, s)) or {}).get(
                 "exit_code") != EXIT_OK]
     git, machine = git_commit(), machine_info()
-    failed = False
+    failed, finished = False, 0
     with stop_on_signals() as stop:
         view = BenchView(tty=sys.stdout.isatty(), prog=PROG)
         view.say(f"{len(plan.cells())} cells x {plan.runs} runs = {len(plan.runs_in_order())} "
@@ -339,6 +339,7 @@ def experiment(cfg: ExperimentConfig, argv: list[str]) -> int:
                 rec["finished"] = datetime.datetime.now().astimezone().isoformat(
                     timespec="seconds")
                 failed |= rec["exit_code"] != EXIT_OK
+                finished += 1
                 _write_json(record_path(out, cell.label, seed),
                             slim_record(rec, cell, seed, git, machine))
         finally:
@@ -348,7 +349,8 @@ def experiment(cfg: ExperimentConfig, argv: list[str]) -> int:
     print(f"{PROG}: report: {summary['report']}", flush=True)
     print(f"{PROG}: records: {out / RECORDS} ({summary['records']} runs, "
           f"{summary['missing']} of the plan still missing)", flush=True)
-    say_outcome(PROG, stop, failed, f"{len(todo)} runs of this shard", out / "experiment.json")
+    say_outcome(PROG, stop, failed, f"{finished} runs this shard finished (their records in "
+                f"{out / RECORDS}; --resume {out} goes on)", out / "experiment.json")
     return code
 
 

@@ -182,8 +182,13 @@ def comparisons(plan: Plan, figs: dict) -> list[dict]:
             pairs.append((f"{plan.variants[0]}-n{n}", f"{plan.variants[1]}-n{n}", n, "main", ""))
     if plan.ablation_size is not None:
         n = plan.ablation_size
-        for a, b, what in (*ABLATION_PAIRS, GAP):
-            pairs.append((f"{a}-n{n}", f"{b}-n{n}", n, "ablation", what))
+        steps = [(f"{a}-n{n}", f"{b}-n{n}", n, "ablation", what)
+                 for a, b, what in ABLATION_PAIRS]
+        if any(x in figs and y in figs for x, y, *_ in steps):
+            pairs += steps
+            gap = (f"{GAP[0]}-n{n}", f"{GAP[1]}-n{n}")
+            if not any(p[:2] == gap for p in pairs):  # else the main pair at n is the gap
+                pairs.append((*gap, n, "ablation", GAP[2]))
     for a, b, n, role, what in pairs:
         if a not in figs or b not in figs:
             continue
@@ -641,7 +646,11 @@ def _stats_table(stats: list[dict], role: str, title: str, measure: str | None) 
 def _shares(stats: list[dict]) -> list[str]:
     """The ablation chain's steps as shares of the whole gap (they add up to it)."""
     rows = {r["what"]: r for r in stats if r["role"] == "ablation" and r["measure"] == PRIMARY}
-    gap = rows.get(GAP[2])
+    steps_n = {r["size"] for r in rows.values()}
+    gap = rows.get(GAP[2]) or next(
+        (r for r in stats if r["role"] == "main" and r["measure"] == PRIMARY
+         and r["size"] in steps_n and (r["a"].rsplit("-n", 1)[0], r["b"].rsplit("-n", 1)[0])
+         == GAP[:2]), None)
     steps = [rows.get(what) for _, _, what in ABLATION_PAIRS]
     if gap is None or gap["diff"] in (None, 0) or any(r is None or r["diff"] is None
                                                       for r in steps):
