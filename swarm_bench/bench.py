@@ -250,20 +250,16 @@ def machine_info() -> dict:
     average now."""
     from importlib import metadata
 
-    rclpy_version = None
-    for dist in ("ros-jazzy-rclpy", "rclpy"):
-        try:
-            rclpy_version = metadata.version(dist)
-            break
-        except metadata.PackageNotFoundError:
-            continue
-    fastdds = None
-    for dist in ("ros-fastrtps", "fastdds"):
-        try:
-            fastdds = metadata.version(dist)
-            break
-        except metadata.PackageNotFoundError:
-            continue
+    def version(*dists: str) -> str | None:
+        for dist in dists:
+            try:
+                return metadata.version(dist)
+            except metadata.PackageNotFoundError:
+                continue
+        return None
+
+    rclpy_version = version("ros-jazzy-rclpy", "rclpy")
+    fastdds = version("ros-fastrtps", "fastdds")
     cpu_model = None
     try:
         with open("/proc/cpuinfo") as f:
