@@ -118,17 +118,22 @@ each robot's suffixes."""
 def recorder_subscriptions(robots, selected) -> tuple[RecordedTopic, ...]:
     """The topics the recorder subscribes to: the ``selected`` ones but ``/tf``, which it builds
     from every robot's ``odom`` and ``ground_truth`` (subscribed to as well when ``/tf`` is
-    selected).
+    selected), and ``/clock`` whether selected or not (the log time of headerless messages; the
+    progress of :data:`swarm_common.topics.RECORD_PROGRESS`).
 
     Args:
         robots: namespaces without ``/``.
         selected: the :class:`RecordedTopic` to write (:func:`select_topics`).
     """
+    every = recorded_topics(robots)
     wanted = {t.name: t for t in selected if t.name != TF_TOPIC}
     if any(t.name == TF_TOPIC for t in selected):
-        for t in recorded_topics(robots):
+        for t in every:
             if t.name.rsplit("/", 1)[-1] in TF_SOURCES:
                 wanted.setdefault(t.name, t)
+    for t in every:  # always: the log time of headerless messages, the record window's progress
+        if t.name == topics.CLOCK.name:
+            wanted.setdefault(t.name, t)
     return tuple(wanted.values())
 
 

@@ -7,10 +7,13 @@ the topics of :func:`swarm_record.mcap_format.recorded_topics` that ``--topics``
 writes them with :class:`~swarm_record.mcap_format.McapRecording`; ``/tf`` is built from each
 robot's ``odom`` and ``ground_truth`` (:class:`~swarm_record.mcap_format.TfBuilder`).
 
-Nothing is lost under ``--rtf 0``, although the simulator's lockstep does not wait for the
-recorder: every subscription keeps up to :data:`QUEUE_DEPTH` messages, and Fast DDS delivers into
-that queue from its own threads, so a recorder whose Python thread falls behind catches up from
-its queue instead of dropping.  Log and publish times are simulated time (as ``ros2 bag record
+Nothing is lost under ``--rtf 0``, whatever stalls the recorder: every subscription keeps up
+to :data:`QUEUE_DEPTH` messages, and the recorder republishes each ``/clock`` it has taken on
+``/swarm/record/progress`` (:data:`swarm_common.topics.RECORD_PROGRESS`), by which the
+simulator holds a tick while the recorder is more than two ticks behind, so the transport never
+holds more than two ticks' messages for it (no queue overflows).
+
+Log and publish times are simulated time (as ``ros2 bag record
 --use-sim-time``): a message's ``header.stamp`` when it has one (the value itself for
 ``/clock``), else the latest ``/clock``.
 
@@ -106,8 +109,9 @@ def make_node(recording: rec.McapRecording, robots, selected, tf: rec.TfBuilder 
         tf: builds ``/tf`` when it is selected, else None.
     """
     from rclpy.node import Node
+    from rosgraph_msgs.msg import Clock
 
-    from swarm_ros.qos import message_class, profile
+    from swarm_ros.qos import message_class, profile, publisher
 
     class RecorderNode(Node):
         def __init__(self):
@@ -115,6 +119,7 @@ def make_node(recording: rec.McapRecording, robots, selected, tf: rec.TfBuilder 
             # state
             self.clock_ns = 0
             self.recording = recording
+            self.progress_pub = publisher(self, Clock, topics.RECORD_PROGRESS)
             self._tf_topic = next((t for t in selected if t.name == rec.TF_TOPIC), None)
             # subscriptions
             self.subs = []
@@ -175,6 +180,8 @@ def make_node(recording: rec.McapRecording, robots, selected, tf: rec.TfBuilder 
                     if name not in self.recording.channels:
                         self._register(topic)
                     self.recording.write(name, t_ns, data)
+                if is_clock:
+                    self.progress_pub.publish(data)  # the same CDR bytes: a Clock
                 if feed is not None:
                     out = feed(ns, data)
                     if out is not None:

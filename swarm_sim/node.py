@@ -95,6 +95,10 @@ class SimSettings:
             topics it waits for: those discovered so far are not all of them while discovery
             runs (``swarm-up`` passes the recorder's count,
             :func:`swarm_record.mcap_format.simulator_readers`) [-].
+        record_window: hold each tick until the recorder's ``/swarm/record/progress`` is at
+            most this many ticks behind (``swarm-up --record`` passes
+            :data:`swarm_common.topics.RECORD_WINDOW_TICKS`), or 0 for never; not waited for
+            once the progress has no writer (the recorder is gone) [ticks].
         gui: open PyBullet's window.
         faults: the ``--faults`` SPEC (inline syntax or YAML path, :mod:`swarm_common.faults`),
             or None.
@@ -114,6 +118,7 @@ class SimSettings:
     wait_for: int = 0  # [robots]
     wait_for_reader: str | None = None
     reader_subscriptions: int = 1  # [subscriptions]
+    record_window: int = 0  # [ticks]
     gui: bool = False
     faults: str | None = None
 
@@ -220,6 +225,12 @@ class SimulatorNode(Node):
                 self, TwistStamped, topics.CMD_VEL, lambda buf, i=i: self._on_cmd_vel(i, buf),
                 ns, topics.CMD_VEL_READER_QOS, raw=True))  # read with swarm_common.cdr
         subscription(self, DiagnosticStatus, topics.SUPERVISION, self._on_supervision)
+        self.recorded_ns = -1  # the latest /clock the recorder has taken (RECORD_PROGRESS)
+        self._record_window = settings.record_window
+        self._progress_sub = None
+        if self._record_window:
+            self._progress_sub = subscription(self, Clock, topics.RECORD_PROGRESS,
+                                              self._on_record_progress)
         if self.faults is not None:
             # transient local (as swarm-up's writers): an acknowledgement sent before this
             # reader matched its writer comes from the writer's history, not lost
@@ -311,6 +322,34 @@ class SimulatorNode(Node):
         self._publish_events([self._status(name, i, message)])
 
     # -- faults (swarm_sim.faults, docs/ARCHITECTURE.md "Faults") ------------------------------
+
+    def _on_record_progress(self, msg: Clock) -> None:
+        self.recorded_ns = max(self.recorded_ns, _stamp_ns(msg.clock))
+
+    def wait_for_recorder(self, executor) -> None:
+        """The record window: hold this tick until the recorder has taken the ``/clock`` of the
+        tick ``record_window`` ticks before, however long that takes (topics.RECORD_PROGRESS:
+        a stalled recorder then loses nothing).  Not waited for once the progress topic has no
+        writer (checked every ``WRITER_CHECK_S``: the recorder is gone); a wait of
+        ``stall_report`` wall seconds is reported, and goes on."""
+        need = self.t_ns - self._record_window * self.period_ns
+        if not self._record_window or self.recorded_ns >= need:
+            return
+        since = time.monotonic()
+        check = since + WRITER_CHECK_S
+        reported = 0
+        while self.recorded_ns < need and not self.stop_requested:
+            now = time.monotonic()
+            if now >= check:
+                check = now + WRITER_CHECK_S
+                if self._progress_sub.get_publisher_count() == 0:
+                    self._record_window = 0
+                    self.get_logger().warning("the recorder is gone; ticks no longer wait for it")
+                    return
+            if now - since >= (reported + 1) * self.settings.stall_report:
+                reported += 1
+                self._report_stall(now - since, "the recorder")
+            executor.spin_once(timeout_sec=0.05)
 
     def _on_supervision(self, msg: DiagnosticStatus) -> None:
         if msg.name != LOST:
@@ -597,11 +636,14 @@ class SimulatorNode(Node):
 
     def _reader_matched(self, deadline: float) -> bool:
         """Whether the ``wait_for_reader`` node has ``reader_subscriptions`` subscriptions to
-        this node's topics and all of them are matched by their publishers (True without such a
+        this node's topics and all of them are matched by their publishers, and (with a
+        ``record_window``) the recorder's progress writer is matched here (True without such a
         node, or after ``deadline``)."""
         name = self.settings.wait_for_reader
         if name is None or time.monotonic() > deadline:
             return True
+        if self._progress_sub is not None and self._progress_sub.get_publisher_count() < 1:
+            return False  # the record window's progress comes from the recorder too
         ns, _, base = name.rpartition("/")
         try:
             topics = self.get_subscriber_names_and_types_by_node(base, ns or "/")
@@ -648,6 +690,7 @@ class SimulatorNode(Node):
         while rclpy.ok() and not self.stop_requested and (end_ns is None or self.t_ns < end_ns):
             if self.faults is not None:
                 self.apply_faults(executor)
+            self.wait_for_recorder(executor)
             self.publish_tick()
             if self._rejoin:
                 self.wait_for_rejoin(executor)
@@ -765,6 +808,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--reader-subscriptions", type=cli.positive_int, default=1, metavar="K",
                    help="with --wait-for-reader: wait until NODE has K subscriptions to the "
                    "simulator's topics, all matched [1]")
+    p.add_argument("--record-window", type=cli.non_negative_int, default=0, metavar="TICKS",
+                   help="hold each tick until the recorder's /swarm/record/progress is at most "
+                   "TICKS ticks behind (swarm-up --record passes "
+                   f"{topics.RECORD_WINDOW_TICKS}); 0: never [0]")
     p.add_argument("--faults", default=None, metavar="SPEC",
                    help="inject faults at simulated times: KIND[:TARGET]@TIME[+DURATION],... "
                    "or a YAML file (kinds kill-nav, kill-robot, freeze, drop, kill-coordinator; "
@@ -787,7 +834,7 @@ def parse_settings(argv: list[str]) -> SimSettings:
         seed=a.seed, rtf=a.rtf, duration=a.duration, map_path=a.map, summary=a.summary,
         control_rate=a.control_rate, stall_report=a.stall_report, wait_for=a.wait_for,
         wait_for_reader=a.wait_for_reader, reader_subscriptions=a.reader_subscriptions,
-        gui=a.gui, faults=a.faults,
+        record_window=a.record_window, gui=a.gui, faults=a.faults,
     )
 
 

@@ -89,6 +89,7 @@ def child_specs(cfg: RunConfig):
     Returns:
         A list of :class:`swarm_up.supervisor.ChildSpec`.
     """
+    from swarm_common import topics
     from swarm_record.mcap_format import RECORDER_NODE, simulator_readers
     from swarm_up.supervisor import ChildSpec
 
@@ -118,6 +119,7 @@ def child_specs(cfg: RunConfig):
     readers = 0 if cfg.record_path is None else simulator_readers(cfg.robots, cfg.record_topics)
     if readers:  # the recorder gets the first tick on (docs/ARCHITECTURE.md)
         sim += ["--wait-for-reader", RECORDER_NODE, "--reader-subscriptions", str(readers)]
+        sim += ["--record-window", str(topics.RECORD_WINDOW_TICKS)]  # a stalled recorder
     specs = []
     if cfg.leader:  # rank 0 (or the only host): simulator, recorder, coordinator
         specs.append(ChildSpec("sim", tuple(sim), logs / "sim.log", kind="sim", restart=False,

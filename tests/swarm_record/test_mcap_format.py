@@ -269,9 +269,10 @@ def test_a_killed_writer_leaves_every_finished_chunk(tmp_path):
 
 @pytest.mark.parametrize(("pattern", "subscriptions", "simulator"), [
     (None, 15, 9),  # all but /tf; the simulator's: /clock, /map, /swarm/events, scan/odom/gt x 2
-    ("^/Srobot1/odom$|^/tf$", 4, 4),  # /tf is built from both robots' odom and ground truth
-    ("nav_status|cmd_vel", 4, 0),  # the navigators' topics only
-    ("ground_truth|events", 3, 3),
+    # /tf is built from both robots' odom and ground truth; /clock always (log times, progress)
+    ("^/Srobot1/odom$|^/tf$", 5, 5),
+    ("nav_status|cmd_vel", 5, 1),  # the navigators' topics, and /clock
+    ("ground_truth|events", 4, 4),
 ])
 def test_recorder_subscriptions_and_the_simulators_share(pattern, subscriptions, simulator):
     robots = ("Srobot1", "Srobot2")
@@ -283,8 +284,11 @@ def test_recorder_subscriptions_and_the_simulators_share(pattern, subscriptions,
 
 @pytest.mark.parametrize(("topics", "gate"), [
     (["--record-topics", "^/Srobot1/odom$|^/tf$"], ["--wait-for-reader", "swarm_recorder",
-                                                    "--reader-subscriptions", "4"]),
-    (["--record-topics", "nav_status"], []),  # nothing of the simulator's: no gate
+                                                    "--reader-subscriptions", "5",
+                                                    "--record-window", "2"]),
+    # nothing of the simulator's is written, but the recorder reads /clock: the same gate
+    (["--record-topics", "nav_status"], ["--wait-for-reader", "swarm_recorder",
+                                         "--reader-subscriptions", "1", "--record-window", "2"]),
 ])
 def test_swarm_up_tells_the_simulator_how_many_readers_to_wait_for(tmp_path, topics, gate):
     from swarm_up.args import build_parser, validate
@@ -295,4 +299,4 @@ def test_swarm_up_tells_the_simulator_how_many_readers_to_wait_for(tmp_path, top
          "--run-dir", str(tmp_path / "run")]))
     sim = next(s for s in child_specs(cfg) if s.name == "sim").argv
     at = sim.index("--wait-for-reader") if "--wait-for-reader" in sim else len(sim)
-    assert list(sim[at:at + 4]) == gate
+    assert list(sim[at:at + 6]) == gate

@@ -6,7 +6,9 @@
    tick 0) is there once per robot on ``odom``, ``ground_truth``, ``cmd_vel`` and ``/tf`` (three
    frames each), every lidar tick on ``scan``.  ``swarm-plot RUN_DIR`` draws it.
 2. ``--record-topics`` narrows the file to the matching topics.
-3. A recorder killed with SIGKILL leaves a file whose finished chunks the ``mcap`` stream reader
+3. A recorder stopped (SIGSTOP) for 2 wall seconds mid-run loses nothing: the simulator holds
+   its ticks by the record window (``/swarm/record/progress``).
+4. A recorder killed with SIGKILL leaves a file whose finished chunks the ``mcap`` stream reader
    and ``swarm-plot`` still read, without a gap.
 """
 
@@ -27,6 +29,7 @@ from mcap.stream_reader import StreamReader
 from rosbags.highlevel import AnyReader
 
 from swarm_common.robot_model import load_robot
+from swarm_record.mcap_format import RECORDER_NODE, simulator_readers
 from swarm_record.plot import read_run
 from tests.support.ros import start, stop
 from tests.test_e2e_swarm_up import EXIT_SLACK_S, READY_TIMEOUT_S, SwarmUp
@@ -158,6 +161,62 @@ def test_record_topics_narrows_the_file(tmp_path):
     assert types == {"/Srobot1/odom": "nav_msgs/msg/Odometry",
                      "/tf": "tf2_msgs/msg/TFMessage"}, diag
     assert len(msgs["/tf"]) == 2 * 29, diag  # both robots' transforms: odom and ground truth
+
+
+def test_a_stalled_recorder_loses_nothing(tmp_path):
+    """The recorder and an unpaced simulator without navigators (each tick costs the simulator
+    only its publishing); the recorder is frozen for 2 wall seconds once the ticks run. Without
+    the record window the simulator ran hundreds of ticks meanwhile, more than the transport
+    holds for a frozen reader."""
+    robots = ("Srobot1", "Srobot2", "Srobot3")
+    out = tmp_path / "stalled.mcap"
+    log = tmp_path / "record.log"
+    fh = open(log, "w")  # noqa: SIM115 - closed below
+    recorder = subprocess.Popen(
+        [sys.executable, "-m", "swarm_record.recorder", "--out", str(out), "--robots",
+         ",".join(robots)], stdout=fh, stderr=subprocess.STDOUT, start_new_session=True)
+    sim = None
+    try:
+        deadline = time.monotonic() + 60
+        while "recorder ready" not in log.read_text():
+            assert recorder.poll() is None and time.monotonic() < deadline, log.read_text()
+            time.sleep(0.1)
+        sim = start(["swarm-sim", "--swarm-size", "3", "--rtf", "0", "--duration", "60",
+                     "--summary", str(tmp_path / "sim.json"), "--wait-for-reader",
+                     RECORDER_NODE, "--reader-subscriptions",
+                     str(simulator_readers(robots, None)), "--record-window", "2"],
+                    tmp_path / "sim.log")
+        deadline = time.monotonic() + 120
+        while "subscribed to /clock last" not in log.read_text():  # the gate opens after it
+            assert time.monotonic() < deadline and sim.poll() is None, log.read_text()
+            time.sleep(0.05)
+        os.kill(recorder.pid, signal.SIGSTOP)
+        time.sleep(2.0)
+        os.kill(recorder.pid, signal.SIGCONT)
+        assert sim.wait(240) == 0, (tmp_path / "sim.log").read_text()
+        os.kill(recorder.pid, signal.SIGINT)
+        assert recorder.wait(60) == 0, log.read_text()
+    finally:
+        if recorder.poll() is None:
+            os.killpg(recorder.pid, signal.SIGCONT)
+            os.killpg(recorder.pid, signal.SIGKILL)
+            recorder.wait(10)
+        fh.close()
+        if sim is not None:
+            stop(sim)
+    ticks = json.loads((tmp_path / "sim.json").read_text())["ticks"]
+    assert ticks == 600
+    published = {k * TICK_NS for k in range(1, ticks)}
+    _, _, msgs = _read(out)
+    assert {_stamp_clock(m) for m in msgs["/clock"]} == published
+    for ns in robots:
+        for suffix in ("odom", "ground_truth"):
+            stamps = [_stamp(m) for m in msgs[f"/{ns}/{suffix}"]]
+            assert set(stamps) == published and len(stamps) == len(published), (ns, suffix)
+        # best effort, but the window keeps the transport from overflowing
+        every = round(1.0 / (load_robot("turtlebot3_waffle").lidar.rate_hz * TICK_NS * 1e-9))
+        assert {_stamp(m) for m in msgs[f"/{ns}/scan"]} == {
+            t for t in published if (t // TICK_NS) % every == 0}, ns
 
 
 def test_a_sigkilled_recorder_leaves_a_readable_file(tmp_path):

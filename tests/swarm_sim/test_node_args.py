@@ -90,12 +90,14 @@ class _Gate:
     """What ``SimulatorNode._reader_matched`` reads of its node: the reader's subscriptions
     discovered so far, and this node's publishers with their matched counts."""
 
-    def __init__(self, need, discovered, matched=1):
+    def __init__(self, need, discovered, matched=1, progress=None):
         self.settings = parse_settings(["--wait-for-reader", "swarm_recorder",
                                         "--reader-subscriptions", str(need)])
         topics = ["/clock", "/Srobot1/odom", "/Srobot1/ground_truth", "/Srobot2/odom"]
         self.publishers = [_Pub(t, matched) for t in topics]
         self.discovered = topics[:discovered]
+        # the record window's progress subscription and its matched writers, or None
+        self._progress_sub = None if progress is None else _Progress(progress)
 
     def get_subscriber_names_and_types_by_node(self, name, ns):
         assert (name, ns) == ("swarm_recorder", "/")
@@ -116,6 +118,23 @@ def test_the_gate_waits_for_every_subscription_of_the_reader(need, discovered, m
     from swarm_sim.node import SimulatorNode
 
     gate = _Gate(need, discovered, matched)
+    assert SimulatorNode._reader_matched(gate, deadline=float("inf")) is opens
+    assert SimulatorNode._reader_matched(gate, deadline=0.0) is True  # given up
+
+
+class _Progress:
+    def __init__(self, writers):
+        self.writers = writers
+
+    def get_publisher_count(self):
+        return self.writers
+
+
+@pytest.mark.parametrize(("writers", "opens"), [(0, False), (1, True)])
+def test_the_gate_waits_for_the_recorders_progress_writer(writers, opens):
+    from swarm_sim.node import SimulatorNode
+
+    gate = _Gate(3, 3, 1, progress=writers)
     assert SimulatorNode._reader_matched(gate, deadline=float("inf")) is opens
     assert SimulatorNode._reader_matched(gate, deadline=0.0) is True  # given up
 
