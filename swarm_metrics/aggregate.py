@@ -192,6 +192,8 @@ class RunRecorder:
     collision_events: dict[str, int] = field(default_factory=lambda: {"robot_robot": 0,
                                                                       "robot_wall": 0})
     fault_events: int = 0  # the simulator's "stopped answering" / "answers again" events
+    # every collision event in order: robot, other, kind, x, y [m], t [s] simulated
+    collision_log: list[dict] = field(default_factory=list)
     fault_log: list[FaultEvent] = field(default_factory=list)  # injected faults, in order
     spawn_events: int = 0
     period_s: float = 0.1  # [s] the control tick (late goals)
@@ -284,6 +286,10 @@ class RunRecorder:
         rec = self.per_robot.get(robot)
         if kind == "collision":
             other = values.get("other", "").strip().lstrip("/")
+            self.collision_log.append({
+                "robot": robot, "other": other, "kind": values.get("kind", ""),
+                "x": _float(values.get("x")) or 0.0, "y": _float(values.get("y")) or 0.0,
+                "t": _float(values.get("t")) or 0.0})
             if other in self.per_robot:
                 self.collision_events["robot_robot"] += 1
                 self.per_robot[other].collisions += 1

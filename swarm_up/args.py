@@ -44,6 +44,7 @@ MAX_PARTICIPANTS_PER_HOST = 120
 DEFAULT_READY_TIMEOUT_S = 120.0
 RECORD_IN_RUN_DIR = Path("recording.mcap")  # --record without a path: in the run directory
 DEFAULT_DASHBOARD_PORT = 8080
+DEFAULT_FOXGLOVE_PORT = 8765  # Foxglove's default for its WebSocket protocol
 DEFAULT_SWARM_SIZE = 5  # robots, without --swarm-size or a --robot mix
 
 
@@ -125,6 +126,13 @@ def build_parser() -> argparse.ArgumentParser:
                    default=None, metavar="PORT",
                    help="serve a live web dashboard on http://127.0.0.1:PORT/ (default port "
                    f"{DEFAULT_DASHBOARD_PORT}); also publishes /swarm/markers")
+    p.add_argument("--foxglove", type=cli.port, nargs="?", const=DEFAULT_FOXGLOVE_PORT,
+                   default=None, metavar="PORT",
+                   help="serve the run live to Foxglove or Lichtblick over the Foxglove "
+                   "WebSocket protocol on ws://127.0.0.1:PORT (default port "
+                   f"{DEFAULT_FOXGLOVE_PORT}): map, robots, scans, plans, workstations, "
+                   "collisions, nav_status, simulated clock; goals published on "
+                   "/<ns>/goal_pose drive that robot (docs/guides/foxglove.md)")
     p.add_argument("--markers", action="store_true",
                    help="publish /swarm/markers (visualization_msgs/MarkerArray in map) for "
                    "RViz2 or Foxglove")
@@ -389,6 +397,12 @@ def validate(args: argparse.Namespace) -> RunConfig:
         from swarm_viz.server import check_port
 
         check_port(args.dashboard)
+    if args.foxglove is not None:
+        from swarm_viz.server import check_port
+
+        if args.foxglove == args.dashboard:
+            raise InputError(f"--foxglove: port {args.foxglove} is --dashboard's")
+        check_port(args.foxglove, flag="--foxglove")
     if args.metrics is not None:
         parent = args.metrics.expanduser().resolve().parent
         if not parent.is_dir():
@@ -453,6 +467,7 @@ def validate(args: argparse.Namespace) -> RunConfig:
         record_path=record_path,
         record_topics=args.record_topics,
         dashboard_port=args.dashboard,
+        foxglove_port=args.foxglove,
         markers=args.markers or args.dashboard is not None,
         fleet=fleet,
         hosts=args.hosts,

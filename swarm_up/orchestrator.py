@@ -73,7 +73,7 @@ class Orchestrator:
         self.t0 = time.monotonic()
         self.listener = MetricsListener(cfg.robots, self.t0)
         self.live = None  # the dashboard and /swarm/markers (swarm_viz.server)
-        if cfg.markers or cfg.dashboard_port is not None:
+        if cfg.markers or cfg.dashboard_port is not None or cfg.foxglove_port is not None:
             from swarm_viz.server import LiveView
 
             self.live = LiveView(cfg, self.listener)
@@ -122,6 +122,9 @@ class Orchestrator:
             url = self.live.start()
             if url is not None:
                 say(f"dashboard: {url}")
+            if self.live.foxglove is not None:
+                say(f"foxglove: {self.live.foxglove.url} (Foxglove or Lichtblick: Open "
+                    "connection, Foxglove WebSocket)")
         for spec in self.specs:
             try:
                 self.sup.start(spec)

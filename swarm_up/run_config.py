@@ -44,6 +44,8 @@ class RunConfig:
         record_path: ``--record`` MCAP file (None: no recording).
         record_topics: ``--record-topics`` regular expression (None: every topic).
         dashboard_port: serve the dashboard on this port of 127.0.0.1 (None: no dashboard).
+        foxglove_port: serve the Foxglove WebSocket protocol on this port of 127.0.0.1
+            (None: no Foxglove server; :mod:`swarm_viz.foxglove_view`).
         markers: publish ``/swarm/markers`` (also on with the dashboard).
         fleet: the model of every robot (name or absolute path), index-aligned with
             ``robots`` (:func:`swarm_common.fleet.fleet_models`); empty: every robot is
@@ -83,6 +85,7 @@ class RunConfig:
     record_path: Path | None = None
     record_topics: str | None = None
     dashboard_port: int | None = None
+    foxglove_port: int | None = None
     markers: bool = False
     fleet: tuple[str, ...] = ()
     hosts: int = 1

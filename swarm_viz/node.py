@@ -27,6 +27,7 @@ subscriber.
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from collections.abc import Iterable
@@ -78,6 +79,7 @@ class FleetNode(Node):
         self.malformed = 0
         self.markers_published = 0
         self._scan_subs: dict[int, object] = {}
+        self._goal_pubs: dict[str, object] = {}  # ns -> goal_pose publisher (live viewers')
         # the poses and plans, subscribed to while someone looks (demand)
         self._input_subs: list = []
         self._browsers = 0
@@ -182,6 +184,23 @@ class FleetNode(Node):
     def watched(self) -> frozenset[int]:
         """The robots whose scans are subscribed to."""
         return frozenset(self._scan_subs)
+
+    def publish_goal(self, ns: str, x: float, y: float, yaw: float, frame: str = "map") -> None:
+        """Publish a goal on ``/<ns>/goal_pose`` (a live viewer's; spin thread only): the
+        navigator drives there, stamped with the latest simulated time it knows."""
+        from geometry_msgs.msg import PoseStamped
+
+        pub = self._goal_pubs.get(ns)
+        if pub is None:
+            pub = self._goal_pubs[ns] = publisher(self, PoseStamped, topics.GOAL_POSE, ns)
+        msg = PoseStamped()
+        msg.header.frame_id = frame
+        with self.lock:
+            t_ns = int(self.fleet.pose_stamp_ns.max()) if len(self.fleet.robots) else 0
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(t_ns, 1_000_000_000)
+        msg.pose.position.x, msg.pose.position.y = float(x), float(y)
+        msg.pose.orientation.z, msg.pose.orientation.w = math.sin(yaw / 2), math.cos(yaw / 2)
+        pub.publish(msg)
 
     # -- outputs -------------------------------------------------------------------------------
     def workstation_states(self) -> tuple[list[str], list[int]]:

@@ -59,11 +59,11 @@ DEFAULT_PORT = 8080
 SEND_TIMEOUT_S = 5.0  # a browser that takes longer to take one message is dropped [s]
 
 
-def check_port(port: int, host: str = HOST) -> None:
-    """Check that ``host:port`` can be listened on now (``--dashboard`` validation).
+def check_port(port: int, host: str = HOST, flag: str = "--dashboard") -> None:
+    """Check that ``host:port`` can be listened on now (``flag``'s validation).
 
     Raises:
-        InputError: the port is taken or not allowed (one line naming ``--dashboard``).
+        InputError: the port is taken or not allowed (one line naming ``flag``).
     """
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
         s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
@@ -72,7 +72,7 @@ def check_port(port: int, host: str = HOST) -> None:
         except OSError as exc:
             why = {errno.EADDRINUSE: "is in use", errno.EACCES: "needs privileges"}.get(
                 exc.errno, f"cannot be used ({exc.strerror})")
-            raise InputError(f"--dashboard: port {port} on {host} {why}") from None
+            raise InputError(f"{flag}: port {port} on {host} {why}") from None
 
 
 def map_png(occ) -> tuple[bytes, dict]:
@@ -388,10 +388,11 @@ class DashboardServer:
 
 
 class LiveView:
-    """The dashboard and/or ``/swarm/markers`` of one ``swarm-up`` run.
+    """The dashboard, the Foxglove server and/or ``/swarm/markers`` of one ``swarm-up`` run.
 
     Args:
-        cfg: the run (:class:`swarm_up.args.RunConfig`; ``dashboard_port``, ``markers``).
+        cfg: the run (:class:`swarm_up.args.RunConfig`; ``dashboard_port``, ``foxglove_port``,
+            ``markers``).
         listener: the run's :class:`swarm_metrics.listener.MetricsListener`, not started yet.
         view: the view's settings.
     """
@@ -417,9 +418,24 @@ class LiveView:
         self.workstations = poi.workstations if poi is not None else ()
         self.node = None
         self.server = None
+        self.foxglove = None
+        self._demand = {"dashboard": 0, "foxglove": 0}
         listener.attach(self._make_node, on_status=self._on_status)
+        occ = load_map(cfg.map_path) if (cfg.dashboard_port is not None
+                                          or cfg.foxglove_port is not None) else None
+        if getattr(cfg, "foxglove_port", None) is not None:
+            from swarm_viz.foxglove_view import FoxgloveView
+
+            self.foxglove = FoxgloveView(
+                fleet=self.fleet, fleet_lock=self.lock, recorder=listener.recorder,
+                recorder_lock=listener.lock, occ=occ, workstations=self.workstations,
+                footprint=self.footprint, lidar_pose=self.lidar_pose,
+                ws_states=self._ws_states, on_demand=self._on_foxglove_demand,
+                on_watch=self._on_foxglove_watch, on_goal=self._on_goal,
+                port=cfg.foxglove_port, cfg=view)
+        self._watch = {"dashboard": frozenset(), "foxglove": frozenset()}
         if cfg.dashboard_port is not None:
-            png, info = map_png(load_map(cfg.map_path))
+            png, info = map_png(occ)
             hello = {"world": cfg.world_name, "robots": cfg.robots,
                      "footprint": robots[0].footprint,
                      "footprints": self.footprint if mixed else None,
@@ -428,7 +444,8 @@ class LiveView:
             self.server = DashboardServer(
                 fleet=self.fleet, fleet_lock=self.lock, recorder=listener.recorder,
                 recorder_lock=listener.lock, hello=hello, png=png,
-                ws_states=self._ws_states, on_watch=self._on_watch, on_demand=self._on_demand,
+                ws_states=self._ws_states, on_watch=self._on_watch,
+                on_demand=self._on_dashboard_demand,
                 lidar_pose=self.lidar_pose, port=cfg.dashboard_port, cfg=view)
 
     def _make_node(self, context):
@@ -448,11 +465,29 @@ class LiveView:
             return ["free"] * len(self.workstations), []
         return self.node.workstation_states()
 
-    def _on_watch(self, indices: frozenset[int]) -> None:
-        self.listener.call_soon(lambda: self.node is not None and self.node.watch(indices))
+    def _on_watch(self, indices: frozenset[int], who: str = "dashboard") -> None:
+        self._watch[who] = frozenset(indices)
+        both = self._watch["dashboard"] | self._watch["foxglove"]
+        self.listener.call_soon(lambda: self.node is not None and self.node.watch(both))
 
-    def _on_demand(self, browsers: int | None) -> None:
-        self.listener.call_soon(lambda: self.node is not None and self.node.demand(browsers))
+    def _on_foxglove_watch(self, indices: frozenset[int]) -> None:
+        self._on_watch(indices, "foxglove")
+
+    def _on_dashboard_demand(self, browsers: int | None) -> None:
+        if browsers is not None:
+            self._demand["dashboard"] = browsers
+        self._on_demand(None if browsers is None else sum(self._demand.values()))
+
+    def _on_foxglove_demand(self, clients: int) -> None:
+        self._demand["foxglove"] = clients
+        self._on_demand(sum(self._demand.values()))
+
+    def _on_demand(self, viewers: int | None) -> None:
+        self.listener.call_soon(lambda: self.node is not None and self.node.demand(viewers))
+
+    def _on_goal(self, ns: str, x: float, y: float, yaw: float, frame: str) -> None:
+        self.listener.call_soon(
+            lambda: self.node is not None and self.node.publish_goal(ns, x, y, yaw, frame))
 
     def start(self) -> str | None:
         """Start the web server (after the listener started); returns its URL, or None.
@@ -460,12 +495,20 @@ class LiveView:
         Raises:
             InputError: the port cannot be listened on.
         """
+        if self.foxglove is not None:
+            try:
+                self.foxglove.start()
+            except (OSError, RuntimeError) as exc:
+                raise InputError(f"--foxglove: port {self.foxglove.port} on {HOST} cannot be "
+                                 f"used ({exc})") from None
         if self.server is None:
             return None
         self.server.start()
         return self.server.url
 
     def stop(self) -> None:
-        """Stop the web server (the node stops with the listener)."""
+        """Stop the web server and the Foxglove server (the node stops with the listener)."""
         if self.server is not None:
             self.server.stop()
+        if self.foxglove is not None:
+            self.foxglove.stop()
