@@ -74,3 +74,34 @@ def test_a_goal_on_a_robots_goal_pose_channel_is_handed_on():
     view._message(3, 1, b"{")  # malformed: counted, dropped
     assert calls == [("goal", ("Srobot2", 1.0, 2.0, 0.0, "map"))]
     assert (view.goals_published, view.malformed_goals) == (1, 1)
+
+
+def test_the_layout_file_shows_only_what_the_server_serves():
+    """docs/foxglove_layout.json: every topic and field its panels name is a channel of a
+    running server (on a free port, no ROS) and a field of that channel's schema."""
+    from swarm_common.paths import ROOT
+    from swarm_viz.foxglove_view import KPI_SCHEMA, NAV_STATUS_SCHEMA
+
+    layout = json.loads((ROOT / "docs" / "foxglove_layout.json").read_text())
+    panels = layout["configById"]
+    used = set(panels["3D!swarm"]["topics"])
+    paths = [p["value"] for p in panels["Plot!tasks"]["paths"]]
+    paths += [p["value"] for p in panels["StateTransitions!robot"]["paths"]]
+    used |= {p.split(".")[0] for p in paths}
+    used |= {panels["RawMessages!status"]["topicPath"], panels["Log!collisions"]["topicToRender"]}
+    view = _view([])
+    view.workstations = ()
+    view.start()
+    try:
+        served = {c.topic() for c in (view.ch_map, view.ch_tf, view.ch_poses, view.ch_footprints,
+                                      view.ch_plans, view.ch_ws, view.ch_events, view.ch_log,
+                                      view.ch_kpi, *view.ch_scans, *view.ch_status)}
+        assert view.port > 0
+    finally:
+        view.stop()
+    assert used <= served, used - served
+    fields = {"/swarm/kpi": KPI_SCHEMA[1]["properties"],
+              "/Srobot1/nav_status": NAV_STATUS_SCHEMA[1]["properties"]}
+    for path in paths:
+        topic, field = path.split(".", 1)
+        assert field in fields[topic], path
