@@ -7,15 +7,14 @@ the topics of :func:`swarm_record.mcap_format.recorded_topics` that ``--topics``
 writes them with :class:`~swarm_record.mcap_format.McapRecording`; ``/tf`` is built from each
 robot's ``odom`` and ``ground_truth`` (:class:`~swarm_record.mcap_format.TfBuilder`).
 
-Nothing is lost under ``--rtf 0``, whatever stalls the recorder: every subscription keeps up
-to :data:`QUEUE_DEPTH` messages, and the recorder republishes each ``/clock`` it has taken on
-``/swarm/record/progress`` (:data:`swarm_common.topics.RECORD_PROGRESS`), by which the
-simulator holds a tick while the recorder is more than two ticks behind, so the transport never
-holds more than two ticks' messages for it (no queue overflows).
-
-Log and publish times are simulated time (as ``ros2 bag record
---use-sim-time``): a message's ``header.stamp`` when it has one (the value itself for
-``/clock``), else the latest ``/clock``.
+No message of a reliable topic is lost under ``--rtf 0``, whatever stalls the recorder: every
+subscription keeps up to :data:`QUEUE_DEPTH` messages, and the recorder republishes each
+``/clock`` it has taken on ``/swarm/record/progress``
+(:data:`swarm_common.topics.RECORD_PROGRESS`), by which the simulator holds a tick while the
+recorder is more than two ticks behind, so the transport never holds more than two ticks'
+messages for it.  Scans are best effort, as the simulator publishes them.  Log and publish
+times are simulated time (as ``ros2 bag record --use-sim-time``): a message's ``header.stamp``
+when it has one (the value itself for ``/clock``), else the latest ``/clock``.
 
 The simulator's start gate holds the first tick until the recorder's subscriptions to its topics
 are matched; it sees only its writers' side of each match, so one of those subscriptions is made

@@ -421,9 +421,10 @@ class LiveView:
         self.foxglove = None
         self._demand = {"dashboard": 0, "foxglove": 0}
         listener.attach(self._make_node, on_status=self._on_status)
+        foxglove_port = getattr(cfg, "foxglove_port", None)
         occ = load_map(cfg.map_path) if (cfg.dashboard_port is not None
-                                          or cfg.foxglove_port is not None) else None
-        if getattr(cfg, "foxglove_port", None) is not None:
+                                          or foxglove_port is not None) else None
+        if foxglove_port is not None:
             from swarm_viz.foxglove_view import FoxgloveView
 
             self.foxglove = FoxgloveView(
@@ -432,7 +433,7 @@ class LiveView:
                 footprint=self.footprint, lidar_pose=self.lidar_pose,
                 ws_states=self._ws_states, on_demand=self._on_foxglove_demand,
                 on_watch=self._on_foxglove_watch, on_goal=self._on_goal,
-                port=cfg.foxglove_port, cfg=view)
+                port=foxglove_port, cfg=view)
         self._watch = {"dashboard": frozenset(), "foxglove": frozenset()}
         if cfg.dashboard_port is not None:
             png, info = map_png(occ)

@@ -48,6 +48,8 @@ BAD = [
     (["--dashboard", "0"], "--dashboard"),
     (["--dashboard", "http"], "--dashboard"),
     (["--dashboard", "80.5"], "--dashboard"),
+    (["--foxglove", "70000"], "--foxglove"),
+    (["--foxglove", "8080", "--dashboard", "8080"], "--foxglove"),
     (["--headless", "--gui"], "--gui"),
     (["--metrics", "/nonexistent_dir_xyz/m.json"], "--metrics"),
     (["--map", "/nonexistent_dir_xyz/map.yaml"], "--map"),
@@ -78,15 +80,16 @@ def test_bad_input_exits_2_with_one_line(args, flag, tmp_path):
     assert not (tmp_path / "run").exists()  # nothing started, nothing written
 
 
-def test_dashboard_port_in_use_exits_2_with_one_line(tmp_path):
+@pytest.mark.parametrize("flag", ["--dashboard", "--foxglove"])
+def test_a_live_view_port_in_use_exits_2_with_one_line(tmp_path, flag):
     with socket.socket() as taken:
         taken.bind(("127.0.0.1", 0))
         taken.listen()
         port = taken.getsockname()[1]
-        res = _run(["--dashboard", str(port), "--run-dir", str(tmp_path / "run")], tmp_path)
+        res = _run([flag, str(port), "--run-dir", str(tmp_path / "run")], tmp_path)
     assert res.returncode == 2
     assert res.stderr.splitlines() == [
-        f"swarm-up: error: --dashboard: port {port} on 127.0.0.1 is in use"]
+        f"swarm-up: error: {flag}: port {port} on 127.0.0.1 is in use"]
     assert not (tmp_path / "run").exists()
 
 
