@@ -145,13 +145,13 @@ SUPERVISION = Topic("/swarm/supervision", "diagnostic_msgs/msg/DiagnosticStatus"
 (:mod:`swarm_common.supervision`); the simulator stops waiting for them.  Transient local on both
 sides: a word sent before the reader matched is still delivered."""
 RECORD_PROGRESS = Topic("/swarm/record/progress", "rosgraph_msgs/msg/Clock", DEFAULT,
-                        ("recorder (swarm-up --record): each /clock it has taken",),
+                        ("recorder (swarm-up --record): each tick it has in full",),
                         ("swarm_sim (the lockstep's record window)",))
-"""The latest ``/clock`` the recorder has taken.  The simulator holds a tick until the recorder
-is at most ``RECORD_WINDOW_TICKS`` (2) ticks behind: what waits for the recorder in the transport
-is at most two ticks' messages (a shared-memory port holds 512), and a ``/clock`` lost on the way
-is sent again from the writer's history (10 deep) before a newer one can push it out, whatever
-stalls the recorder."""
+"""The latest tick of which the recorder has taken ``/clock`` and every robot's ``odom`` and
+``ground_truth`` it reads (only ``/clock`` in a run with faults).  The simulator holds a tick
+until the recorder is at most ``RECORD_WINDOW_TICKS`` (2) ticks behind: a message lost on the
+way is sent again from its writer's history (10 deep) before newer ones can push it out,
+whatever stalls the recorder."""
 RECORD_WINDOW_TICKS = 2  # [ticks] swarm-up --record passes it as swarm-sim --record-window
 RUN = Topic("/swarm/run", "std_msgs/msg/String", LATCHED,
             ("swarm-up of rank 0 (--hosts)",), ("swarm-up of every other rank",))

@@ -111,6 +111,51 @@ TF_SOURCES = (topics.ODOM.name, topics.GROUND_TRUTH.name)
 """The robot topics (suffixes) the recorder builds ``/tf`` from."""
 SIMULATOR_TOPICS = (topics.CLOCK.name, topics.MAP.name, topics.EVENTS.name)
 SIMULATOR_ROBOT_TOPICS = (topics.SCAN.name, topics.ODOM.name, topics.GROUND_TRUTH.name)
+EVERY_TICK_ROBOT_TOPICS = (topics.ODOM.name, topics.GROUND_TRUTH.name)
+"""A robot's topics the simulator publishes once every tick (reliable): with ``/clock``, the
+streams whose progress the record window follows (:class:`TickProgress`)."""
+
+
+class TickProgress:
+    """The latest tick up to which every tracked stream has delivered: the record window's
+    progress (:data:`swarm_common.topics.RECORD_PROGRESS`), the oldest of the streams' latest
+    stamps.
+
+    Each stream delivers in order (a reliable writer), one message a tick; a copy of a stamp
+    already seen (the start gate's) counts once.  A stream that skips ticks has lost them for
+    good: they are counted in ``lost``, and the progress goes on.
+
+    Args:
+        streams: the tracked streams' names (``/clock``, ``/<ns>/odom`` ...).
+        period_ns: the tick [ns].
+    """
+
+    def __init__(self, streams, period_ns: int):
+        self.streams = tuple(streams)
+        self.period_ns = int(period_ns)
+        self.last = dict.fromkeys(self.streams, 0)  # stream -> its latest stamp [ns]
+        self.progress_ns = 0
+        self.lost = 0
+        self._behind = set(self.streams)  # the streams whose latest stamp is the progress
+
+    def on_message(self, stream: str, stamp_ns: int) -> int | None:
+        """One message of ``stream`` with ``stamp_ns``; returns the new progress [ns] when it
+        advanced, else None.  Amortised O(1): the minimum is recomputed once a tick."""
+        last = self.last.get(stream)
+        if last is None or stamp_ns <= last:
+            return None
+        if last:
+            self.lost += max(0, (stamp_ns - last) // self.period_ns - 1)
+        self.last[stream] = stamp_ns
+        self._behind.discard(stream)
+        if self._behind:
+            return None
+        progress = min(self.last.values())
+        self._behind = {k for k, v in self.last.items() if v == progress}
+        if progress <= self.progress_ns:
+            return None
+        self.progress_ns = progress
+        return progress
 """The recorded topics that ``swarm-sim`` publishes (swarm_sim/node.py): swarm-wide names, and
 each robot's suffixes."""
 

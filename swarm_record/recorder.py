@@ -7,12 +7,15 @@ the topics of :func:`swarm_record.mcap_format.recorded_topics` that ``--topics``
 writes them with :class:`~swarm_record.mcap_format.McapRecording`; ``/tf`` is built from each
 robot's ``odom`` and ``ground_truth`` (:class:`~swarm_record.mcap_format.TfBuilder`).
 
-No message of a reliable topic is lost under ``--rtf 0``, whatever stalls the recorder: every
-subscription keeps up to :data:`QUEUE_DEPTH` messages, and the recorder republishes each
-``/clock`` it has taken on ``/swarm/record/progress``
-(:data:`swarm_common.topics.RECORD_PROGRESS`), by which the simulator holds a tick while the
-recorder is more than two ticks behind, so the transport never holds more than two ticks'
-messages for it.  Scans are best effort, as the simulator publishes them.  Log and publish
+No message of ``/clock``, ``odom`` or ``ground_truth`` is lost under ``--rtf 0``, whatever
+stalls the recorder: every subscription keeps up to :data:`QUEUE_DEPTH` messages, and the
+recorder publishes on ``/swarm/record/progress`` (:data:`swarm_common.topics.RECORD_PROGRESS`)
+the latest tick of which all of them have come (:class:`~swarm_record.mcap_format.TickProgress`),
+by which the simulator holds a tick while the recorder is more than two ticks behind: the
+writers keep 10, so a message lost on the way (a frozen reader's shared-memory port is reset
+after a second) is sent again from its writer's history before newer ones push it out.  With
+faults (``--progress clock``), a muted robot skips ticks and the window follows ``/clock``
+alone.  Scans are best effort, as the simulator publishes them.  Log and publish
 times are simulated time (as ``ros2 bag record --use-sim-time``): a message's ``header.stamp``
 when it has one (the value itself for ``/clock``), else the latest ``/clock``.
 
@@ -75,6 +78,13 @@ def build_parser():
     p.add_argument("--chunk-size", type=cli.positive_int, default=rec.CHUNK_SIZE,
                    help="chunk size [bytes]")
     p.add_argument("--compression", choices=("zstd", "lz4", "none"), default="zstd")
+    p.add_argument("--progress", choices=("ticks", "clock"), default="ticks",
+                   help="what /swarm/record/progress follows: ticks (every /clock, odom and "
+                   "ground_truth it reads, the default) or clock (only /clock: a run with "
+                   "faults, whose muted robots skip ticks)")
+    p.add_argument("--control-rate", type=cli.positive_float, default=10.0, metavar="HZ",
+                   help="the simulator's control ticks per simulated second, to count lost "
+                   "ticks [10]")
     return p
 
 
@@ -98,7 +108,8 @@ def _subscription_qos(offered: dict) -> Qos:
     return Qos(QUEUE_DEPTH, offered["reliability"], offered["durability"])
 
 
-def make_node(recording: rec.McapRecording, robots, selected, tf: rec.TfBuilder | None):
+def make_node(recording: rec.McapRecording, robots, selected, tf: rec.TfBuilder | None,
+              progress: str = "ticks", period_ns: int = 100_000_000):
     """The recorder node (``/swarm_recorder``): raw subscriptions that write to ``recording``.
 
     Args:
@@ -106,7 +117,12 @@ def make_node(recording: rec.McapRecording, robots, selected, tf: rec.TfBuilder 
         robots: namespaces without ``/``.
         selected: the :class:`~swarm_record.mcap_format.RecordedTopic` to write.
         tf: builds ``/tf`` when it is selected, else None.
+        progress: ``ticks``: ``/swarm/record/progress`` is the latest tick of which ``/clock``
+            and every ``odom`` and ``ground_truth`` read has come
+            (:class:`~swarm_record.mcap_format.TickProgress`); ``clock``: of ``/clock`` alone.
+        period_ns: the simulator's control tick [ns].
     """
+    from builtin_interfaces.msg import Time
     from rclpy.node import Node
     from rosgraph_msgs.msg import Clock
 
@@ -124,6 +140,10 @@ def make_node(recording: rec.McapRecording, robots, selected, tf: rec.TfBuilder 
             self.subs = []
             self._from_sim = []  # the subscriptions to the simulator's topics, made so far
             wanted = rec.recorder_subscriptions(robots, selected)
+            tracked = [t.name for t in wanted if t.name == topics.CLOCK.name or (
+                progress == "ticks" and t.robot
+                and t.name.rsplit("/", 1)[-1] in rec.EVERY_TICK_ROBOT_TOPICS)]
+            self.progress = rec.TickProgress(tracked, period_ns)
             sim = [t for t in wanted if rec.from_simulator(t)]
             # The simulator's start gate waits until all of these are matched, but it sees only
             # its writers' side: a reader drops what comes before it has matched the writer on
@@ -165,6 +185,7 @@ def make_node(recording: rec.McapRecording, robots, selected, tf: rec.TfBuilder 
             if tf is not None and topic.robot and suffix in rec.TF_SOURCES:
                 feed = tf.on_odom if suffix == topics.ODOM.name else tf.on_ground_truth
             is_clock = name == topics.CLOCK.name
+            tracked = name in self.progress.last
             headerless = topic.type in _NO_HEADER
             ns = topic.robot
 
@@ -179,8 +200,11 @@ def make_node(recording: rec.McapRecording, robots, selected, tf: rec.TfBuilder 
                     if name not in self.recording.channels:
                         self._register(topic)
                     self.recording.write(name, t_ns, data)
-                if is_clock:
-                    self.progress_pub.publish(data)  # the same CDR bytes: a Clock
+                if tracked:
+                    done = self.progress.on_message(name, t_ns)
+                    if done is not None:
+                        sec, nsec = divmod(done, 1_000_000_000)
+                        self.progress_pub.publish(Clock(clock=Time(sec=sec, nanosec=nsec)))
                 if feed is not None:
                     out = feed(ns, data)
                     if out is not None:
@@ -244,7 +268,8 @@ def _record(args, robots, selected, tf) -> int:
     if meta:
         recording.add_metadata(rec.META_NAME, {k: str(v) for k, v in meta.items()})
     with node_session([], signal_handler_options=SignalHandlerOptions.NO) as nodes:
-        node = make_node(recording, robots, selected, tf)
+        node = make_node(recording, robots, selected, tf, args.progress,
+                         round(1e9 / args.control_rate))
         nodes.append(node)
         executor = EventsExecutor()
         executor.add_node(node)
@@ -267,8 +292,11 @@ def _record(args, robots, selected, tf) -> int:
             executor.shutdown()
     total = sum(recording.counts.values())
     size_mb = os.path.getsize(args.out) / 2**20
+    lost = node.progress.lost
     print(f"recorded {total} messages on {len(recording.counts)} topics to {args.out} "
-          f"({size_mb:.1f} MB; stopped: {stop['why']})", flush=True)
+          f"({size_mb:.1f} MB; stopped: {stop['why']}"
+          + (f"; {lost} ticks of /clock, odom or ground_truth lost" if lost else "") + ")",
+          flush=True)
     return 0
 
 

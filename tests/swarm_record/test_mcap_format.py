@@ -300,3 +300,17 @@ def test_swarm_up_tells_the_simulator_how_many_readers_to_wait_for(tmp_path, top
     sim = next(s for s in child_specs(cfg) if s.name == "sim").argv
     at = sim.index("--wait-for-reader") if "--wait-for-reader" in sim else len(sim)
     assert list(sim[at:at + 6]) == gate
+
+
+def test_tick_progress_is_the_oldest_streams_latest_tick_and_counts_skipped_ticks():
+    p = rec.TickProgress(["/clock", "/a/odom", "/b/odom"], 100)
+    feed = [("/clock", 100), ("/a/odom", 100), ("/b/odom", 100),  # tick 1 complete
+            ("/clock", 100),  # the start gate's copy: counted once
+            ("/clock", 200), ("/a/odom", 200), ("/b/odom", 200),
+            ("/clock", 300), ("/a/odom", 500),  # /a/odom skipped 300 and 400: lost
+            ("/b/odom", 300), ("/clock", 400), ("/b/odom", 400), ("/clock", 500),
+            ("/b/odom", 500), ("/c/odom", 600)]  # not tracked
+    got = [p.on_message(stream, t) for stream, t in feed]
+    assert got == [None, None, 100, None, None, None, 200, None, None, 300, None, 400, None,
+                   500, None]
+    assert (p.progress_ns, p.lost) == (500, 2)
