@@ -111,6 +111,9 @@ TF_SOURCES = (topics.ODOM.name, topics.GROUND_TRUTH.name)
 """The robot topics (suffixes) the recorder builds ``/tf`` from."""
 SIMULATOR_TOPICS = (topics.CLOCK.name, topics.MAP.name, topics.EVENTS.name)
 SIMULATOR_ROBOT_TOPICS = (topics.SCAN.name, topics.ODOM.name, topics.GROUND_TRUTH.name)
+"""The recorded topics that ``swarm-sim`` publishes (swarm_sim/node.py): swarm-wide names, and
+each robot's suffixes."""
+
 EVERY_TICK_ROBOT_TOPICS = (topics.ODOM.name, topics.GROUND_TRUTH.name)
 """A robot's topics the simulator publishes once every tick (reliable): with ``/clock``, the
 streams whose progress the record window follows (:class:`TickProgress`)."""
@@ -156,8 +159,6 @@ class TickProgress:
             return None
         self.progress_ns = progress
         return progress
-"""The recorded topics that ``swarm-sim`` publishes (swarm_sim/node.py): swarm-wide names, and
-each robot's suffixes."""
 
 
 def recorder_subscriptions(robots, selected) -> tuple[RecordedTopic, ...]:

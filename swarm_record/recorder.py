@@ -15,9 +15,10 @@ by which the simulator holds a tick while the recorder is more than two ticks be
 writers keep 10, so a message lost on the way (a frozen reader's shared-memory port is reset
 after a second) is sent again from its writer's history before newer ones push it out.  With
 faults (``--progress clock``), a muted robot skips ticks and the window follows ``/clock``
-alone.  Scans are best effort, as the simulator publishes them.  Log and publish
-times are simulated time (as ``ros2 bag record --use-sim-time``): a message's ``header.stamp``
-when it has one (the value itself for ``/clock``), else the latest ``/clock``.
+alone.  Scans are best effort, as the simulator publishes them.
+
+Log and publish times are simulated time (as ``ros2 bag record --use-sim-time``): a message's
+``header.stamp`` when it has one (the value itself for ``/clock``), else the latest ``/clock``.
 
 The simulator's start gate holds the first tick until the recorder's subscriptions to its topics
 are matched; it sees only its writers' side of each match, so one of those subscriptions is made
