@@ -308,7 +308,8 @@ class FoxgloveView:
             status = {i: (f.states[i], f.goals[i].copy(), dict(f.status_values[i] or {}))
                       for i in np.flatnonzero(f.status_version != self._sent_status)}
             self._sent_status[:] = f.status_version
-            ws_states, _ = self.ws_states() if self.workstations else ([], [])
+            ws_states, _ = (self.ws_states() if self.workstations and self._wanted(self.ch_ws)
+                            else ([], []))
         with self.recorder_lock:
             kpi = self.kpi.figures(self.recorder, time.monotonic())
             collisions = list(self.recorder.collision_log[self._collisions_sent:])
