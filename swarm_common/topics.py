@@ -144,14 +144,16 @@ SUPERVISION = Topic("/swarm/supervision", "diagnostic_msgs/msg/DiagnosticStatus"
 """swarm-up's supervisor names robots whose navigator process is gone
 (:mod:`swarm_common.supervision`); the simulator stops waiting for them.  Transient local on both
 sides: a word sent before the reader matched is still delivered."""
-RECORD_PROGRESS = Topic("/swarm/record/progress", "rosgraph_msgs/msg/Clock", DEFAULT,
+RECORD_PROGRESS = Topic("/swarm/record/progress", "rosgraph_msgs/msg/Clock", LATCHED,
                         ("recorder (swarm-up --record): each tick it has in full",),
                         ("swarm_sim (the lockstep's record window)",))
 """The latest tick of which the recorder has taken ``/clock`` and every robot's ``odom`` and
 ``ground_truth`` it reads (only ``/clock`` in a run with faults).  The simulator holds a tick
-until the recorder is at most ``RECORD_WINDOW_TICKS`` (2) ticks behind: a message lost on the
-way is sent again from its writer's history (10 deep) before newer ones can push it out,
-whatever stalls the recorder."""
+until the recorder is at most ``RECORD_WINDOW_TICKS`` (2) ticks behind, whatever stalls the
+recorder.  Latched (transient local, the latest tick): the recorder publishes a tick only once,
+when it has it in full, and may do so before its writer has matched the simulator's reader on its
+own side (discovery is not symmetric); the reader then still gets it from the writer's history,
+where a volatile one waited for it for ever (CI stop 44)."""
 RECORD_WINDOW_TICKS = 2  # [ticks] swarm-up --record passes it as swarm-sim --record-window
 RUN = Topic("/swarm/run", "std_msgs/msg/String", LATCHED,
             ("swarm-up of rank 0 (--hosts)",), ("swarm-up of every other rank",))

@@ -9,7 +9,9 @@
 3. A recorder stopped (SIGSTOP) for 2 wall seconds mid-run loses no ``/clock``, ``odom`` or
    ``ground_truth``: the simulator holds its ticks by the record window
    (``/swarm/record/progress``).
-4. A recorder killed with SIGKILL leaves a file whose finished chunks the ``mcap`` stream reader
+4. A simulator whose reader of the progress is matched only after the recorder has published a
+   tick still gets that tick (the progress is latched).
+5. A recorder killed with SIGKILL leaves a file whose finished chunks the ``mcap`` stream reader
    and ``swarm-plot`` still read, without a gap.
 """
 
@@ -220,6 +222,63 @@ def test_a_stalled_recorder_loses_no_tick(tmp_path):
             assert {t for t, n in stamps.items() if n > 1} <= {TICK_NS}, (ns, suffix)
     # scans are best effort: those in flight when the frozen reader's port was reset are gone
     assert "lost" not in log.read_text()  # the recorder counted no tick of its streams lost
+
+
+def test_a_simulator_that_matches_the_progress_late_still_gets_it(tmp_path):
+    """The recorder publishes a tick's progress once, when it has the tick in full; a
+    simulator whose reader its writer matches only afterwards (discovery is not symmetric) must
+    still get it, or the record window waits for ever (CI stop 44: a run held at t = 0.2 s).
+    A stand-in simulator publishes tick 1 (as the start gate does) until a first reader has
+    seen the progress; a second reader, made with the simulator's own QoS only then, gets it."""
+    from builtin_interfaces.msg import Time
+    from nav_msgs.msg import Odometry
+    from rosgraph_msgs.msg import Clock
+
+    from swarm_common import topics
+    from swarm_ros.qos import publisher, subscription
+    from tests.support.ros import ros_context, spin_until
+
+    log = tmp_path / "record.log"
+    fh = open(log, "w")  # noqa: SIM115 - closed below
+    recorder = subprocess.Popen(
+        [sys.executable, "-m", "swarm_record.recorder", "--out", str(tmp_path / "late.mcap"),
+         "--robots", "Srobot1", "--topics", "^/Srobot1/(odom|ground_truth)$"],
+        stdout=fh, stderr=subprocess.STDOUT, start_new_session=True)
+    try:
+        with ros_context() as (ctx, executor):
+            from rclpy.node import Node
+            node = Node("stand_in_sim", context=ctx)
+            executor.add_node(node)
+            stamp = Time(sec=0, nanosec=TICK_NS)
+            clock_pub = publisher(node, Clock, topics.CLOCK)
+            odom = Odometry()
+            odom.header.stamp = stamp
+            pubs = [publisher(node, Odometry, t, "Srobot1")
+                    for t in (topics.ODOM, topics.GROUND_TRUTH)]
+            first, late = [], []
+            subscription(node, Clock, topics.RECORD_PROGRESS,
+                         lambda m: first.append(_stamp_clock(m)))
+            deadline = time.monotonic() + 60
+            while TICK_NS not in first:
+                assert recorder.poll() is None and time.monotonic() < deadline, log.read_text()
+                clock_pub.publish(Clock(clock=stamp))
+                for pub in pubs:
+                    pub.publish(odom)
+                until = time.monotonic() + 0.2
+                while time.monotonic() < until:
+                    executor.spin_once(timeout_sec=0.05)
+            subscription(node, Clock, topics.RECORD_PROGRESS,
+                         lambda m: late.append(_stamp_clock(m)))
+            spin_until(executor, lambda: TICK_NS in late, 30, "the late reader's progress")
+            assert first.count(TICK_NS) == 1, first  # published once: the history delivers it
+    finally:
+        os.killpg(recorder.pid, signal.SIGINT)
+        try:
+            recorder.wait(30)
+        except subprocess.TimeoutExpired:
+            os.killpg(recorder.pid, signal.SIGKILL)
+            recorder.wait(10)
+        fh.close()
 
 
 def test_a_sigkilled_recorder_leaves_a_readable_file(tmp_path):
