@@ -65,16 +65,19 @@ STATE_COLOURS = {  # RGBA of a workstation by state
     "held": (0.8, 0.2, 0.2, 0.9),
 }
 GOAL_SCHEMA = "geometry_msgs/msg/PoseStamped"
+# JSON Schemas of one type per field (a list of types, or an object without "properties", is
+# refused by the clients' parseJsonSchema, @foxglove/mcap-support); a field not yet known is null.
 NAV_STATUS_SCHEMA = ("swarm_workbench/NavStatus", {
     "type": "object", "properties": {
-        "state": {"type": ["string", "null"], "description": "idle, driving, holding, ..."},
-        "goal": {"type": ["array", "null"], "items": {"type": "number"},
-                 "description": "x, y of the current goal in map [m]"},
-        "values": {"type": "object", "description": "the nav_status key/values"}}})
+        "state": {"type": "string", "description": "idle, driving, holding, ... (null: none yet)"},
+        "goal": {"type": "array", "items": {"type": "number"},
+                 "description": "x, y of the current goal in map [m] (null: none)"},
+        "values": {"type": "object", "properties": {},
+                   "description": "the nav_status key/values"}}})
 KPI_SCHEMA = ("swarm_workbench/Kpi", {
     "type": "object", "properties": {
-        "sim_time_s": {"type": ["number", "null"]}, "rtf": {"type": ["number", "null"]},
-        "tasks": {"type": "integer"}, "throughput_per_hour": {"type": ["number", "null"]},
+        "sim_time_s": {"type": "number"}, "rtf": {"type": "number"},
+        "tasks": {"type": "integer"}, "throughput_per_hour": {"type": "number"},
         "goals_aborted": {"type": "integer"}, "collisions": {"type": "integer"},
         "late_ticks": {"type": "integer"}, "robots": {"type": "integer"},
         "ready": {"type": "integer"}}})

@@ -105,3 +105,25 @@ def test_the_layout_file_shows_only_what_the_server_serves():
     for path in paths:
         topic, field = path.split(".", 1)
         assert field in fields[topic], path
+
+
+def _client_can_parse(schema: dict, where: str) -> None:
+    """The rules of the clients' JSON Schema reader (parseJsonSchema, @foxglove/mcap-support, as in
+    Foxglove Studio 1.48): an object has "properties"; every field has one type (a string, not a
+    list); an array has "items" of one type."""
+    assert schema.get("type") == "object" and isinstance(schema.get("properties"), dict), where
+    for name, field in schema["properties"].items():
+        assert isinstance(field.get("type"), str), f"{where}.{name}"
+        if field["type"] == "object":
+            _client_can_parse(field, f"{where}.{name}")
+        if field["type"] == "array":
+            assert isinstance(field.get("items", {}).get("type"), str), f"{where}.{name}"
+
+
+def test_json_schemas_are_ones_the_clients_read():
+    """A schema a client refuses loses its channel there ("schema:/swarm/kpi" in Foxglove
+    Studio 1.48: a list of types)."""
+    from swarm_viz.foxglove_view import KPI_SCHEMA, NAV_STATUS_SCHEMA
+
+    for name, schema in (KPI_SCHEMA, NAV_STATUS_SCHEMA):
+        _client_can_parse(schema, name)
