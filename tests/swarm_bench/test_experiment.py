@@ -389,7 +389,16 @@ def test_tiny_sweep_writes_the_report(tmp_path):
     assert "report:" in res.stdout
 
 
-@pytest.mark.parametrize("world", ["slim_blockage"])
+COMMITTED_WORLDS = sorted(
+    d.name for d in (Path(__file__).resolve().parents[2] / "docs" / "experiments").iterdir()
+    if (d / "experiment.json").is_file())
+
+
+def test_the_committed_experiments_include_the_default_world():
+    assert "slim_blockage" in COMMITTED_WORLDS
+
+
+@pytest.mark.parametrize("world", COMMITTED_WORLDS)
 def test_the_committed_report_is_rebuilt_from_its_json(world, tmp_path):
     """docs/experiments/<world>/: report.md and experiment.json are what ``swarm-experiment
     report`` makes of the committed experiment.json, byte for byte."""

@@ -24,6 +24,7 @@ import subprocess
 import sys
 import time
 from collections import Counter, defaultdict
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -65,6 +66,32 @@ def _read(path: Path):
         for conn, _t, raw in reader.messages():
             msgs[conn.topic].append(reader.deserialize(raw, conn.msgtype))
     return types, qos, msgs
+
+
+@contextmanager
+def _recorder(log: Path, *args: str, ready: bool = True):
+    """``python -m swarm_record.recorder ARGS`` in its own session, its output in ``log``;
+    waits for "recorder ready" unless ``ready`` is False. On leaving, a recorder still running
+    is stopped (SIGINT, then SIGKILL after 30 s) and reaped."""
+    fh = open(log, "w")  # noqa: SIM115 - closed below
+    proc = subprocess.Popen([sys.executable, "-m", "swarm_record.recorder", *args], stdout=fh,
+                            stderr=subprocess.STDOUT, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 60
+        while ready and "recorder ready" not in log.read_text():
+            assert proc.poll() is None and time.monotonic() < deadline, log.read_text()
+            time.sleep(0.1)
+        yield proc
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGCONT)  # a test may have left it stopped
+            os.killpg(proc.pid, signal.SIGINT)
+            try:
+                proc.wait(30)
+            except subprocess.TimeoutExpired:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait(10)
+        fh.close()
 
 
 def _stamp(msg) -> int:
@@ -175,40 +202,28 @@ def test_a_stalled_recorder_loses_no_tick(tmp_path):
     robots = ("Srobot1", "Srobot2", "Srobot3")
     out = tmp_path / "stalled.mcap"
     log = tmp_path / "record.log"
-    fh = open(log, "w")  # noqa: SIM115 - closed below
-    recorder = subprocess.Popen(
-        [sys.executable, "-m", "swarm_record.recorder", "--out", str(out), "--robots",
-         ",".join(robots), "--chunk-size", "16384"], stdout=fh, stderr=subprocess.STDOUT,
-        start_new_session=True)
     sim = None
-    try:
-        deadline = time.monotonic() + 60
-        while "recorder ready" not in log.read_text():
-            assert recorder.poll() is None and time.monotonic() < deadline, log.read_text()
-            time.sleep(0.1)
-        sim = start(["swarm-sim", "--swarm-size", "3", "--rtf", "0", "--duration", "60",
-                     "--summary", str(tmp_path / "sim.json"), "--wait-for-reader",
-                     RECORDER_NODE, "--reader-subscriptions",
-                     str(simulator_readers(robots, None)), "--record-window", "2"],
-                    tmp_path / "sim.log")
-        deadline = time.monotonic() + 120
-        while not out.exists() or out.stat().st_size < 2 * 16384:  # ticks are being recorded
-            assert time.monotonic() < deadline and sim.poll() is None, log.read_text()
-            time.sleep(0.02)
-        os.kill(recorder.pid, signal.SIGSTOP)
-        time.sleep(2.0)
-        os.kill(recorder.pid, signal.SIGCONT)
-        assert sim.wait(240) == 0, (tmp_path / "sim.log").read_text()
-        os.kill(recorder.pid, signal.SIGINT)
-        assert recorder.wait(60) == 0, log.read_text()
-    finally:
-        if recorder.poll() is None:
-            os.killpg(recorder.pid, signal.SIGCONT)
-            os.killpg(recorder.pid, signal.SIGKILL)
-            recorder.wait(10)
-        fh.close()
-        if sim is not None:
-            stop(sim)
+    with _recorder(log, "--out", str(out), "--robots", ",".join(robots),
+                   "--chunk-size", "16384") as recorder:
+        try:
+            sim = start(["swarm-sim", "--swarm-size", "3", "--rtf", "0", "--duration", "60",
+                         "--summary", str(tmp_path / "sim.json"), "--wait-for-reader",
+                         RECORDER_NODE, "--reader-subscriptions",
+                         str(simulator_readers(robots, None)), "--record-window", "2"],
+                        tmp_path / "sim.log")
+            deadline = time.monotonic() + 120
+            while not out.exists() or out.stat().st_size < 2 * 16384:  # ticks being recorded
+                assert time.monotonic() < deadline and sim.poll() is None, log.read_text()
+                time.sleep(0.02)
+            os.kill(recorder.pid, signal.SIGSTOP)
+            time.sleep(2.0)
+            os.kill(recorder.pid, signal.SIGCONT)
+            assert sim.wait(240) == 0, (tmp_path / "sim.log").read_text()
+            os.kill(recorder.pid, signal.SIGINT)
+            assert recorder.wait(60) == 0, log.read_text()
+        finally:
+            if sim is not None:
+                stop(sim)
     ticks = json.loads((tmp_path / "sim.json").read_text())["ticks"]
     assert ticks == 600
     published = {k * TICK_NS for k in range(1, ticks)}
@@ -239,79 +254,55 @@ def test_a_simulator_that_matches_the_progress_late_still_gets_it(tmp_path):
     from tests.support.ros import ros_context, spin_until
 
     log = tmp_path / "record.log"
-    fh = open(log, "w")  # noqa: SIM115 - closed below
-    recorder = subprocess.Popen(
-        [sys.executable, "-m", "swarm_record.recorder", "--out", str(tmp_path / "late.mcap"),
-         "--robots", "Srobot1", "--topics", "^/Srobot1/(odom|ground_truth)$"],
-        stdout=fh, stderr=subprocess.STDOUT, start_new_session=True)
-    try:
-        with ros_context() as (ctx, executor):
-            from rclpy.node import Node
-            node = Node("stand_in_sim", context=ctx)
-            executor.add_node(node)
-            stamp = Time(sec=0, nanosec=TICK_NS)
-            clock_pub = publisher(node, Clock, topics.CLOCK)
-            odom = Odometry()
-            odom.header.stamp = stamp
-            pubs = [publisher(node, Odometry, t, "Srobot1")
-                    for t in (topics.ODOM, topics.GROUND_TRUTH)]
-            first, late = [], []
-            subscription(node, Clock, topics.RECORD_PROGRESS,
-                         lambda m: first.append(_stamp_clock(m)))
-            deadline = time.monotonic() + 60
-            while TICK_NS not in first:
-                assert recorder.poll() is None and time.monotonic() < deadline, log.read_text()
-                clock_pub.publish(Clock(clock=stamp))
-                for pub in pubs:
-                    pub.publish(odom)
-                until = time.monotonic() + 0.2
-                while time.monotonic() < until:
-                    executor.spin_once(timeout_sec=0.05)
-            subscription(node, Clock, topics.RECORD_PROGRESS,
-                         lambda m: late.append(_stamp_clock(m)))
-            spin_until(executor, lambda: TICK_NS in late, 30, "the late reader's progress")
-            assert first.count(TICK_NS) == 1, first  # published once: the history delivers it
-    finally:
-        os.killpg(recorder.pid, signal.SIGINT)
-        try:
-            recorder.wait(30)
-        except subprocess.TimeoutExpired:
-            os.killpg(recorder.pid, signal.SIGKILL)
-            recorder.wait(10)
-        fh.close()
+    with _recorder(log, "--out", str(tmp_path / "late.mcap"), "--robots", "Srobot1",
+                   "--topics", "^/Srobot1/(odom|ground_truth)$", ready=False) as recorder, \
+            ros_context() as (ctx, executor):
+        from rclpy.node import Node
+        node = Node("stand_in_sim", context=ctx)
+        executor.add_node(node)
+        stamp = Time(sec=0, nanosec=TICK_NS)
+        clock_pub = publisher(node, Clock, topics.CLOCK)
+        odom = Odometry()
+        odom.header.stamp = stamp
+        pubs = [publisher(node, Odometry, t, "Srobot1")
+                for t in (topics.ODOM, topics.GROUND_TRUTH)]
+        first, late = [], []
+        subscription(node, Clock, topics.RECORD_PROGRESS,
+                     lambda m: first.append(_stamp_clock(m)))
+        deadline = time.monotonic() + 60
+        while TICK_NS not in first:
+            assert recorder.poll() is None and time.monotonic() < deadline, log.read_text()
+            clock_pub.publish(Clock(clock=stamp))
+            for pub in pubs:
+                pub.publish(odom)
+            until = time.monotonic() + 0.2
+            while time.monotonic() < until:
+                executor.spin_once(timeout_sec=0.05)
+        subscription(node, Clock, topics.RECORD_PROGRESS,
+                     lambda m: late.append(_stamp_clock(m)))
+        spin_until(executor, lambda: TICK_NS in late, 30, "the late reader's progress")
+        assert first.count(TICK_NS) == 1, first  # published once: the history delivers it
 
 
 def test_a_sigkilled_recorder_leaves_a_readable_file(tmp_path):
     """The recorder and a simulator alone; the recorder is killed mid-run."""
     out = tmp_path / "killed.mcap"
-    env_log = tmp_path / "record.log"
-    fh = open(env_log, "w")  # noqa: SIM115 - closed below
-    recorder = subprocess.Popen(
-        [sys.executable, "-m", "swarm_record.recorder", "--out", str(out), "--robots",
-         "Srobot1,Srobot2", "--chunk-size", "16384"],
-        stdout=fh, stderr=subprocess.STDOUT, start_new_session=True)
     sim = None
-    try:
-        deadline = time.monotonic() + 60
-        while "recorder ready" not in env_log.read_text():
-            assert recorder.poll() is None and time.monotonic() < deadline, env_log.read_text()
-            time.sleep(0.1)
-        sim = start(["swarm-sim", "--swarm-size", "2", "--rtf", "2", "--duration", "600"],
-                    tmp_path / "sim.log")
-        deadline = time.monotonic() + 120
-        while not out.exists() or out.stat().st_size < 5 * 8192:  # a few compressed chunks
-            assert time.monotonic() < deadline and sim.poll() is None, (
-                (tmp_path / "sim.log").read_text())
-            time.sleep(0.2)
-        os.kill(recorder.pid, signal.SIGKILL)
-        recorder.wait(10)
-    finally:
-        if recorder.poll() is None:
-            os.killpg(recorder.pid, signal.SIGKILL)
+    with _recorder(tmp_path / "record.log", "--out", str(out), "--robots", "Srobot1,Srobot2",
+                   "--chunk-size", "16384") as recorder:
+        try:
+            sim = start(["swarm-sim", "--swarm-size", "2", "--rtf", "2", "--duration", "600"],
+                        tmp_path / "sim.log")
+            deadline = time.monotonic() + 120
+            while not out.exists() or out.stat().st_size < 5 * 8192:  # a few compressed chunks
+                assert time.monotonic() < deadline and sim.poll() is None, (
+                    (tmp_path / "sim.log").read_text())
+                time.sleep(0.2)
+            os.kill(recorder.pid, signal.SIGKILL)
             recorder.wait(10)
-        fh.close()
-        if sim is not None:
-            stop(sim)
+        finally:
+            if sim is not None:
+                stop(sim)
     stamps = defaultdict(list)
     with open(out, "rb") as f:
         try:
