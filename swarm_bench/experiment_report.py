@@ -168,8 +168,11 @@ def horizons_of(plan: Plan) -> list[float]:
 def comparisons(plan: Plan, figs: dict) -> list[dict]:
     """Every paired comparison the report claims on, Holm-corrected together.
 
-    The family: the primary measure for the main pair at every size (and the fault size's
-    faults), every ablation pair, and the secondary measures for the main pair at every size.
+    The family: the primary measure for the main pair at every size, every ablation pair, the
+    secondary measures for the main pair at every size, and per fault: each variant's tasks
+    after the fault without it against with it (does the fault cost tasks?) and, where both
+    main variants have it, their tasks lost against each other (does it cost one mode more?).
+    Tasks lost are :func:`swarm_bench.experiment_stats.fault_effect`'s, per seed.
     """
     rows = []
     main = [v for v in ("decentralized", "centralized-scheduler") if v in plan.variants]
@@ -198,10 +201,40 @@ def comparisons(plan: Plan, figs: dict) -> list[dict]:
                         {s: f[key] for s, f in figs[b].items()})
             rows.append({"a": a, "b": b, "size": n, "role": role, "what": what,
                          "measure": key, **st})
+    rows += _fault_comparisons(plan, figs, main or list(plan.variants[:2]))
     adjusted = holm([r["p_t"] for r in rows])
     for r, p in zip(rows, adjusted, strict=True):
         r["p_holm"] = p
         r["claim"] = p is not None and p < ALPHA
+    return rows
+
+
+FAULT_AFTER = "tasks after the fault"
+FAULT_LOST = "tasks lost to the fault"
+
+
+def _fault_comparisons(plan: Plan, figs: dict, main: list[str]) -> list[dict]:
+    """The fault rows of :func:`comparisons` (role ``fault``, ``what`` the spec)."""
+    rows, n = [], plan.fault_size
+    for k, (spec, fault_s) in enumerate(zip(plan.faults, plan.fault_times, strict=True),
+                                        start=1):
+        lost = {}
+        for v in plan.variants:
+            base, hit = figs.get(f"{v}-n{n}"), figs.get(f"{v}-n{n}-f{k}")
+            if not base or not hit:
+                continue
+            after = {label: {s: float(sum(1 for t in f["task_times"] if t >= fault_s))
+                             for s, f in runs.items()}
+                     for label, runs in (("base", base), ("hit", hit))}
+            rows.append({"a": f"{v}-n{n}", "b": f"{v}-n{n}-f{k}", "size": n, "role": "fault",
+                         "what": spec, "measure": FAULT_AFTER,
+                         **paired(after["base"], after["hit"])})
+            lost[v] = {s: after["base"][s] - after["hit"][s]
+                       for s in set(base) & set(hit)}
+        if len(main) == 2 and all(v in lost for v in main):
+            rows.append({"a": f"{main[0]}-n{n}-f{k}", "b": f"{main[1]}-n{n}-f{k}", "size": n,
+                         "role": "fault", "what": spec, "measure": FAULT_LOST,
+                         **paired(lost[main[0]], lost[main[1]])})
     return rows
 
 
@@ -598,7 +631,7 @@ def build_report(plan: Plan, settings: dict, records: list[dict], summaries: lis
         lines.append(f"| {s['label']} | {s['size']} | "
                      f"{'-' if ratio is None else f'{ratio:.2f}'} |")
     lines += [""]
-    lines += _fault_section(plan, summaries, figures)
+    lines += _fault_section(plan, summaries, figures, stats)
     lines += ["## Threats to validity", "",
               "- One machine type with 2 cores; CPU and RTF figures depend on its load (other "
               "work ran beside some runs), the simulated figures do not.",
@@ -676,7 +709,8 @@ def _horizons(plan: Plan, plain: list[dict]) -> list[str]:
     return out + [""]
 
 
-def _fault_section(plan: Plan, summaries: list[dict], figures: dict) -> list[str]:
+def _fault_section(plan: Plan, summaries: list[dict], figures: dict,
+                   stats: list[dict]) -> list[str]:
     if not plan.faults:
         return []
     lines = ["## Faults", "",
@@ -703,7 +737,9 @@ def _fault_section(plan: Plan, summaries: list[dict], figures: dict) -> list[str
         if f"fault_{k}" in figures:
             lines += ["", f"![fault {k}]({figures[f'fault_{k}']})"]
         lines += [""]
-    return lines
+    return lines + _stats_table(
+        stats, "fault", "Paired tests of the faults (A: without the fault, or the first mode's "
+        "tasks lost; B: with it, or the second mode's)", None)
 
 
 def _fault_effects(plan: Plan, summaries: list[dict], figs: dict) -> dict[int, dict]:

@@ -255,6 +255,47 @@ def test_the_ablation_chain_adds_up_to_the_whole_gap(tmp_path):
     assert "instead of the hall -6 tasks/h (-25 %)" in line
 
 
+def test_faults_are_tested_paired_per_mode_and_between_the_modes(tmp_path):
+    """A dead robot at 360 s costs decentralized seed s s + 1 tasks, centralized 2 (s + 1):
+    hand-computed, tasks lost 3 and 6 on average, decentralized 3 fewer (per seed 1..5)."""
+    from swarm_bench.bench import _write_json
+    from swarm_bench.experiment_report import write_report
+
+    out = tmp_path / "a"
+    argv = ["--output", str(out), "--sizes", "20", "--no-ablations", "--fault-spec",
+            "kill-robot:3@360", "--fault-size", "20", "--warmup", "300"]
+    plan = validate(build_parser().parse_args(argv)).plan
+    (out / "records").mkdir(parents=True)
+    _write_json(out / "plan.json", {"settings": plan.settings()})
+    cost = {"decentralized": 1, "centralized-scheduler": 2}
+    for cell, seed in plan.runs_in_order():
+        rec = fake_record(cell.label, cell.variant, cell.mode, cell.size, seed, 3.0,
+                          cell.role, cell.fault)
+        if cell.fault:  # drop the first tasks after the fault
+            times = rec["metrics"]["task_times_s"]
+            drop = [t for t in times if t >= 360][:cost[cell.variant] * (seed + 1)]
+            rec["metrics"]["task_times_s"] = [t for t in times if t not in drop]
+        _write_json(record_path(out, cell.label, seed), rec)
+    write_report([out], out)
+    rows = [r for r in json.loads((out / "experiment.json").read_text())["statistics"]
+            if r["role"] == "fault"]
+    by = {(r["a"], r["measure"]): r for r in rows}
+    dec = by[("decentralized-n20", "tasks after the fault")]
+    cen = by[("centralized-scheduler-n20", "tasks after the fault")]
+    assert (dec["b"], dec["diffs"], cen["diffs"]) == (
+        "decentralized-n20-f1", [1.0, 2.0, 3.0, 4.0, 5.0], [2.0, 4.0, 6.0, 8.0, 10.0])
+    between = by[("decentralized-n20-f1", "tasks lost to the fault")]
+    assert between["b"] == "centralized-scheduler-n20-f1"
+    assert between["diffs"] == [-1.0, -2.0, -3.0, -4.0, -5.0] and between["diff"] == -3.0
+    # t = -3 / (sqrt(2.5) / sqrt(5)) = -4.243 with 4 degrees of freedom: p = 0.0132
+    assert abs(between["p_t"] - 0.0132) < 5e-4 and len(rows) == 3
+    assert all(r["p_holm"] >= r["p_t"] for r in rows)
+    report = (out / "report.md").read_text()
+    assert "### Paired tests of the faults" in report
+    assert "| decentralized-n20-f1 | centralized-scheduler-n20-f1 (kill-robot:3@360) | " \
+           "tasks lost to the fault | 5 | -3.0 ± 2.0 |" in report
+
+
 def test_shards_merge_into_one_report(tmp_path):
     from swarm_bench.experiment_report import write_report
 
