@@ -641,7 +641,7 @@ def build_report(plan: Plan, settings: dict, records: list[dict], summaries: lis
               "- The centralized policy is one reasonable scheduler (nearest free workstation "
               "of the kind, queue order for moving up, the nearest waiter for a freed "
               "workstation), not an optimal one; the decentralized navigator's parameters were "
-              "tuned on this world, the coordinator's were not.",
+              "tuned on slim_blockage (the thesis' world), the coordinator's were not tuned.",
               "- The waiting spots near the workstations are few where the world is narrow "
               "(slim_blockage: nine beside the blockage); the rest of a long queue parks in "
               "the hall.",
