@@ -165,6 +165,9 @@ def horizons_of(plan: Plan) -> list[float]:
     return [*hs, plan.duration_s]
 
 
+MIN_CLAIM_SEEDS = 5  # the protocol's seeds per cell; a comparison over fewer claims nothing
+
+
 def comparisons(plan: Plan, figs: dict) -> list[dict]:
     """Every paired comparison the report claims on, Holm-corrected together.
 
@@ -205,7 +208,7 @@ def comparisons(plan: Plan, figs: dict) -> list[dict]:
     adjusted = holm([r["p_t"] for r in rows])
     for r, p in zip(rows, adjusted, strict=True):
         r["p_holm"] = p
-        r["claim"] = p is not None and p < ALPHA
+        r["claim"] = p is not None and p < ALPHA and r["n"] >= MIN_CLAIM_SEEDS
     return rows
 
 
@@ -668,7 +671,8 @@ def _stats_table(stats: list[dict], role: str, title: str, measure: str | None) 
         digits = 0 if r["measure"] in ("throughput", "comm_bytes") else 1
         diff = _fmt({"mean": r["diff"], "ci95": r["ci95"]}, digits)
         rel = "-" if r["rel"] is None else f"{100 * r['rel']:+.0f} %"
-        claim = ("**yes**" if r["claim"] else "no") if r["n"] >= 5 else "no (< 5 seeds)"
+        claim = (("**yes**" if r["claim"] else "no") if r["n"] >= MIN_CLAIM_SEEDS
+                 else f"no (< {MIN_CLAIM_SEEDS} seeds)")
         what = f" ({r['what']})" if r["what"] else ""
         out.append(f"| {r['a']} | {r['b']}{what} | {label.get(r['measure'], r['measure'])} | "
                    f"{r['n']} | {diff} | {rel} | {_p(r['p_t'])} | {_p(r['p_wilcoxon'])} | "

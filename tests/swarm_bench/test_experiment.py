@@ -236,6 +236,19 @@ def test_report_is_rebuilt_byte_for_byte_from_its_json(tmp_path):
     assert (b / "throughput.png").read_bytes()[:8] == PNG_MAGIC
 
 
+def test_a_comparison_over_fewer_than_five_seeds_claims_nothing(tmp_path):
+    from swarm_bench.experiment_report import write_report
+
+    missing = {(f"{v}-n20", s) for v in ("decentralized", "centralized-scheduler")
+               for s in (3, 4)}
+    write_fake_sweep(tmp_path / "a", missing=missing)
+    write_report([tmp_path / "a"], tmp_path / "a")
+    doc = json.loads((tmp_path / "a" / "experiment.json").read_text())
+    row = next(r for r in doc["statistics"] if r["measure"] == "throughput")
+    assert row["n"] == 3 and row["p_holm"] < 0.05 and row["claim"] is False
+    assert "| no (< 5 seeds) |" in (tmp_path / "a" / "report.md").read_text()
+
+
 def test_the_ablation_chain_adds_up_to_the_whole_gap(tmp_path):
     from swarm_bench.experiment_report import write_report
 
