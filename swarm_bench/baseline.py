@@ -222,15 +222,15 @@ def make_config(n: int, duration_s: float, run_dir: Path, *, world: str = "slim_
         InputError: unknown world or robot.
     """
     from swarm_common import paths
-    from swarm_common.robot_model import load_robot
-    from swarm_common.world import resolve_world
+    from swarm_scene.robot_model import load_robot
+    from swarm_scene.world import resolve_world
 
     world_path = Path(resolve_world(world))
     map_yaml = paths.MAPS_DIR / f"{world_path.stem}.yaml"
     if not map_yaml.is_file():
-        from swarm_common.map_io import save_map
-        from swarm_common.rasterize import rasterize_world
-        from swarm_common.world import load_world
+        from swarm_scene.map_io import save_map
+        from swarm_scene.rasterize import rasterize_world
+        from swarm_scene.world import load_world
 
         map_yaml, _ = save_map(rasterize_world(load_world(world_path)), run_dir / "map")
     lidar = load_robot(robot).lidar

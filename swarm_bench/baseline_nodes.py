@@ -155,7 +155,7 @@ class BaselineSimNode(Node):
             for ns in cfg.robots]))
 
     def _map_msg(self) -> OccupancyGrid:
-        from swarm_common.map_io import load_map
+        from swarm_scene.map_io import load_map
 
         occ = load_map(self.cfg.map_yaml)
         msg = OccupancyGrid()

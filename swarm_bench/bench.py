@@ -205,7 +205,7 @@ def validate(args: argparse.Namespace) -> BenchConfig:
     Raises:
         InputError: the first bad flag (the one line shown, naming it).
     """
-    from swarm_common.world import resolve_world
+    from swarm_scene.world import resolve_world
 
     try:
         resolve_world(args.world)
@@ -729,7 +729,7 @@ def bench(cfg: BenchConfig, argv: list[str]) -> int:
     if cfg.baseline:
         from swarm_bench.baseline import make_config
 
-        quiet = logging.getLogger("swarm_common")
+        quiet = logging.getLogger("swarm_scene")
         level = quiet.level
         quiet.setLevel(logging.ERROR)  # the robot's missing meshes: swarm-up warns about them
         try:

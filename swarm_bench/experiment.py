@@ -177,7 +177,7 @@ def validate(args: argparse.Namespace) -> ExperimentConfig:
         InputError: the first bad flag (one line naming it).
     """
     from swarm_bench.bench import swarm_up_path
-    from swarm_common.world import resolve_world
+    from swarm_scene.world import resolve_world
 
     try:
         resolve_world(args.world)

@@ -422,8 +422,8 @@ def _map_image(world: str):
     """The world's occupancy map as (image, extent) for imshow, or None."""
     try:
         from swarm_common import paths
-        from swarm_common.map_io import load_map
-        from swarm_common.world import resolve_world
+        from swarm_scene.map_io import load_map
+        from swarm_scene.world import resolve_world
 
         m = load_map(paths.default_map_for(resolve_world(world)))
     except (InputError, OSError, TypeError, ValueError):

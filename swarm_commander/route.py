@@ -47,7 +47,7 @@ def stops_from_workstations(workstations) -> tuple[RouteStop, ...]:
 
     Args:
         workstations: sequence of objects with ``.name`` (str) and ``.pose`` ((3,) x, y [m],
-            yaw [rad] in ``map``), e.g. ``swarm_common.poi.Workstation``.
+            yaw [rad] in ``map``), e.g. ``swarm_scene.poi.Workstation``.
 
     Returns:
         One :class:`RouteStop` per workstation, in the given order.
@@ -167,8 +167,8 @@ def build_route(world: str | Path, seed: int, ns: str,
         InputError: an unknown world (names ``--world``), a world without workstations for a
             random route, or a malformed route file (names the file).
     """
-    from swarm_common.poi import poi_for_world
-    from swarm_common.world import resolve_world
+    from swarm_scene.poi import poi_for_world
+    from swarm_scene.world import resolve_world
 
     try:
         world_path = resolve_world(world)

@@ -25,7 +25,7 @@ whole simulated second (``[k]`` for simulated time ``k + 1`` s), to compare two 
 second by second; ``standstills``, every episode of a robot standing within 0.1 m for 60 simulated
 s or more (``robot``, ``start_s``, ``duration_s``, ``x``, ``y`` in ``map``, ``open`` when the run
 ended first; :mod:`swarm_sim.standstill`); ``spawn``, where the robots went, the text of the
-simulator's ``spawned N robots in ...`` line (:func:`swarm_common.spawn.describe_spawn`);
+simulator's ``spawned N robots in ...`` line (:func:`swarm_scene.spawn.describe_spawn`);
 ``world_skipped``, the world's skip report (``World.skipped``: one text per element not simulated,
 empty when the world loads whole); ``faults`` when ``--faults`` was given.
 """

@@ -141,7 +141,7 @@ def spots_from_poi(poi, parking: np.ndarray | None = None,
     waiting spots, then parking.
 
     Args:
-        poi: a :class:`swarm_common.poi.PointsOfInterest` (workstations with ``holding``,
+        poi: a :class:`swarm_scene.poi.PointsOfInterest` (workstations with ``holding``,
             ``waiting``).
         parking: (K, 2) or (K, 3) parking spots x, y [, yaw] in ``map`` (e.g. the spawn grid:
             free of walls by construction), or None.

@@ -386,10 +386,10 @@ def path_lengths(world_path, stations) -> Callable[[tuple[float, float], str], f
     (:func:`swarm_nav.planner.plan_path` with the navigator's default costmap and planner
     settings), the straight line where there is no map or no path; cached per 0.5 m cell."""
     from swarm_common import paths
-    from swarm_common.map_io import load_map
     from swarm_nav.config import CostmapConfig, PlannerConfig
     from swarm_nav.costmap import build_costmap
     from swarm_nav.planner import path_length, plan_path
+    from swarm_scene.map_io import load_map
 
     map_path = paths.default_map_for(world_path)
     costmap = build_costmap(load_map(map_path), CostmapConfig()) if map_path else None
@@ -421,12 +421,12 @@ def build_core(world: str, seed: int, robots: tuple[str, ...], robot_model: str,
         InputError: the world is unknown or has no workstations (names ``--world``).
     """
     from swarm_commander.route import build_route
-    from swarm_common.fleet import fleet_models
-    from swarm_common.poi import poi_for_world
-    from swarm_common.robot_model import load_robot
-    from swarm_common.spawn import spawn_poses
-    from swarm_common.world import load_world, resolve_world, world_polygons
     from swarm_coordinator.core import Station, spots_from_poi
+    from swarm_scene.fleet import fleet_models
+    from swarm_scene.poi import poi_for_world
+    from swarm_scene.robot_model import load_robot
+    from swarm_scene.spawn import spawn_poses
+    from swarm_scene.world import load_world, resolve_world, world_polygons
 
     routes = {ns: build_route(world, seed, ns) for ns in robots}  # InputError names --world
     path = resolve_world(world)

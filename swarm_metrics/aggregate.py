@@ -67,11 +67,11 @@ Definitions (``docs/ARCHITECTURE.md``, ``/<ns>/nav_status``):
   pattern). Goals near no workstation (a centralized run's waiting spots) are the row
   ``(other)``, listed only when there are any.
 - *spawn* (``spawn``): where the simulator put the robots, its ``spawned N robots in ...`` line's
-  text (:func:`swarm_common.spawn.describe_spawn`): the rule (the spawn area of the world's points
+  text (:func:`swarm_scene.spawn.describe_spawn`): the rule (the spawn area of the world's points
   of interest, else the largest free area, and why), the block x, y [m] in ``map`` they stand in
   and the first robot's place; None without the simulator's summary.
 - *world elements skipped* (``world_skipped``): the world's skip report
-  (:attr:`swarm_common.world.World.skipped`, one text per element the simulator leaves out, e.g.
+  (:attr:`swarm_scene.world.World.skipped`, one text per element the simulator leaves out, e.g.
   ``"actor 'walker'"``), from the simulator's summary; ``[]`` when the world loads whole, None
   without the summary.
 - *standstills* (``standstills``): the simulator's episodes of a robot standing within 0.1 m
@@ -710,7 +710,7 @@ def aggregate(
         holding: name -> the holding points x, y [m] in ``map`` of each workstation (to say
             which workstation a standstill was near).
         models: the robot model of every robot (name or path), in the recorder's robot order:
-            ``fleet`` (model -> robots, :func:`swarm_common.fleet.fleet_counts`) and each
+            ``fleet`` (model -> robots, :func:`swarm_scene.fleet.fleet_counts`) and each
             ``per_robot`` entry's ``robot``; None: neither.
 
     Returns:
@@ -771,7 +771,7 @@ def aggregate(
         per_robot[ns]["comm_bytes"] = entry["bytes"]
     fleet = None
     if models is not None:
-        from swarm_common.fleet import fleet_counts, model_label
+        from swarm_scene.fleet import fleet_counts, model_label
 
         fleet = fleet_counts(models)
         for ns, model in zip(robots, models, strict=True):

@@ -48,7 +48,6 @@ import numpy as np
 
 from swarm_common.geometry import Path2D, Points2D, Pose2D, wrap_angle
 from swarm_common.nav_status import TERMINAL, TOOK_ANOTHER, NavState
-from swarm_common.occupancy import OccupancyMap
 from swarm_nav import core_kernels
 from swarm_nav.config import CostmapConfig, NavigatorConfig
 from swarm_nav.costmap import Costmap, add_keepout, build_costmap, overlay_obstacles
@@ -77,6 +76,7 @@ from swarm_nav.traffic import (
     plan_retreat,
     robots_ahead,
 )
+from swarm_scene.occupancy import OccupancyMap
 
 _EPS = 1e-6  # [m] a goal shift below this is no shift
 _WALL_NEAR = 0.03  # [m] a wall holds a robot the DWA finds no motion for if it is nearer than

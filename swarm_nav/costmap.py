@@ -22,9 +22,9 @@ import numpy as np
 from scipy import ndimage
 
 from swarm_common.geometry import Points2D
-from swarm_common.occupancy import GridGeometry, OccupancyMap
 from swarm_nav import costmap_kernels
 from swarm_nav.config import CostmapConfig
+from swarm_scene.occupancy import GridGeometry, OccupancyMap
 
 LETHAL = CostmapConfig.LETHAL_OBSTACLE
 INSCRIBED = CostmapConfig.INSCRIBED_INFLATED_OBSTACLE

@@ -46,7 +46,7 @@ def holding_sites_from_poi(poi) -> list[HoldingSite]:
     """The holding sites of a world's points of interest, as :class:`NavigatorCore` takes them.
 
     Args:
-        poi: a ``swarm_common.poi.PointsOfInterest`` (anything with ``workstations`` whose items
+        poi: a ``swarm_scene.poi.PointsOfInterest`` (anything with ``workstations`` whose items
             have ``pose`` (3,) and ``holding`` (K, 2)), or ``None``.
 
     Returns:

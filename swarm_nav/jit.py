@@ -31,7 +31,7 @@ _RES = 0.05  # [m/cell]
 
 
 def _scene_map():
-    from swarm_common.occupancy import OccupancyMap
+    from swarm_scene.occupancy import OccupancyMap
 
     w, h = (int(round(v / _RES)) for v in _ROOM)
     data = np.zeros((h, w), dtype=np.int8)

@@ -37,7 +37,6 @@ from swarm_common.errors import InputError
 from swarm_common.geometry import quaternion_to_yaw, transform_points
 from swarm_common.lockstep import COMING, NONE_COMING, POLL_S, GoalHandshake
 from swarm_common.nav_status import OUTCOMES, TERMINAL, NavState, NavStatusRecord, encode, level_of
-from swarm_common.occupancy import OccupancyMap
 from swarm_common.stamps import NS_PER_S, format_stamp
 from swarm_nav import jit
 from swarm_nav.config import NavigatorConfig, flat_defaults
@@ -45,6 +44,7 @@ from swarm_nav.core import NavigatorCore
 from swarm_nav.holding import holding_sites_from_poi, site_kinds_from_poi
 from swarm_ros.navigator import navigator_interface
 from swarm_ros.session import node_session, spin_forever
+from swarm_scene.occupancy import OccupancyMap
 
 STATUS_PERIOD_NS = NS_PER_S // 2  # nav_status at 2 Hz simulated, and on every change of state
 STATUS_REPEAT_S = 1.0  # [s] wall: while a tick waits for the next goal, the status again
@@ -183,7 +183,7 @@ class NavigatorNode(Node):
             self._on_goal_coming)
         map_yaml = self.get_parameter("map_yaml_path").value
         if map_yaml:
-            from swarm_common.map_io import load_map
+            from swarm_scene.map_io import load_map
 
             self._set_map(load_map(map_yaml))
 
@@ -204,8 +204,8 @@ class NavigatorNode(Node):
         return SetParametersResult(successful=True)
 
     def _load_context(self):
-        from swarm_common.poi import load_poi
-        from swarm_common.robot_model import load_robot
+        from swarm_scene.poi import load_poi
+        from swarm_scene.robot_model import load_robot
 
         robot = load_robot(self.get_parameter("robot").value)
         poi_file = self.get_parameter("poi_file").value

@@ -248,7 +248,7 @@ def run_metadata(*, world: str, robot: str, seed: int, robots, workstations,
 
     Args:
         world: the world file's path.
-        robot: the robot name or path, or a mix ``NAME:COUNT,...`` (:mod:`swarm_common.fleet`).
+        robot: the robot name or path, or a mix ``NAME:COUNT,...`` (:mod:`swarm_scene.fleet`).
         seed: the run's seed.
         robots: namespaces without ``/``.
         workstations: ``[{"name", "x", "y", "yaw", "holding": [[x, y], ...]}, ...]`` in ``map``
@@ -256,9 +256,9 @@ def run_metadata(*, world: str, robot: str, seed: int, robots, workstations,
         rtf: the requested real-time factor.
         models: the model of every robot (names or paths), index-aligned with ``robots``; None:
             every robot is ``robot``.  Written as ``robot_models``, each model's short name
-            (:func:`swarm_common.fleet.model_label`), comma-separated in ``robots``' order.
+            (:func:`swarm_scene.fleet.model_label`), comma-separated in ``robots``' order.
     """
-    from swarm_common.fleet import model_label
+    from swarm_scene.fleet import model_label
 
     models = (robot,) * len(robots) if models is None else models
     return {"world": str(world), "robot": str(robot), "seed": str(seed),

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from swarm_common.world import World, obstacle_shapes, world_polygons
+from swarm_scene.world import World, obstacle_shapes, world_polygons
 from swarm_sim import separation_kernels
 from swarm_sim.kinematics import DriveLimits, integrate_unicycle, limit_twist
 from swarm_sim.lidar import PlanarLidar, ScanPattern, counter_clockwise, polygons_to_segments
@@ -134,8 +134,8 @@ class SimEngine:
 
     Args:
         world: the static world.
-        robot: the robot model (:class:`swarm_common.robot_model.RobotModel`) of every robot,
-            or a sequence of N models (robot ``i`` is ``robot[i]``; :mod:`swarm_common.fleet`).
+        robot: the robot model (:class:`swarm_scene.robot_model.RobotModel`) of every robot,
+            or a sequence of N models (robot ``i`` is ``robot[i]``; :mod:`swarm_scene.fleet`).
         poses: (N, 3) spawn poses in ``map``.
         seed: seed of the generator of lidar noise.
         config: engine settings.
@@ -220,7 +220,7 @@ class SimEngine:
 
     def _build_world(self, world: World) -> None:
         """One static body per obstacle of the world; floor slabs, ground planes and heightmaps
-        get none (:func:`swarm_common.world.obstacle_shapes`): a robot driving on them touches
+        get none (:func:`swarm_scene.world.obstacle_shapes`): a robot driving on them touches
         nothing, so no robot-wall contact is counted."""
         p, cid = pybullet, self.client
         for shape in obstacle_shapes(world):
@@ -248,9 +248,9 @@ class SimEngine:
             self._wall_names[body] = shape.name
 
     def _build_mesh(self, shape) -> None:
-        """One static body per part of a mesh (:mod:`swarm_common.meshes`): a convex part as
+        """One static body per part of a mesh (:mod:`swarm_scene.meshes`): a convex part as
         its hull, a non-convex one as a concave triangle mesh (static bodies only)."""
-        from swarm_common.meshes import load_mesh
+        from swarm_scene.meshes import load_mesh
 
         p, cid = pybullet, self.client
         x, y, z, roll, pitch, yaw = shape.pose

@@ -39,7 +39,7 @@ class DriveLimits:
 
     @classmethod
     def from_robot_limits(cls, limits) -> DriveLimits:
-        """Build from a :class:`swarm_common.robot_model.RobotLimits`."""
+        """Build from a :class:`swarm_scene.robot_model.RobotLimits`."""
         return cls(
             max_vel_x=limits.max_vel_x,
             min_vel_x=limits.min_vel_x,

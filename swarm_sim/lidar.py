@@ -3,7 +3,7 @@
 PyBullet's ``rayTestBatch`` costs about 8 µs per ray on the target machine (≈ 300 ms for
 100 robots × 360 beams), which alone caps a 100-robot swarm below real time.  A planar lidar only
 needs the scan plane, so we intersect each beam with the 2D outline segments of everything that
-crosses the lidar's height: static shapes (from :func:`swarm_common.world.world_polygons`) and
+crosses the lidar's height: static shapes (from :func:`swarm_scene.world.world_polygons`) and
 robot bodies (their footprint polygons).  ``tests/swarm_sim/test_lidar.py`` checks the result
 against ``rayTestBatch`` on the same geometry.
 
@@ -42,7 +42,7 @@ class ScanPattern:
 
     @classmethod
     def from_spec(cls, spec) -> ScanPattern:
-        """Build from a :class:`swarm_common.robot_model.LidarSpec`."""
+        """Build from a :class:`swarm_scene.robot_model.LidarSpec`."""
         n = int(spec.samples)
         angles = np.linspace(spec.angle_min, spec.angle_max, n) if n > 1 else np.array(
             [spec.angle_min]

@@ -17,11 +17,11 @@ from pathlib import Path
 
 from swarm_common import cli
 from swarm_common.errors import InputError, run_cli
-from swarm_common.map_io import save_map
-from swarm_common.poi import poi_for_world
-from swarm_common.rasterize import rasterize_world
-from swarm_common.spawn import largest_free_region
-from swarm_common.world import (
+from swarm_scene.map_io import save_map
+from swarm_scene.poi import poi_for_world
+from swarm_scene.rasterize import rasterize_world
+from swarm_scene.spawn import largest_free_region
+from swarm_scene.world import (
     BAND_TOP,
     FLOOR_TOLERANCE,
     describe_skipped,

@@ -54,9 +54,9 @@ from swarm_common.faults import (
 from swarm_common.sim_summary import CollisionCounts, RobotSummary, SimSummary
 from swarm_common.stamps import NS_PER_S
 from swarm_common.supervision import LOST, RobotsLost
-from swarm_common.world import describe_skipped
 from swarm_ros.qos import publisher, subscription
 from swarm_ros.session import node_session
+from swarm_scene.world import describe_skipped
 from swarm_sim.standstill import StandstillTracker
 
 # A manual (zero-stamp) command outranks the navigator's answers for this long after it arrived,
@@ -75,7 +75,7 @@ class SimSettings:
     Attributes:
         world: world name under ``worlds/`` or a path to a ``.world``/``.sdf``.
         robot: robot name under ``robots/`` or a path to a ``.urdf``/``.xacro``; or a mixed
-            fleet ``NAME:COUNT,...`` or fleet ``.yaml`` (:mod:`swarm_common.fleet`).
+            fleet ``NAME:COUNT,...`` or fleet ``.yaml`` (:mod:`swarm_scene.fleet`).
         swarm_size: number of robots N [-].
         name_prefix: namespace prefix; robot i (1..N) is ``/<prefix><i>``.
         seed: seed of the simulator's random generator (lidar noise).
@@ -136,7 +136,7 @@ def _kv(key: str, value) -> KeyValue:
 
 
 def occupancy_grid_msg(occ, stamp: Time) -> OccupancyGrid:
-    """Convert a :class:`swarm_common.occupancy.OccupancyMap` into ``nav_msgs/OccupancyGrid``."""
+    """Convert a :class:`swarm_scene.occupancy.OccupancyMap` into ``nav_msgs/OccupancyGrid``."""
     msg = OccupancyGrid()
     msg.header.frame_id = "map"
     msg.header.stamp = stamp
@@ -843,21 +843,21 @@ def prepare(settings: SimSettings):
 
     Returns:
         ``(engine, occ, namespaces, spawned, world)``: ``spawned`` says where the robots went
-        (:func:`swarm_common.spawn.describe_spawn`); ``world`` is the loaded world, whose
+        (:func:`swarm_scene.spawn.describe_spawn`); ``world`` is the loaded world, whose
         ``skipped`` names what of it is not simulated.
 
     Raises:
         InputError: a missing or malformed world, robot, map or points of interest, bad prefix, or
             more robots than fit.
     """
-    from swarm_common.fleet import describe_fleet, fleet_models
-    from swarm_common.map_io import load_map
     from swarm_common.paths import default_map_for
-    from swarm_common.poi import poi_for_world
-    from swarm_common.rasterize import rasterize_world
-    from swarm_common.robot_model import load_robot
-    from swarm_common.spawn import describe_spawn, spawn_poses, spawn_poses_free
-    from swarm_common.world import load_world, resolve_world, world_polygons
+    from swarm_scene.fleet import describe_fleet, fleet_models
+    from swarm_scene.map_io import load_map
+    from swarm_scene.poi import poi_for_world
+    from swarm_scene.rasterize import rasterize_world
+    from swarm_scene.robot_model import load_robot
+    from swarm_scene.spawn import describe_spawn, spawn_poses, spawn_poses_free
+    from swarm_scene.world import load_world, resolve_world, world_polygons
     from swarm_sim.engine import EngineConfig, SimEngine
 
     if not cli.is_ros_name(settings.name_prefix):

@@ -16,12 +16,12 @@ import time
 from pathlib import Path
 
 from swarm_common import cli, paths
-from swarm_common import world as world_io
 from swarm_common.errors import InputError
-from swarm_common.map_io import load_map
-from swarm_common.poi import load_poi, poi_for_world
-from swarm_common.robot_model import load_robot
-from swarm_common.spawn import spawn_poses
+from swarm_scene import world as world_io
+from swarm_scene.map_io import load_map
+from swarm_scene.poi import load_poi, poi_for_world
+from swarm_scene.robot_model import load_robot
+from swarm_scene.spawn import spawn_poses
 from swarm_up import PROG
 from swarm_up.run_config import PER_ROBOT, RunConfig
 from swarm_up.rundir import check_nav_template, load_nav_template
@@ -223,7 +223,7 @@ def resolve_robot(value: str) -> str:
 
 def resolve_fleet(value: str, swarm_size: int | None) -> tuple[str, tuple[str, ...], int]:
     """Check ``--robot`` (one model, a mix ``NAME:COUNT,...`` or a fleet file) and the swarm
-    size against it, loading every model (:mod:`swarm_common.fleet`).
+    size against it, loading every model (:mod:`swarm_scene.fleet`).
 
     Args:
         value: ``--robot``'s value.
@@ -239,7 +239,7 @@ def resolve_fleet(value: str, swarm_size: int | None) -> tuple[str, tuple[str, .
             unknown or unloadable model, or counts that do not add up to ``--swarm-size`` (names
             ``--robot``).
     """
-    from swarm_common import fleet as fleet_io
+    from swarm_scene import fleet as fleet_io
 
     try:
         entries = fleet_io.parse_fleet(value)
@@ -601,7 +601,7 @@ def validate_quietly(args: argparse.Namespace) -> tuple[RunConfig, list[str]]:
     Returns:
         The config and the warnings the loaders logged.
     """
-    logger = logging.getLogger("swarm_common")
+    logger = logging.getLogger("swarm_scene")
     handler, propagate = _Collect(), logger.propagate
     logger.addHandler(handler)
     logger.propagate = False

@@ -174,9 +174,9 @@ def recorder_spec(cfg: RunConfig, env: dict[str, str]):
     one would truncate the file)."""
     import json
 
-    from swarm_common.poi import load_poi
-    from swarm_common.robot_model import load_robot
     from swarm_record.mcap_format import run_metadata
+    from swarm_scene.poi import load_poi
+    from swarm_scene.robot_model import load_robot
     from swarm_up.supervisor import ChildSpec
 
     models = {name: load_robot(name) for name in dict.fromkeys(cfg.models)}

@@ -24,8 +24,8 @@ from pathlib import Path
 
 from swarm_common.errors import EXIT_BAD_INPUT, EXIT_OK, EXIT_RUNTIME
 from swarm_common.faults import KILL_NAV
-from swarm_common.fleet import describe_fleet
 from swarm_metrics.summary import print_summary
+from swarm_scene.fleet import describe_fleet
 from swarm_up import PROG
 from swarm_up.children import child_specs
 from swarm_up.output import ProgressView, say, warn
@@ -431,7 +431,7 @@ class Orchestrator:
         name -> holding points [(x, y) ...]; none without a points-of-interest file."""
         if self.cfg.poi_path is None:
             return {}, {}
-        from swarm_common.poi import load_poi
+        from swarm_scene.poi import load_poi
 
         poi = load_poi(self.cfg.poi_path)  # validated at start: cannot fail here
         return ({ws.name: (float(ws.pose[0]), float(ws.pose[1])) for ws in poi.workstations},

@@ -48,7 +48,7 @@ class RunConfig:
             (None: no Foxglove server; :mod:`swarm_viz.foxglove_view`).
         markers: publish ``/swarm/markers`` (also on with the dashboard).
         fleet: the model of every robot (name or absolute path), index-aligned with
-            ``robots`` (:func:`swarm_common.fleet.fleet_models`); empty: every robot is
+            ``robots`` (:func:`swarm_scene.fleet.fleet_models`); empty: every robot is
             ``robot``.
         hosts: the hosts the swarm runs on (``--hosts``), one ``swarm-up`` each.
         rank: this host's rank (``--host-rank``); rank 0 runs the simulator, the metrics, the

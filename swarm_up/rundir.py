@@ -9,9 +9,9 @@ from pathlib import Path
 import yaml
 
 from swarm_common.errors import InputError
-from swarm_common.map_io import save_map
-from swarm_common.rasterize import rasterize_world
-from swarm_common.world import load_world
+from swarm_scene.map_io import save_map
+from swarm_scene.rasterize import rasterize_world
+from swarm_scene.world import load_world
 from swarm_up.run_config import RunConfig
 
 # Template keys that are not navigator algorithm parameters (swarm_nav.config): ROS's own
@@ -87,7 +87,7 @@ def check_nav_template(path: Path, params: dict) -> None:
 def robot_params(template: dict, model) -> dict:
     """The navigator parameters that describe the robot, fitted to one robot model.
 
-    - ``robot_radius`` [m]: the model's :attr:`~swarm_common.robot_model.RobotModel.
+    - ``robot_radius`` [m]: the model's :attr:`~swarm_scene.robot_model.RobotModel.
       costmap_radius` (nav2's ``robot_radius`` from ``params/robots/<model>.yaml``, else the
       footprint's circumscribed radius);
     - ``inflation_radius`` [m]: the template's, but at least ``robot_radius`` plus the
@@ -103,7 +103,7 @@ def robot_params(template: dict, model) -> dict:
 
     Args:
         template: the template's ``ros__parameters``.
-        model: the robot's :class:`~swarm_common.robot_model.RobotModel`.
+        model: the robot's :class:`~swarm_scene.robot_model.RobotModel`.
 
     Returns:
         ``{parameter: value}`` of the keys above.
@@ -147,7 +147,7 @@ def navigator_params(template: dict, ns: str, index: int, cfg: RunConfig,
         ns: namespace without ``/``.
         index: the robot's number i (1..N).
         cfg: the run.
-        model: the robot's :class:`~swarm_common.robot_model.RobotModel` (None: loaded from
+        model: the robot's :class:`~swarm_scene.robot_model.RobotModel` (None: loaded from
             ``cfg.models[index - 1]``).
 
     Returns:
@@ -155,7 +155,7 @@ def navigator_params(template: dict, ns: str, index: int, cfg: RunConfig,
         robot_index, poi_file, map_yaml_path (""), robot, and the robot's size and limits
         (:func:`robot_params`)}}}`` (paths absolute, "" if none).
     """
-    from swarm_common.robot_model import load_robot
+    from swarm_scene.robot_model import load_robot
 
     name = cfg.models[index - 1]
     recorded = _recorded_robot_topics(cfg, ns)

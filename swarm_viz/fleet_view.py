@@ -324,7 +324,7 @@ def encode_hello(*, world: str, robots: tuple[str, ...], footprint: np.ndarray, 
         robots: namespaces.
         footprint: (K, 2) polygon in base_footprint [m].
         map_info: ``url``, ``resolution`` [m/cell], ``origin`` [x, y] [m], ``width``, ``height``.
-        workstations: :class:`swarm_common.poi.Workstation` records.
+        workstations: :class:`swarm_scene.poi.Workstation` records.
         rate_hz: frames per wall second [Hz].
         robot: the robot of a per-robot page, or None.
         footprints: a mixed fleet: every robot's own (K_i, 2) polygon, in ``robots``' order

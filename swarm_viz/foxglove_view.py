@@ -136,8 +136,8 @@ class FoxgloveView:
         fleet_lock: the lock.
         recorder: the metrics recorder (``/swarm/kpi``), guarded by ``recorder_lock``.
         recorder_lock: its lock.
-        occ: the map (:class:`swarm_common.occupancy.OccupancyMap`).
-        workstations: :class:`swarm_common.poi.Workstation` records.
+        occ: the map (:class:`swarm_scene.occupancy.OccupancyMap`).
+        workstations: :class:`swarm_scene.poi.Workstation` records.
         footprint: (K, 2) outline in base_footprint [m], or a list of every robot's.
         lidar_pose: (3,) lidar mount x, y, yaw in base_footprint [m, rad], or (N, 3).
         ws_states: callable -> ``(states, holders)`` (the caller holds ``fleet_lock``).

@@ -71,7 +71,7 @@ def fleet_markers(fleet: FleetState, footprint: np.ndarray, workstations, ws_sta
         fleet: the fleet's state (the caller holds its lock).
         footprint: (K, 2) robot outline in base_footprint [m]; or a sequence of every robot's
             own (a mixed fleet).
-        workstations: :class:`swarm_common.poi.Workstation` records.
+        workstations: :class:`swarm_scene.poi.Workstation` records.
         ws_states: their states (:func:`swarm_viz.fleet_view.workstation_states`).
         stamp: ``builtin_interfaces/Time`` of the markers.
 

@@ -55,7 +55,7 @@ class FleetNode(Node):
     Args:
         fleet: the state to write.
         lock: taken around every write.
-        workstations: :class:`swarm_common.poi.Workstation` records.
+        workstations: :class:`swarm_scene.poi.Workstation` records.
         footprint: (K, 2) robot outline in base_footprint [m]; or a list of every robot's own
             (a mixed fleet).
         markers: publish ``/swarm/markers``.

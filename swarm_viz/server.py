@@ -79,7 +79,7 @@ def map_png(occ) -> tuple[bytes, dict]:
     """The occupancy map as a PNG (row 0 at the top) and its placement.
 
     Args:
-        occ: :class:`swarm_common.occupancy.OccupancyMap`.
+        occ: :class:`swarm_scene.occupancy.OccupancyMap`.
 
     Returns:
         ``(png, info)``: the image (free white, occupied dark, unknown grey) and the ``map``
@@ -398,9 +398,9 @@ class LiveView:
     """
 
     def __init__(self, cfg, listener, view: ViewConfig | None = None):
-        from swarm_common.map_io import load_map
-        from swarm_common.poi import load_poi
-        from swarm_common.robot_model import load_robot
+        from swarm_scene.map_io import load_map
+        from swarm_scene.poi import load_poi
+        from swarm_scene.robot_model import load_robot
 
         self.cfg = cfg
         self.listener = listener

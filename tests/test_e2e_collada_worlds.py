@@ -108,8 +108,8 @@ def _warehouse(tmp: Path) -> Path:
 
 @pytest.mark.parametrize("kind", ["turtlebot3_world_like", "warehouse_like"])
 def test_ten_robots_run_a_collada_world_without_a_collision(kind, tmp_path, monkeypatch):
-    from swarm_common.rasterize import rasterize_world
-    from swarm_common.world import load_world
+    from swarm_scene.rasterize import rasterize_world
+    from swarm_scene.world import load_world
 
     if kind == "turtlebot3_world_like":
         monkeypatch.setenv("GAZEBO_MODEL_PATH", str(tmp_path / "models"))

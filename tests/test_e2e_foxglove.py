@@ -18,9 +18,9 @@ import socket
 import pytest
 from rosbags.highlevel import AnyReader
 
-from swarm_common.map_io import load_map
 from swarm_common.paths import MAPS_DIR, WORLDS_DIR
-from swarm_common.poi import load_poi
+from swarm_scene.map_io import load_map
+from swarm_scene.poi import load_poi
 from tests.support.foxglove_client import FoxgloveClient
 from tests.test_e2e_swarm_up import EXIT_SLACK_S, READY_TIMEOUT_S, SwarmUp
 

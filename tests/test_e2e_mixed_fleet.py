@@ -13,7 +13,7 @@ import json
 import pytest
 import yaml
 
-from swarm_common.robot_model import load_robot
+from swarm_scene.robot_model import load_robot
 from tests.test_e2e_swarm_up import EXIT_SLACK_S, READY_TIMEOUT_S, SwarmUp
 
 pytestmark = pytest.mark.e2e

@@ -13,7 +13,8 @@ ROS_SHELLS = {"node.py"}
 
 
 def _pure_modules():
-    mods = sorted((ROOT / "swarm_common").glob("*.py"))
+    mods = [p for pkg in ("swarm_common", "swarm_scene")
+            for p in sorted((ROOT / pkg).glob("*.py"))]
     for pkg in ("swarm_sim", "swarm_nav", "swarm_coordinator"):
         mods += [p for p in sorted((ROOT / pkg).glob("*.py")) if p.name not in ROS_SHELLS]
     return mods

@@ -1,11 +1,13 @@
 """Which package may import which (docs/ARCHITECTURE.md), checked on the source with ``ast``.
 
-- ``swarm_common`` is the bottom layer: it imports no sibling package.  ``swarm_ros``, the ROS
-  side every node shares, imports only ``swarm_common``.
+- ``swarm_common`` (the wire's contracts and small utilities) is the bottom layer: it imports no
+  sibling package.  ``swarm_scene`` (the world, robot, map and fleet loaders) imports only
+  ``swarm_common``; ``swarm_ros``, the ROS side every node shares, imports only
+  ``swarm_common``.
 - ``swarm_nav`` never imports ``swarm_commander``: the navigator does not know its own client
   (the process hosting both is ``swarm_up.group``).
 - ``swarm_up`` never imports the simulator's engine or PyBullet: it checks ``--swarm-size``
-  with ``swarm_common.spawn`` and runs the simulator as a child process.
+  with ``swarm_scene.spawn`` and runs the simulator as a child process.
 - The orchestrator (``swarm_up``) uses the metrics, the live view and the recording, never the
   benchmark (``swarm_bench``), which runs it; ``swarm_metrics``, ``swarm_viz`` and
   ``swarm_record`` import neither.
@@ -19,13 +21,14 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("swarm_common", "swarm_ros", "swarm_sim", "swarm_nav", "swarm_commander",
-            "swarm_coordinator", "swarm_up", "swarm_metrics", "swarm_viz", "swarm_record",
-            "swarm_bench")
+PACKAGES = ("swarm_common", "swarm_scene", "swarm_ros", "swarm_sim", "swarm_nav",
+            "swarm_commander", "swarm_coordinator", "swarm_up", "swarm_metrics", "swarm_viz",
+            "swarm_record", "swarm_bench")
 
 # package -> module prefixes it must not import (any import statement, also inside a function)
 FORBIDDEN = {
     "swarm_common": tuple(p for p in PACKAGES if p != "swarm_common"),
+    "swarm_scene": tuple(p for p in PACKAGES if p not in ("swarm_common", "swarm_scene")),
     "swarm_ros": tuple(p for p in PACKAGES if p not in ("swarm_common", "swarm_ros")),
     "swarm_nav": ("swarm_commander",),
     "swarm_up": ("swarm_sim.engine", "pybullet", "swarm_bench"),

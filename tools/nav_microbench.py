@@ -4,7 +4,7 @@ Prints the median time of a DWA step (open scenes, a crowd of robots, a dense cl
 footprint gap of a few predicted points, of a whole NavigatorCore tick, of a scan update, and of
 cross-map global plans (fresh cost-to-go, and a replan to the same goal), as a small table.
 
-The map is ``maps/slim_blockage.yaml`` when it exists and ``swarm_common.map_io`` can load it,
+The map is ``maps/slim_blockage.yaml`` when it exists and ``swarm_scene.map_io`` can load it,
 else the world's wall table (``shared/reference/seed_facts.md``) rasterised at ``--resolution``.
 Scans are synthetic: the map's obstacle boundary seen from the robot, one return per degree within
 3.5 m (the LDS-01), plus another robot in front.
@@ -27,13 +27,13 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from swarm_common.occupancy import OccupancyMap  # noqa: E402
 from swarm_nav import planner  # noqa: E402
 from swarm_nav.config import NavigatorConfig  # noqa: E402
 from swarm_nav.core import NavigatorCore  # noqa: E402
 from swarm_nav.costmap import build_costmap, overlay_obstacles  # noqa: E402
 from swarm_nav.dwa import Footprint, RobotState, dwa_command, point_gaps  # noqa: E402
 from swarm_nav.planner import plan_path  # noqa: E402
+from swarm_scene.occupancy import OccupancyMap  # noqa: E402
 
 # slim_blockage walls, xmin, xmax, ymin, ymax [m] (shared/reference/seed_facts.md)
 WALLS = np.array([
@@ -74,7 +74,7 @@ def load(map_path: str | None, resolution: float) -> tuple[OccupancyMap, str]:
     path = Path(map_path) if map_path else ROOT / "maps" / "slim_blockage.yaml"
     if path.exists():
         try:
-            from swarm_common.map_io import load_map
+            from swarm_scene.map_io import load_map
 
             return load_map(path), str(path)
         except ImportError:

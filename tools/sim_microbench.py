@@ -15,10 +15,10 @@ import time
 
 import numpy as np
 
-from swarm_common.poi import poi_for_world
-from swarm_common.robot_model import load_robot
-from swarm_common.spawn import spawn_poses
-from swarm_common.world import load_world, resolve_world, world_polygons
+from swarm_scene.poi import poi_for_world
+from swarm_scene.robot_model import load_robot
+from swarm_scene.spawn import spawn_poses
+from swarm_scene.world import load_world, resolve_world, world_polygons
 from swarm_sim.engine import SimEngine
 
 

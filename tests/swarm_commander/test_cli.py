@@ -25,7 +25,7 @@ from rclpy.parameter import Parameter
 from swarm_commander.cli import CommanderConfig, CommanderRunner
 from swarm_commander.robot_navigator import BasicNavigator
 from swarm_commander.route import FixedRoute, RandomRoute, route_rng, stops_from_workstations
-from swarm_common.poi import load_poi
+from swarm_scene.poi import load_poi
 
 from .fake_navigator import running_fake_navigator
 

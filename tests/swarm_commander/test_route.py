@@ -23,7 +23,7 @@ from swarm_commander.route import (
     visits,
 )
 from swarm_common.errors import InputError
-from swarm_common.poi import load_poi
+from swarm_scene.poi import load_poi
 
 POI_YAML = """\
 frame_id: map

@@ -204,7 +204,7 @@ def test_long_random_run_never_double_books():
 
 def test_spots_from_poi_on_slim_blockage():
     from swarm_common.paths import WORLDS_DIR
-    from swarm_common.poi import load_poi
+    from swarm_scene.poi import load_poi
 
     spots = spots_from_poi(load_poi(WORLDS_DIR / "slim_blockage.yaml"),
                            [[0.0, 0.0, 3.14], [1.0, 0.0, 3.14]])
@@ -371,8 +371,8 @@ def test_a_silent_robot_loses_its_workstation_after_the_timeout_and_its_task_sti
 
 
 def test_spots_from_poi_puts_the_worlds_waiting_spots_before_the_hall():
-    from swarm_common.poi import poi_for_world
-    from swarm_common.world import resolve_world
+    from swarm_scene.poi import poi_for_world
+    from swarm_scene.world import resolve_world
 
     poi = poi_for_world(resolve_world("slim_blockage"))
     near = spots_from_poi(poi, [[0.0, 0.0]])

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from swarm_common.geometry import transform_points, wrap_angle
-from swarm_common.occupancy import OccupancyMap
+from swarm_scene.occupancy import OccupancyMap
 
 # shared/reference/seed_facts.md, world slim_blockage: xmin, xmax, ymin, ymax [m]
 SLIM_BLOCKAGE_WALLS = np.array([

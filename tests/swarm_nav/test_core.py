@@ -7,13 +7,13 @@ import pathlib
 import numpy as np
 import pytest
 
-from swarm_common.occupancy import OccupancyMap
-from swarm_common.poi import poi_for_world
 from swarm_nav.config import NavigatorConfig
 from swarm_nav.core import NavigatorCore, NavState, NavStatus
 from swarm_nav.costmap import add_keepout, build_costmap
 from swarm_nav.holding import holding_sites_from_poi, site_kinds_from_poi, workstation_kind
 from swarm_nav.holding_behaviour import HoldingBehaviour
+from swarm_scene.occupancy import OccupancyMap
+from swarm_scene.poi import poi_for_world
 from tests.swarm_nav.helpers import (
     SLIM_BLOCKAGE_WALLS,
     WAFFLE_FOOTPRINT,

@@ -333,7 +333,7 @@ def test_no_staging_point_in_a_tiny_room():
 
 
 def test_holding_sites_from_the_world_file(repo_root):
-    from swarm_common.poi import load_poi
+    from swarm_scene.poi import load_poi
 
     path = repo_root / "worlds" / "slim_blockage.yaml"
     if not path.exists():

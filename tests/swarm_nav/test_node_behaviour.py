@@ -33,8 +33,8 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
 
 from swarm_common.nav_status import OUTCOMES, TERMINAL, TOOK_ANOTHER
-from swarm_common.robot_model import load_robot
 from swarm_common.stamps import NS_PER_S, format_stamp, parse_stamp
+from swarm_scene.robot_model import load_robot
 from tests.support.ros import ros_context, spin_until, start, stop
 
 pytestmark = pytest.mark.node

@@ -32,9 +32,9 @@ from mcap.exceptions import McapError
 from mcap.stream_reader import StreamReader
 from rosbags.highlevel import AnyReader
 
-from swarm_common.robot_model import load_robot
 from swarm_record.mcap_format import RECORDER_NODE, simulator_readers
 from swarm_record.plot import read_run
+from swarm_scene.robot_model import load_robot
 from tests.support.ros import start, stop
 from tests.test_e2e_swarm_up import EXIT_SLACK_S, READY_TIMEOUT_S, SwarmUp
 

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from swarm_common.robot_model import load_robot
-from swarm_common.world import load_world
+from swarm_scene.robot_model import load_robot
+from swarm_scene.world import load_world
 from swarm_sim.engine import SimEngine
 
 

@@ -8,9 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from swarm_common.poi import poi_for_world
-from swarm_common.spawn import spawn_poses
-from swarm_common.world import load_world, world_polygons
+from swarm_scene.poi import poi_for_world
+from swarm_scene.spawn import spawn_poses
+from swarm_scene.world import load_world, world_polygons
 from swarm_sim.engine import EngineConfig, SimEngine, polygon_distances
 
 # TurtleBot3 waffle footprint: x in [-0.197, 0.069], y in [-0.133, 0.133] about base_footprint.

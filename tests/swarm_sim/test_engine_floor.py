@@ -1,6 +1,6 @@
 """The simulator and the floor (issue 9, item 4): a robot drives on a floor slab, a loading
 plate and a ground plane without a contact and without its lidar seeing them, and still bumps
-into a 0.10 m pallet (swarm_common.world.obstacle_shapes decides which is which)."""
+into a 0.10 m pallet (swarm_scene.world.obstacle_shapes decides which is which)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from swarm_common.robot_model import load_robot
-from swarm_common.world import load_world
+from swarm_scene.robot_model import load_robot
+from swarm_scene.world import load_world
 from swarm_sim.engine import SimEngine
 
 from .test_engine import drive

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from swarm_common.robot_model import load_robot
+from swarm_scene.robot_model import load_robot
 from swarm_sim.engine import pad_polygons, polygon_distances
 from swarm_sim.lidar import cast_rays, counter_clockwise, polygons_to_segments
 

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from swarm_common.robot_model import RobotLimits
+from swarm_scene.robot_model import RobotLimits
 from swarm_sim.kinematics import DriveLimits, integrate_unicycle, limit_twist, wheel_speeds
 
 WAFFLE = DriveLimits()  # TurtleBot3 waffle: 0.26 m/s, 1.82 rad/s, 2.5 m/s^2, 3.2 rad/s^2

@@ -11,10 +11,10 @@ import pybullet
 import pytest
 
 from swarm_common.geometry import transform_points
-from swarm_common.poi import poi_for_world
-from swarm_common.robot_model import load_robot
-from swarm_common.spawn import spawn_poses
-from swarm_common.world import load_world, world_polygons
+from swarm_scene.poi import poi_for_world
+from swarm_scene.robot_model import load_robot
+from swarm_scene.spawn import spawn_poses
+from swarm_scene.world import load_world, world_polygons
 from swarm_sim.lidar import (
     PlanarLidar,
     ScanPattern,

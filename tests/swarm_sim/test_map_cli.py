@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from swarm_common.map_io import load_map
-from swarm_common.rasterize import rasterize_world
-from swarm_common.world import load_world
+from swarm_scene.map_io import load_map
+from swarm_scene.rasterize import rasterize_world
+from swarm_scene.world import load_world
 from swarm_sim import map_cli
 
 DATA = Path(__file__).resolve().parents[1] / "data"

@@ -50,7 +50,7 @@ def test_bad_prefix_exits_2_with_one_line_as_a_process():
 
 
 def test_a_mix_gives_the_engine_every_robots_model_as_swarm_up_interleaves_it():
-    from swarm_common.fleet import fleet_models
+    from swarm_scene.fleet import fleet_models
     from swarm_sim.node import prepare
 
     mix = "turtlebot3_waffle:3,turtlebot3_burger:2,linorobot2_2wd:1"

@@ -12,7 +12,7 @@ import yaml
 
 from swarm_common import paths
 from swarm_common.errors import InputError
-from swarm_common.robot_model import load_robot
+from swarm_scene.robot_model import load_robot
 from swarm_up.args import build_parser, validate
 from swarm_up.children import child_specs
 from swarm_up.rundir import load_nav_template, robot_params, write_params_files

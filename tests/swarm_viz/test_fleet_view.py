@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from swarm_common.nav_status import NavState
-from swarm_common.poi import Workstation
 from swarm_metrics.aggregate import RunRecorder
+from swarm_scene.poi import Workstation
 from swarm_viz.fleet_view import (
     PATH_TOLERANCE,
     WS_FREE,

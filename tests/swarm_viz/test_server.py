@@ -343,7 +343,7 @@ def test_poses_and_plans_are_read_only_while_someone_looks(tmp_path):
 
 
 def test_a_mixed_fleet_gets_every_robots_own_outline_and_lidar_mounting(tmp_path):
-    from swarm_common.robot_model import load_robot
+    from swarm_scene.robot_model import load_robot
 
     args = build_parser().parse_args(["--robot", "turtlebot3_burger:2,linorobot2_2wd:1",
                                       "--dashboard", str(_free_port()),

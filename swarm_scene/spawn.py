@@ -5,7 +5,7 @@ loading the simulator or PyBullet, and ``swarm-sim`` places them with the same c
 
 Frames: poses are in ``map`` (= the world frame), (3,) x [m], y [m], yaw [rad] of each robot's
 ``base_footprint``; polygons are (K, 2) outlines in ``map``
-(:func:`swarm_common.world.world_polygons`).
+(:func:`swarm_scene.world.world_polygons`).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from swarm_common.errors import InputError
-from swarm_common.poi import SpawnArea
+from swarm_scene.poi import SpawnArea
 
 
 def spawn_poses(spawn, n: int, radius: float, polygons, clearance: float = 0.05,
@@ -29,7 +29,7 @@ def spawn_poses(spawn, n: int, radius: float, polygons, clearance: float = 0.05,
     touches no world polygon.
 
     Args:
-        spawn: a :class:`swarm_common.poi.SpawnArea`.
+        spawn: a :class:`swarm_scene.poi.SpawnArea`.
         n: number of robots (>= 1).
         radius: the robot's circumscribed radius [m].
         polygons: list of (K, 2) world outlines in ``map``.
@@ -106,7 +106,7 @@ def largest_free_region(occ) -> FreeRegion:
     row-major order.
 
     Args:
-        occ: a :class:`swarm_common.occupancy.OccupancyMap`.
+        occ: a :class:`swarm_scene.occupancy.OccupancyMap`.
 
     Returns:
         The :class:`FreeRegion`.
@@ -144,7 +144,7 @@ def spawn_poses_free(occ, n: int, radius: float, polygons, clearance: float = 0.
     nodes nearest the start first (the order of :func:`spawn_poses`) and face +x (yaw 0).
 
     Args:
-        occ: the world's :class:`swarm_common.occupancy.OccupancyMap`.
+        occ: the world's :class:`swarm_scene.occupancy.OccupancyMap`.
         n, radius, polygons, clearance, where: as :func:`spawn_poses`.
 
     Returns:

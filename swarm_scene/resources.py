@@ -1,7 +1,7 @@
 """Where a ROS or Gazebo resource URI points: ``package://``, ``model://``, ``file://``, paths.
 
 Resolved as ROS 2 and Gazebo resolve them, for the worlds' meshes and includes
-(:mod:`swarm_common.world`), the robots' meshes (:mod:`swarm_common.robot_model`) and xacro's
+(:mod:`swarm_scene.world`), the robots' meshes (:mod:`swarm_scene.robot_model`) and xacro's
 ``$(find pkg)`` (:func:`ament_index_with_ros_package_path`):
 
 - ``package://<pkg>/<rest>``: ``<pkg>``'s share directory from the ament index (every prefix of

@@ -471,7 +471,7 @@ def _process(source: Path, args: dict[str, str]) -> str:
     if source.name.endswith(".xacro") or _XACRO_NS in raw:
         import xacro  # imported lazily: it is only needed for xacro files
 
-        from swarm_common.resources import ament_index_with_ros_package_path
+        from swarm_scene.resources import ament_index_with_ros_package_path
 
         try:
             with ament_index_with_ros_package_path():  # $(find pkg): ROS_PACKAGE_PATH too
@@ -538,7 +538,7 @@ def _say_missing_meshes(source: Path, missing: tuple[str, ...], need_meshes: boo
     if (source, need_meshes) in _meshes_said:
         return
     _meshes_said.add((source, need_meshes))
-    from swarm_common.resources import describe, resolve
+    from swarm_scene.resources import describe, resolve
 
     first = describe(missing[0], resolve(missing[0], source.parent)[1])
     if need_meshes:
@@ -550,9 +550,9 @@ def _say_missing_meshes(source: Path, missing: tuple[str, ...], need_meshes: boo
 
 
 def _resolve_mesh(filename: str, source: Path) -> Path | None:
-    """A mesh file of the URDF (:func:`swarm_common.resources.resolve`: ``package://`` through
+    """A mesh file of the URDF (:func:`swarm_scene.resources.resolve`: ``package://`` through
     the ament index and ``ROS_PACKAGE_PATH``), or None."""
-    from swarm_common.resources import resolve
+    from swarm_scene.resources import resolve
 
     path = resolve(filename, source.parent)[0]
     return path if path is not None and path.is_file() else None

@@ -3,7 +3,7 @@
 The layout is ``nav_msgs/OccupancyGrid``'s, so converting to and from the message is a copy:
 ``data[row, col]`` with row 0 at the map's *bottom* (``y = origin[1]``), column 0 at its left;
 values ``-1`` unknown, ``0`` free, ``100`` occupied (``0..100`` in between for scale mode).
-A map_server image has row 0 at the *top*; :mod:`swarm_common.map_io` flips it on load and save.
+A map_server image has row 0 at the *top*; :mod:`swarm_scene.map_io` flips it on load and save.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""swarm_common.rasterize: the map rasterised from a world reproduces the world."""
+"""swarm_scene.rasterize: the map rasterised from a world reproduces the world."""
 
 from __future__ import annotations
 
@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 
 from swarm_common.errors import InputError
-from swarm_common.map_io import load_map
-from swarm_common.occupancy import FREE, OCCUPIED
 from swarm_common.paths import MAPS_DIR
-from swarm_common.poi import poi_for_world
-from swarm_common.rasterize import rasterize_polygons, rasterize_world
-from swarm_common.world import World, load_world
+from swarm_scene.map_io import load_map
+from swarm_scene.occupancy import FREE, OCCUPIED
+from swarm_scene.poi import poi_for_world
+from swarm_scene.rasterize import rasterize_polygons, rasterize_world
+from swarm_scene.world import World, load_world
 
 from .test_world import SEED_WALLS
 

@@ -7,7 +7,7 @@ from collections import Counter
 import pytest
 
 from swarm_common.errors import InputError
-from swarm_common.fleet import (
+from swarm_scene.fleet import (
     describe_fleet,
     fleet_counts,
     fleet_models,

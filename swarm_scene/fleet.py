@@ -21,7 +21,7 @@ style rule: deterministic; robot 1 is the most numerous model, the first listed 
 that each model is mixed through the spawn grid instead of standing in a block.
 
 Pure: no ROS, no robot loading (the callers load each model with
-:func:`swarm_common.robot_model.load_robot`).  Errors are :class:`InputError` messages without the
+:func:`swarm_scene.robot_model.load_robot`).  Errors are :class:`InputError` messages without the
 flag; the commands prefix ``--robot: ``.
 """
 

@@ -19,7 +19,7 @@ Collada (``.dae``, any case; read by trimesh through pycollada): every ``<node>`
 its node transforms; ``<asset><unit meter="...">`` scales to metres, ``<asset><up_axis>``
 (``Y_UP``, the Collada spec's default when a file names none, or ``X_UP``) is rotated to z
 up. STL and OBJ are in metres, z up, as Gazebo reads them. The SDF's ``<scale>`` applies on
-top (:mod:`swarm_common.world`).
+top (:mod:`swarm_scene.world`).
 """
 
 from __future__ import annotations

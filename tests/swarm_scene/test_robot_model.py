@@ -1,4 +1,4 @@
-"""swarm_common.robot_model: URDF/xacro extraction against the seed facts, fallbacks, bad input."""
+"""swarm_scene.robot_model: URDF/xacro extraction against the seed facts, fallbacks, bad input."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from swarm_common.errors import InputError
-from swarm_common.robot_model import (
+from swarm_scene.robot_model import (
     DEFAULT_LIMITS,
     LDS01_DEFAULTS,
     RobotLimits,
@@ -23,7 +23,7 @@ from swarm_common.robot_model import (
 )
 
 DATA = Path(__file__).resolve().parents[1] / "data"
-LOGGER = "swarm_common.robot_model"
+LOGGER = "swarm_scene.robot_model"
 
 
 @pytest.fixture(autouse=True)
@@ -487,7 +487,7 @@ def test_resolve_robot_by_name_and_by_path(repo_root):
 
 _SUBPROCESS_LOAD = """
 import json, sys
-from swarm_common.robot_model import load_robot
+from swarm_scene.robot_model import load_robot
 m = load_robot(sys.argv[1])
 print(json.dumps({"yourdfpy": "yourdfpy" in sys.modules, "footprint": m.footprint.tolist(),
                   "lidar": [m.lidar.frame, m.lidar.samples, m.lidar.range_max,

@@ -1,4 +1,4 @@
-"""Spawn placement (swarm_common.spawn): exactly N poses on the grid, clear of walls, or an
+"""Spawn placement (swarm_scene.spawn): exactly N poses on the grid, clear of walls, or an
 error that says how many fit."""
 
 from __future__ import annotations
@@ -10,18 +10,18 @@ import numpy as np
 import pytest
 
 from swarm_common.errors import InputError
-from swarm_common.map_io import load_map
-from swarm_common.occupancy import OccupancyMap
 from swarm_common.paths import MAPS_DIR
-from swarm_common.poi import SpawnArea, poi_for_world
-from swarm_common.robot_model import load_robot
-from swarm_common.spawn import (
+from swarm_scene.map_io import load_map
+from swarm_scene.occupancy import OccupancyMap
+from swarm_scene.poi import SpawnArea, poi_for_world
+from swarm_scene.robot_model import load_robot
+from swarm_scene.spawn import (
     describe_spawn,
     largest_free_region,
     spawn_poses,
     spawn_poses_free,
 )
-from swarm_common.world import load_world, world_polygons
+from swarm_scene.world import load_world, world_polygons
 
 # shared/reference/seed_facts.md, slim_blockage's wall table as boxes xmin, xmax, ymin, ymax [m]
 # (the same table as tests/swarm_sim/test_lidar.py)
@@ -130,7 +130,7 @@ def test_free_area_spawn_keeps_to_the_region_of_the_clearest_cell(waffle):
 
 def test_spawn_module_is_pure():
     """swarm-up checks --swarm-size with this module: it must not pull in the simulator."""
-    import swarm_common.spawn as mod
+    import swarm_scene.spawn as mod
 
     tree = ast.parse(Path(mod.__file__).read_text())
     imported = set()

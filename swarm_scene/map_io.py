@@ -30,7 +30,7 @@ import yaml
 from PIL import Image, UnidentifiedImageError
 
 from swarm_common.errors import InputError, did_you_mean
-from swarm_common.occupancy import OCCUPIED, UNKNOWN, OccupancyMap
+from swarm_scene.occupancy import OCCUPIED, UNKNOWN, OccupancyMap
 
 MODES = ("trinary", "scale", "raw")
 REQUIRED_KEYS = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh")

@@ -1,4 +1,4 @@
-"""swarm_common.poi: the strict points-of-interest loader and the bundled worlds' POI."""
+"""swarm_scene.poi: the strict points-of-interest loader and the bundled worlds' POI."""
 
 from __future__ import annotations
 
@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from swarm_common.errors import InputError
-from swarm_common.occupancy import OCCUPIED
-from swarm_common.poi import PointsOfInterest, load_poi, poi_for_world
-from swarm_common.rasterize import rasterize_world
-from swarm_common.world import load_world, resolve_world, world_polygons
+from swarm_scene.occupancy import OCCUPIED
+from swarm_scene.poi import PointsOfInterest, load_poi, poi_for_world
+from swarm_scene.rasterize import rasterize_world
+from swarm_scene.world import load_world, resolve_world, world_polygons
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 

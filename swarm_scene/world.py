@@ -57,8 +57,8 @@ from swarm_common.geometry import (
     quaternion_to_matrix,
     rpy_to_matrix,
 )
-from swarm_common.meshes import MESH_SUFFIXES
 from swarm_common.paths import WORLDS_DIR, find_named
+from swarm_scene.meshes import MESH_SUFFIXES
 
 WORLD_SUFFIXES = (".world", ".sdf")
 # The robots' height band (ROS REP 103: z up, z = 0 the ground the robots stand on). A shape is
@@ -400,7 +400,7 @@ class _Loader:
         uri = (uri_el.text or "").strip() if uri_el is not None else ""
         if not uri:
             raise self.fail(where, "<mesh> without <uri>", src)
-        from swarm_common.resources import describe, resolve
+        from swarm_scene.resources import describe, resolve
 
         path, looked = resolve(uri, base)
         if path is None or not path.is_file():
@@ -559,8 +559,8 @@ def _include_base_name(uri: str) -> str:
 
 
 def _resolve_uri(uri: str, base: Path) -> Path | None:
-    """A file or directory for a URI (:func:`swarm_common.resources.resolve`), or None."""
-    from swarm_common.resources import resolve
+    """A file or directory for a URI (:func:`swarm_scene.resources.resolve`), or None."""
+    from swarm_scene.resources import resolve
 
     return resolve(uri, base)[0]
 
@@ -595,9 +595,9 @@ def _find_model_file(uri: str, base: Path) -> Path | None:
 
 
 def _mesh_vertices(path: Path) -> np.ndarray:
-    """(V, 3) vertices [m], z up, of a mesh file (:func:`swarm_common.meshes.load_mesh`);
+    """(V, 3) vertices [m], z up, of a mesh file (:func:`swarm_scene.meshes.load_mesh`);
     ValueError if unreadable."""
-    from swarm_common.meshes import load_mesh
+    from swarm_scene.meshes import load_mesh
 
     return load_mesh(path).vertices
 
@@ -719,13 +719,13 @@ def world_polygons(world: World, z_min: float = FLOOR_TOLERANCE,
         ``world.shapes``: a (K, 2) array of x, y [m] in ``map``, counter-clockwise. Boxes are
         exact (the hull of the projected corners, any orientation); cylinders and spheres are
         circumscribed 32-gons (so they contain the true outline); a mesh gives one polygon per
-        part (:func:`swarm_common.meshes.part_polygons`: a convex part's hull, a non-convex
+        part (:func:`swarm_scene.meshes.part_polygons`: a convex part's hull, a non-convex
         part's triangles). Shapes with no area in plan view are left out.
     """
     polygons = []
     for shape in obstacle_shapes(world, z_min, z_max):
         if shape.kind == "mesh":
-            from swarm_common.meshes import load_mesh, part_polygons
+            from swarm_scene.meshes import load_mesh, part_polygons
 
             tf = pose_to_matrix(shape.pose)
             for part in load_mesh(shape.mesh_path).parts:

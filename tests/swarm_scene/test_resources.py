@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from swarm_common.resources import (
+from swarm_scene.resources import (
     MODEL_PATH_VARS,
     ament_index_with_ros_package_path,
     describe,
@@ -83,7 +83,7 @@ def test_an_unresolved_uri_names_where_it_looked(tmp_path, clean_env):
 
 
 def test_a_world_mesh_by_package_uri_loads(tmp_path, clean_env):
-    from swarm_common.world import load_world, world_polygons
+    from swarm_scene.world import load_world, world_polygons
 
     prefix = ament_prefix(tmp_path / "install", "crate_description")
     shutil.copy(DATA / "world_cube.stl", prefix / "share" / "crate_description" / "meshes")
@@ -100,7 +100,7 @@ def test_a_world_mesh_by_package_uri_loads(tmp_path, clean_env):
 
 @pytest.mark.parametrize("how", ["ament", "ros_package_path"])
 def test_xacro_find_resolves_through_both(tmp_path, clean_env, how):
-    from swarm_common.robot_model import load_robot
+    from swarm_scene.robot_model import load_robot
 
     body = (DATA.parent.parent / "robots" / "turtlebot3_waffle.urdf.xacro").read_text()
     if how == "ament":

@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from swarm_common.meshes import load_mesh
-from swarm_common.rasterize import rasterize_world
-from swarm_common.world import load_world, world_polygons
+from swarm_scene.meshes import load_mesh
+from swarm_scene.rasterize import rasterize_world
+from swarm_scene.world import load_world, world_polygons
 
 BOX_FACES = [(0, 2, 1), (0, 3, 2), (4, 5, 6), (4, 6, 7), (0, 1, 5), (0, 5, 4), (1, 2, 6),
              (1, 6, 5), (2, 3, 7), (2, 7, 6), (3, 0, 4), (3, 4, 7)]
@@ -171,7 +171,7 @@ def test_a_tall_non_convex_wall_is_drawn_from_its_vertical_faces(tmp_path):
 
 
 def test_collada_walls_stop_a_robot_and_its_lidar_sees_them(tmp_path):
-    from swarm_common.robot_model import load_robot
+    from swarm_scene.robot_model import load_robot
     from swarm_sim.engine import SimEngine
 
     v, f = hexagon_band(radius=2.0, thick=0.15)

@@ -1,4 +1,4 @@
-"""swarm_common.map_io: nav2 map_server's format, every mode, and its failures."""
+"""swarm_scene.map_io: nav2 map_server's format, every mode, and its failures."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import pytest
 from PIL import Image
 
 from swarm_common.errors import InputError
-from swarm_common.map_io import load_map, save_map
-from swarm_common.occupancy import OCCUPIED, UNKNOWN, OccupancyMap
+from swarm_scene.map_io import load_map, save_map
+from swarm_scene.occupancy import OCCUPIED, UNKNOWN, OccupancyMap
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 

@@ -1,4 +1,4 @@
-"""swarm_common.world: SDF loading, pose composition, skipping, outlines."""
+"""swarm_scene.world: SDF loading, pose composition, skipping, outlines."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from scipy.spatial.transform import Rotation
 
 from swarm_common.errors import InputError
 from swarm_common.geometry import pose_to_matrix
-from swarm_common.world import (
+from swarm_scene.world import (
     BAND_TOP,
     FLOOR_TOLERANCE,
     World,
@@ -434,7 +434,7 @@ def _link_model(name: str, link_body: str, pose: str = "0 0 0 0 0 0") -> str:
 @pytest.fixture
 def no_model_path(monkeypatch):
     """No Gazebo model path variable set: the places looked in are the world's own."""
-    from swarm_common.resources import MODEL_PATH_VARS
+    from swarm_scene.resources import MODEL_PATH_VARS
 
     for var in MODEL_PATH_VARS:
         monkeypatch.delenv(var, raising=False)

@@ -2,7 +2,7 @@
 
 A cell is occupied when the plan-view outline of any obstacle (a shape in the robots' height
 band; floor slabs, ground planes and heightmaps are not obstacles, see
-:func:`swarm_common.world.obstacle_shapes`) overlaps the cell's square by more than a micrometre
+:func:`swarm_scene.world.obstacle_shapes`) overlaps the cell's square by more than a micrometre
 (conservative: a wall that touches a sliver of a cell takes the whole cell, so a 0.15 m wall is
 at least 3 cells thick at 0.05 m/cell and never has a gap); every other cell is free. The test
 is exact, per cell, by the separating axis theorem for two convex polygons (Gottschalk, Lin &
@@ -16,8 +16,8 @@ import math
 import numpy as np
 
 from swarm_common.errors import InputError
-from swarm_common.occupancy import FREE, OCCUPIED, OccupancyMap
-from swarm_common.world import BAND_TOP, FLOOR_TOLERANCE, World, world_polygons
+from swarm_scene.occupancy import FREE, OCCUPIED, OccupancyMap
+from swarm_scene.world import BAND_TOP, FLOOR_TOLERANCE, World, world_polygons
 
 OVERLAP_EPS = 1e-6  # [m] a shape must overlap a cell by more than this to occupy it
 
@@ -84,8 +84,8 @@ def rasterize_world(world: World, resolution: float = 0.05, padding: float = 0.5
         resolution: cell size [m/cell].
         padding: free margin [m] added around the bounding box of the shapes.
         z_min: bottom of the robots' height band [m]: shapes whose top is at or below it are
-            floor (default :data:`swarm_common.world.FLOOR_TOLERANCE`, 0.05 m; see
-            :func:`swarm_common.world.obstacle_shapes`).
+            floor (default :data:`swarm_scene.world.FLOOR_TOLERANCE`, 0.05 m; see
+            :func:`swarm_scene.world.obstacle_shapes`).
         z_max: top of the robots' height band [m] (default ``BAND_TOP``, 2.0 m).
 
     Returns:
