@@ -30,10 +30,9 @@ its own (the caller passes the wall time).
 
 from __future__ import annotations
 
-import math
+from swarm_common.stall import STALL_REPORT_S, StallReport
 
 POLL_S = 0.05  # [s] wall: how often a held tick checks that its commander is still there
-STALL_REPORT_S = 10.0  # [s] wall: a wait this long is reported (and again every as long)
 
 NONE_COMING, COMING = "none", "coming"
 
@@ -62,8 +61,7 @@ class GoalHandshake:
         self._word: str | None = None  # NONE_COMING or COMING, said for the current end
         self._goal_since_end = False  # a goal arrived after the current end
         self._over_ns: int | None = None  # end tick whose wait 2 ended without a goal
-        self._since: float | None = None  # [s] wall, when the current wait began
-        self._reported = 0  # stall reports of the current wait
+        self._stall = StallReport(STALL_REPORT_S)  # the current wait (either), its reports
 
     # -- what the navigator tells it ---------------------------------------------------------
     def answered(self, t_ns: int, terminal: bool, outcome: bool = False,
@@ -128,12 +126,11 @@ class GoalHandshake:
 
     def waiting(self, now_s: float) -> None:
         """A tick waits (either wait) from wall time ``now_s`` [s] on, unless one already does."""
-        if self._since is None:
-            self._since, self._reported = now_s, 0
+        self._stall.begin(now_s)
 
     def released(self) -> None:
         """No tick waits any more."""
-        self._since = None
+        self._stall.end()
 
     def poll(self, t_ns: int, now_s: float, commander: bool) -> tuple[bool, float | None]:
         """Check a waiting tick ``t_ns`` at wall time ``now_s`` [s].
@@ -149,8 +146,7 @@ class GoalHandshake:
             ``timeout_s`` passed (counted); ``stalled``, the seconds waited when a stall is to
             be reported now, else None.
         """
-        since = now_s if self._since is None else self._since
-        waited = now_s - since
+        waited = self._stall.waited(now_s)
         ending = self._end_ns is not None and t_ns > self._end_ns
         if ending and (not commander or (not self.lockstep and waited >= self.timeout_s)):
             # counted: a timeout out of the lockstep, or a lockstep commander that left (it
@@ -161,7 +157,4 @@ class GoalHandshake:
             self._over_ns = self._end_ns
             self.released()
             return True, None
-        if waited >= (self._reported + 1) * STALL_REPORT_S:
-            self._reported = math.floor(waited / STALL_REPORT_S)
-            return False, waited
-        return False, None
+        return False, self._stall.due(now_s)

@@ -61,6 +61,7 @@ from swarm_common.coordination import (
     encode_state,
 )
 from swarm_common.errors import InputError, run_cli
+from swarm_common.stall import StallReport
 from swarm_common.stamps import NS_PER_S
 from swarm_common.supervision import LOST, RobotsLost
 from swarm_coordinator.core import CoordinatorConfig, CoordinatorCore
@@ -97,7 +98,6 @@ class CoordinatorNode(Node):
         # state
         self.core = core
         self._dead = dict(dead or {})
-        self._stall_report = stall_report
         self._metrics_absent_s = metrics_absent_s
         self._heard_all: float | None = None  # time.monotonic() every robot was heard
         self._pending = []
@@ -105,8 +105,7 @@ class CoordinatorNode(Node):
         self._clock_ns: int | None = None  # the latest simulated time on /clock
         self._awaiting: dict[str, int] = {}  # robot -> the unsolicited assignment not delivered
         self._held: tuple[list, list] = ([], [])  # a batch's answers and events, until delivered
-        self._waiting_since: float | None = None  # time.monotonic() a sync or hand-over began
-        self._reported = 0
+        self._stall = StallReport(stall_report)  # the current sync's or hand-over's wait
         self._metrics_seen: float | None = None  # time.monotonic() the metrics' reader appeared
         self._matched_since: float | None = None  # time.monotonic() every reader was matched
         self._warned = 0.0
@@ -179,11 +178,8 @@ class CoordinatorNode(Node):
     def _on_poll(self) -> None:
         if self._syncing:
             self._handle_due()
-        if self._waiting_since is None:
-            return
-        waited = time.monotonic() - self._waiting_since
-        if waited >= (self._reported + 1) * self._stall_report:
-            self._reported += 1
+        waited = self._stall.due(time.monotonic())
+        if waited is not None:
             unheard = self._unheard()
             if not self._syncing:
                 what = f"the delivery of hand-overs to {', '.join(sorted(self._awaiting))}"
@@ -210,8 +206,7 @@ class CoordinatorNode(Node):
         if self._awaiting:
             return
         if self._syncing:
-            if self._waiting_since is None:
-                self._waiting_since, self._reported = time.monotonic(), 0
+            self._stall.begin(time.monotonic())
             if self._unheard():
                 return
             if self._heard_all is None:
@@ -219,7 +214,7 @@ class CoordinatorNode(Node):
             if not self._metrics_matched():
                 return
             self._syncing = False
-            self._waiting_since = None
+            self._stall.end()
             batch, self._pending = self._pending, []
         else:
             if self._clock_ns is None:
@@ -240,7 +235,8 @@ class CoordinatorNode(Node):
             self._awaiting[a.robot] = a.seq
         self._held = ([a for a in assignments if a.reply_to != 0], events)
         if self._awaiting:
-            self._waiting_since, self._reported = time.monotonic(), 0
+            self._stall.end()
+            self._stall.begin(time.monotonic())
         self._release_held()
 
     def _release_held(self) -> None:
@@ -248,7 +244,7 @@ class CoordinatorNode(Node):
         then handle whatever has become due meanwhile."""
         if self._awaiting:
             return
-        self._waiting_since = None
+        self._stall.end()
         answers, events = self._held
         self._held = ([], [])
         for a in answers:

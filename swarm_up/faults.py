@@ -43,6 +43,7 @@ from swarm_common.faults import (
     FaultAck,
     FaultEvent,
 )
+from swarm_common.stall import StallReport
 from swarm_common.supervision import LOST, RobotsLost
 from swarm_ros.qos import publisher, subscription
 
@@ -132,7 +133,7 @@ class ProcessFaults:
         self._done: set[tuple[int, str]] = set()
         # a restarted coordinator not yet serving: (event, epochs serving before, monotonic start)
         self._awaiting: tuple[FaultEvent, frozenset[str], float] | None = None
-        self._reported = 0  # stall reports of the current wait
+        self._stall = StallReport(stall_report)  # the current wait's reports
 
     def handle(self, ev: FaultEvent) -> None:
         """Carry out one announced fault transition (each once; others are ignored)."""
@@ -182,6 +183,8 @@ class ProcessFaults:
                      f" at t = {ev.t:g} s")
             if started and before is not None:
                 self._awaiting = (ev, before, time.monotonic())
+                self._stall.end()
+                self._stall.begin(self._awaiting[2])
                 return  # acknowledged by poll() once it serves
         self.ack(FaultAck(ev.fault, ev.phase, "swarm-up"))
 
@@ -199,13 +202,12 @@ class ProcessFaults:
         new = self.serving() - before
         waited = time.monotonic() - since
         if not new:
-            if waited >= (self._reported + 1) * self.stall_report:
-                self._reported += 1
+            if self._stall.due(since + waited) is not None:
                 self.say(f"fault {ev.fault}: the restarted coordinator does not serve yet after "
                          f"{waited:.0f} s wall; simulated time waits at t = {ev.t:g} s")
             return
         self._awaiting = None
-        self._reported = 0
+        self._stall.end()
         self.say(f"fault {ev.fault}: the restarted coordinator serves (epoch {min(new)}) after "
                  f"{waited:.1f} s wall; simulated time goes on at t = {ev.t:g} s")
         self.ack(FaultAck(ev.fault, ev.phase, "swarm-up"))
