@@ -29,6 +29,7 @@ import numpy as np
 
 from swarm_common import cdr, cli, topics
 from swarm_common.errors import InputError, run_cli
+from swarm_common.events import COLLISION, CollisionEvent
 from swarm_common.nav_status import NavState, decode
 from swarm_record import mcap_format as rec
 
@@ -185,12 +186,10 @@ def read_run(path: Path) -> RunTrace:
                 last_state[ns] = status.state
             elif topic == topics.EVENTS.name:
                 for status in decoded(schema, channel, message).status:
-                    if status.name == "collision":
-                        values = {kv.key: kv.value for kv in status.values}
-                        try:
-                            collisions.append((float(values["x"]), float(values["y"])))
-                        except (KeyError, ValueError):
-                            continue
+                    if status.name == COLLISION:
+                        ev = CollisionEvent.decode({kv.key: kv.value for kv in status.values})
+                        if ev is not None:
+                            collisions.append((ev.x, ev.y))
             elif topic == topics.MAP.name and trace.grid is None:
                 msg = decoded(schema, channel, message)
                 info = msg.info

@@ -18,6 +18,7 @@ import pytest
 from PIL import Image
 from rosbags.typesys import Stores, get_typestore
 
+from swarm_common.events import COLLISION, CollisionEvent
 from swarm_record import mcap_format as rec
 from swarm_record import plot
 
@@ -105,8 +106,8 @@ def make_recording(path: Path) -> None:
                                ("Srobot2", "SUCCEEDED", "2.000000000", 8)):
         out.write(f"/{ns}/nav_status", s * 10**9, _nav_status(state, goal, s))
     events = T["diagnostic_msgs/msg/DiagnosticArray"](header=_header(5 * 10**9, ""), status=[
-        _status("collision", "robot-wall collision", {"robot": "Srobot3", "x": "0.5",
-                                                       "y": "-2.0", "other": "wall"})])
+        _status(COLLISION, "robot-wall collision",
+                CollisionEvent("Srobot3", 0.5, -2.0, 5.0, other="wall").encode())])
     out.write("/swarm/events", 5 * 10**9,
               bytes(STORE.serialize_cdr(events, "diagnostic_msgs/msg/DiagnosticArray")))
     out.close()
