@@ -13,12 +13,14 @@ process layout; its real-time factor is the ceiling that the messaging sets, and
   (while anyone subscribes to it, as the simulator) ``ground_truth`` (``nav_msgs/Odometry``,
   reliable, depth 10), on lidar ticks (5 Hz: every 2nd
   tick, from the robot's URDF) a ``sensor_msgs/LaserScan`` per robot with the URDF's beams (360)
-  and fixed ranges (sensor-data QoS); then it waits until every active robot's
-  ``geometry_msgs/TwistStamped`` ``cmd_vel`` stamped with that tick has arrived (3 s timeout,
-  counted as late) and steps; ``/map`` (the world's map, transient local) and the spawn events on
-  ``/swarm/events`` once; the start gate (the first tick is re-published every 0.5 s wall until
-  every robot answered it); ``spin_once`` of an ``EventsExecutor`` between ticks, as the
-  simulator.
+  and fixed ranges (sensor-data QoS), robot after robot; then it waits until every awaited
+  robot's ``geometry_msgs/TwistStamped`` ``cmd_vel`` stamped with that tick has arrived and
+  steps; ``/map`` (the world's map, transient local) and the spawn events on ``/swarm/events``
+  once; the start gate (the first tick is re-published every 0.5 s wall until every robot
+  answered it); ``spin_once`` of an ``EventsExecutor`` between ticks.  The loop, its waits and
+  its tick gate are the simulator's own (:class:`swarm_sim.loop.SimLoop`, :mod:`swarm_sim.tick`)
+  and so are its sensor topics (:mod:`swarm_ros.robot_topics`): no wall-clock timeout, a robot
+  not awaited only once its ``cmd_vel`` has no writer or the supervisor says it is gone.
 - navigator (one node ``/<ns>/navigator`` per robot, ``use_sim_time``; a process of its own
   subscribes to ``/clock`` itself, a group process once for all its nodes,
   :class:`swarm_up.clock.SharedClock`): subscribes ``/map``, ``scan``, ``odom``, ``goal_pose``;
@@ -117,9 +119,7 @@ class BaselineConfig:
         lidar_frame: the lidar's link name (``frame_id`` ``<ns>/<link>``).
         goal_period_s: simulated time a baseline goal takes [s].
         plan_poses: poses of the plan published per goal [-].
-        command_timeout_s: wall time the simulator waits for a tick's answers [s].
         goal_wait_timeout_s: wall time an answer waits for a commander's next goal [s].
-        ready_timeout_s: wall time the start gate waits for every robot [s].
     """
 
     robots: tuple[str, ...]
@@ -138,9 +138,7 @@ class BaselineConfig:
     lidar_frame: str = "base_scan"
     goal_period_s: float = DEFAULT_GOAL_PERIOD_S
     plan_poses: int = 200
-    command_timeout_s: float = 3.0
     goal_wait_timeout_s: float = 2.5
-    ready_timeout_s: float = 120.0
 
     def encode(self) -> str:
         """The JSON text of this config."""

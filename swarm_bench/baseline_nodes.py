@@ -18,7 +18,6 @@ Every process loops on ``spin_once`` of an ``EventsExecutor``, as the real nodes
 
 from __future__ import annotations
 
-import array
 import json
 import math
 import signal
@@ -30,7 +29,7 @@ import numpy as np
 import rclpy
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import PoseStamped, TwistStamped
+from geometry_msgs.msg import PoseArray, PoseStamped, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry
 from rclpy.clock import Clock as RclpyClock
 from rclpy.clock import ClockType
@@ -39,15 +38,14 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import LaserScan
 from std_srvs.srv import Trigger
 
 from swarm_bench.baseline import BaselineConfig
 from swarm_common import cli, topics
 from swarm_common.cdr import (
     LaserScanWriter,
-    OdometryWriter,
     PathWriter,
+    PoseArrayWriter,
     TwistStampedWriter,
     diagnostic_status,
     odom_pose,
@@ -55,12 +53,17 @@ from swarm_common.cdr import (
     twist_stamped,
 )
 from swarm_common.errors import InputError, run_cli
+from swarm_common.events import SPAWN, SpawnEvent
 from swarm_common.lockstep import COMING, POLL_S, GoalHandshake
 from swarm_common.nav_status import TERMINAL
 from swarm_common.stamps import NS_PER_S
+from swarm_common.supervision import LOST, RobotsLost
+from swarm_ros.messages import occupancy_grid_msg, stamp_ns, time_msg
 from swarm_ros.navigator import navigator_interface
 from swarm_ros.qos import publisher, subscription
+from swarm_ros.robot_topics import RobotTopics, publish_sensors
 from swarm_ros.session import node_session, spin_forever
+from swarm_sim.loop import SimLoop
 from swarm_up.clock import SharedClock
 
 STATUS_PERIOD_NS = NS_PER_S // 2  # nav_status at 2 Hz simulated and on every change (as nav)
@@ -84,14 +87,6 @@ class _Cpu:
         return f"baseline: cpu_s {used:.3f}"
 
 
-def _time_msg(t_ns: int) -> Time:
-    return Time(sec=t_ns // NS_PER_S, nanosec=t_ns % NS_PER_S)
-
-
-def _stamp_ns(stamp) -> int:
-    return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
-
-
 def _stamp_text(t_ns: int) -> str:
     sec, nsec = divmod(t_ns, NS_PER_S)
     return f"{sec}.{nsec:09d}"
@@ -102,8 +97,45 @@ def _sim_time() -> list[Parameter]:
 
 
 # ------------------------------------------------------------------------------------ simulator
+class StillWorld:
+    """The world of the baseline's simulator: robots standing on a 1 m grid, nothing moves, no
+    ray casting (every scan the same ranges), no collisions.  It offers what
+    :class:`swarm_sim.loop.SimLoop` and the sensor topics read of the engine.
+
+    Args:
+        cfg: the baseline's settings (robots, lidar).
+    """
+
+    def __init__(self, cfg: BaselineConfig):
+        n = len(cfg.robots)
+        self.poses = np.array([(i % 10, i // 10, 0.0) for i in range(n)], dtype=float)
+        self.v = np.zeros(n)
+        self.w = np.zeros(n)
+        self.ticks = 0
+        self.lidar_every = cfg.lidar_every
+        ranges = np.full(cfg.beams, 0.5 * (cfg.range_min + cfg.range_max), np.float32)
+        self._scans = [ranges] * n
+
+    def step(self, v, w, held=None) -> list:
+        """Advance one tick (nothing moves, nothing collides)."""
+        self.ticks += 1
+        return []
+
+    def lidar_due(self) -> bool:
+        """Whether the lidars scan at this tick (every ``lidar_every`` ticks from tick 0)."""
+        return self.ticks % self.lidar_every == 0
+
+    def lidar_due_mask(self) -> np.ndarray:
+        return np.full(len(self.poses), self.lidar_due())
+
+    def scans(self) -> list:
+        return self._scans
+
+
 class BaselineSimNode(Node):
-    """The simulator's lockstep loop without physics, ray casting or collision checks.
+    """The simulator's control loop (:class:`swarm_sim.loop.SimLoop`, the same tick gate and
+    waits as ``swarm-sim``) and its messages, on a :class:`StillWorld`: no physics, ray casting
+    or collision checks.
 
     Args:
         cfg: the baseline's settings.
@@ -113,163 +145,120 @@ class BaselineSimNode(Node):
         super().__init__("swarm_sim_baseline")
         # State.
         self.cfg = cfg
-        self.n = len(cfg.robots)
+        self.names = list(cfg.robots)
+        self.world = StillWorld(cfg)
         self.period_ns = round(NS_PER_S / cfg.control_rate_hz)
-        self.lidar_every = cfg.lidar_every
-        self.t_ns = 0
-        self.ticks = 0
-        self.answers: set[int] = set()
-        self.active = np.zeros(self.n, dtype=bool)
-        self.late_ticks = 0
-        self.cpu_s = 0.0  # [s] CPU of this process from the gate's opening to the end
+        self.loop = SimLoop(self.world, self, self.names, self.period_ns,
+                            wait_for=len(self.names))
         self.stop_requested = False
-        # A fixed scan: the real one is cast per tick; here the same ranges every time.
-        self._ranges = np.full(cfg.beams, 0.5 * (cfg.range_min + cfg.range_max), np.float32)
+        self.executor_ = None
+        self._last_line = 0.0
         # Publishers and subscribers (names, types and QoS of swarm_sim.node).
         self.clock_pub = publisher(self, Clock, topics.CLOCK)
         self.map_pub = publisher(self, OccupancyGrid, topics.MAP)
         self.events_pub = publisher(self, DiagnosticArray, topics.EVENTS)
-        self.odom_pubs, self.truth_pubs, self.scan_pubs = [], [], []
-        for i, ns in enumerate(cfg.robots):
-            self.odom_pubs.append(publisher(self, Odometry, topics.ODOM, ns))
-            self.truth_pubs.append(publisher(self, Odometry, topics.GROUND_TRUTH, ns))
-            self.scan_pubs.append(publisher(self, LaserScan, topics.SCAN, ns))
-            subscription(self, TwistStamped, topics.CMD_VEL,
-                         lambda buf, i=i: self._on_cmd_vel(i, buf), ns,
-                         topics.CMD_VEL_READER_QOS, raw=True)  # read raw, as the simulator does
-        # Written as CDR bytes, as the simulator does (swarm_common.cdr).
-        self._odom_writers = [OdometryWriter(f"{ns}/odom", f"{ns}/base_footprint")
-                              for ns in cfg.robots]
-        self._truth_writers = [OdometryWriter("map", f"{ns}/base_footprint")
-                               for ns in cfg.robots]
-        self._scan_writers = [LaserScanWriter(
+        self.poses_pub = publisher(self, PoseArray, topics.POSES)
+        self.robots = [RobotTopics(self, ns, LaserScanWriter(
             f"{ns}/{cfg.lidar_frame}", cfg.angle_min, cfg.angle_max,
             (cfg.angle_max - cfg.angle_min) / max(cfg.beams - 1, 1), 1.0 / cfg.lidar_rate_hz,
-            cfg.range_min, cfg.range_max) for ns in cfg.robots]
-        # Robots stand on a 1 m grid; the poses never change (no physics).
-        self._poses = np.array([(i % 10, i // 10, 0.0) for i in range(self.n)], dtype=float)
-        self.map_pub.publish(self._map_msg())
-        self.events_pub.publish(DiagnosticArray(status=[
-            DiagnosticStatus(name="spawn", message=f"spawned {ns}", hardware_id=ns,
-                             values=[KeyValue(key="robot", value=ns)])
-            for ns in cfg.robots]))
-
-    def _map_msg(self) -> OccupancyGrid:
+            cfg.range_min, cfg.range_max)) for ns in cfg.robots]
+        self._cmd_subs = [subscription(
+            self, TwistStamped, topics.CMD_VEL, lambda buf, i=i: self._on_cmd_vel(i, buf), ns,
+            topics.CMD_VEL_READER_QOS, raw=True) for i, ns in enumerate(cfg.robots)]
+        subscription(self, DiagnosticStatus, topics.SUPERVISION, self._on_supervision)
+        self._poses_writer = PoseArrayWriter("map")
         from swarm_scene.map_io import load_map
 
-        occ = load_map(self.cfg.map_yaml)
-        msg = OccupancyGrid()
-        msg.header.frame_id = "map"
-        msg.info.resolution = float(occ.resolution)
-        msg.info.width, msg.info.height = occ.width, occ.height
-        msg.info.origin.position.x = float(occ.origin[0])
-        msg.info.origin.position.y = float(occ.origin[1])
-        msg.info.origin.orientation.w = 1.0
-        msg.data = array.array("b", np.ascontiguousarray(occ.data, dtype=np.int8).tobytes())
-        return msg
+        self.map_pub.publish(occupancy_grid_msg(load_map(cfg.map_yaml), time_msg(0)))
+        self.events_pub.publish(DiagnosticArray(status=[
+            DiagnosticStatus(name=SPAWN, message=f"spawned {ns}", hardware_id=ns,
+                             values=[KeyValue(key=k, value=v) for k, v in SpawnEvent(
+                                 ns, float(x), float(y), 0.0, float(yaw)).encode().items()])
+            for ns, (x, y, yaw) in zip(cfg.robots, self.world.poses, strict=True)]))
 
     def _on_cmd_vel(self, i: int, buf: bytes) -> None:
         try:
             stamp, _, v, w = twist_stamped(buf)
         except ValueError:
             return
-        if not (math.isfinite(v) and math.isfinite(w)):
-            return
-        if stamp == self.t_ns:
-            self.answers.add(i)
-            self.active[i] = True
+        if math.isfinite(v) and math.isfinite(w):
+            self.loop.gate.answer(i, stamp, v, w, time.monotonic())
+
+    def _on_supervision(self, msg: DiagnosticStatus) -> None:
+        if msg.name == LOST:
+            word = RobotsLost.decode({kv.key: kv.value for kv in msg.values})
+            for ns in word.robots if word is not None else ():
+                if ns in self.names:
+                    self.loop.lose(self.names.index(ns), word.reason, word.for_good)
+
+    # -- the loop's ports (swarm_sim.loop.Ports), as swarm_sim.node's --------------------------
+    def spin(self, timeout_s: float) -> None:
+        self.executor_.spin_once(timeout_sec=timeout_s)
+
+    def stopped(self) -> bool:
+        return self.stop_requested or not rclpy.ok()
+
+    def log(self, level: str, text: str) -> None:
+        print(f"baseline: {text}", file=sys.stderr if level == "warning" else sys.stdout,
+              flush=True)
+
+    def cmd_writer(self, i: int) -> bool:
+        return self._cmd_subs[i].get_publisher_count() > 0
+
+    def progress_writer(self) -> bool:
+        return False  # no recorder
+
+    def reader_matched(self, deadline_s: float) -> bool:
+        return True  # no reader awaited
 
     def publish_tick(self) -> None:
-        """``/clock``, every robot's odometry and ground truth, and scans on lidar ticks."""
-        stamp = _time_msg(self.t_ns)
-        self.clock_pub.publish(Clock(clock=stamp))
-        if (self.t_ns // self.period_ns) % self.lidar_every == 0:
-            for i, pub in enumerate(self.scan_pubs):
-                pub.publish(self._scan_writers[i].write(self.t_ns, self._ranges))
-        for i in range(self.n):
-            x, y, yaw = self._poses[i].tolist()
-            qz, qw = math.sin(yaw / 2.0), math.cos(yaw / 2.0)
-            self.odom_pubs[i].publish(self._odom_writers[i].write(self.t_ns, x, y, qz, qw,
-                                                                  0.0, 0.0))
-            if self.truth_pubs[i].get_subscription_count():  # as the simulator: only if heard
-                self.truth_pubs[i].publish(self._truth_writers[i].write(self.t_ns, x, y, qz, qw,
-                                                                        0.0, 0.0))
+        """``/clock``, every robot's odometry (ground truth while heard) and, on lidar ticks,
+        its scan, robot after robot; ``/swarm/poses`` while heard: as ``swarm_sim.node``."""
+        t_ns, world = self.loop.gate.t_ns, self.world
+        self.clock_pub.publish(Clock(clock=time_msg(t_ns)))
+        publish_sensors(self.robots, t_ns, world.poses, world.v, world.w,
+                        world.scans() if world.lidar_due() else None)
+        if self.poses_pub.get_subscription_count():
+            self.poses_pub.publish(self._poses_writer.write(t_ns, world.poses))
 
-    def collect(self, executor) -> bool:
-        """Wait for this tick's answers of the active robots (or ``command_timeout``).
+    def republish(self, i: int) -> None:
+        t_ns, world = self.loop.gate.t_ns, self.world
+        if world.lidar_due():
+            self.robots[i].publish_scan(t_ns, world.scans()[i])
+        self.robots[i].publish_odom(t_ns, world.poses[i].tolist(), 0.0, 0.0, truth=False)
 
-        Returns:
-            False if a stop was requested meanwhile.
-        """
-        deadline = time.monotonic() + self.cfg.command_timeout_s
-        while True:
-            if self.stop_requested:
-                return False
-            waiting = [i for i in np.flatnonzero(self.active) if i not in self.answers]
-            if not waiting:
-                break
-            remaining = deadline - time.monotonic()
-            if remaining <= 0.0:
-                self.late_ticks += len(waiting)
-                self.active[waiting] = False
-                break
-            executor.spin_once(timeout_sec=min(remaining, 0.05))
-        self.answers.clear()
-        return True
+    def announce_faults(self, due: list) -> None:
+        pass  # the baseline injects none
 
-    def step(self) -> None:
-        """Advance simulated time by one tick (nothing moves)."""
-        self.t_ns += self.period_ns
-        self.ticks += 1
+    def announce_late(self, robots: list[int]) -> None:
+        if robots:
+            print(f"baseline: late at t = {self.loop.gate.t_ns / NS_PER_S:.1f} s: "
+                  + ", ".join(self.names[i] for i in robots), file=sys.stderr, flush=True)
 
-    def wait_for_robots(self, executor) -> bool:
-        """The start gate: hold the first tick until every robot answered it.
+    def stepped(self, events: list) -> None:
+        """A progress line every ``PROGRESS_EVERY_S`` wall (nothing collides here)."""
+        now = time.monotonic()
+        if self.loop.opened and now - self._last_line >= PROGRESS_EVERY_S:
+            if self._last_line:
+                sim_s = self.loop.gate.t_ns / NS_PER_S
+                print(f"baseline: t = {sim_s:.0f} / {self.cfg.duration_s:g} s simulated, "
+                      f"RTF {sim_s / max(now - self._opened_at, 1e-9):.2f}", flush=True)
+            else:
+                self._opened_at = now
+                print(f"baseline: all {len(self.names)} robots answering; running "
+                      f"{self.cfg.duration_s:g} simulated s", flush=True)
+            self._last_line = now
 
-        Returns:
-            False if a stop was requested or ``ready_timeout`` passed.
-        """
-        until_ready = time.monotonic() + self.cfg.ready_timeout_s
-        while rclpy.ok() and not self.stop_requested and int(self.active.sum()) < self.n:
-            if time.monotonic() > until_ready:
-                print(f"baseline: only {int(self.active.sum())}/{self.n} robots answered within "
-                      f"{self.cfg.ready_timeout_s:g} s", file=sys.stderr, flush=True)
-                return False
-            self.publish_tick()
-            until = time.monotonic() + 0.5
-            while (time.monotonic() < until and int(self.active.sum()) < self.n
-                   and not self.stop_requested):
-                executor.spin_once(timeout_sec=0.05)
-        return not self.stop_requested
-
+    # -- life --------------------------------------------------------------------------------
     def run(self, executor) -> tuple[float, bool]:
         """Tick unpaced until ``duration`` simulated seconds.
 
         Returns:
             ``(wall seconds from the gate's opening to the end, whether the gate opened)``.
         """
-        self.step()  # tick 0 is stepped silently, as the simulator does
-        if not self.wait_for_robots(executor):
-            return 0.0, False
-        end_ns = round(self.cfg.duration_s * NS_PER_S)
-        wall0 = time.monotonic()
-        cpu0 = time.process_time()
-        last_line = wall0
-        print(f"baseline: all {self.n} robots answering; running {self.cfg.duration_s:g} "
-              "simulated s", flush=True)
-        while rclpy.ok() and not self.stop_requested and self.t_ns < end_ns:
-            self.publish_tick()
-            if not self.collect(executor):
-                break
-            self.step()
-            executor.spin_once(timeout_sec=0.0)
-            now = time.monotonic()
-            if now - last_line >= PROGRESS_EVERY_S:
-                last_line = now
-                sim_s = self.t_ns / NS_PER_S
-                print(f"baseline: t = {sim_s:.0f} / {self.cfg.duration_s:g} s simulated, "
-                      f"RTF {sim_s / (now - wall0):.2f}", flush=True)
-        self.cpu_s = time.process_time() - cpu0
-        return time.monotonic() - wall0, True
+        self.executor_ = executor
+        self.loop.run(self.cfg.duration_s, rtf=0.0)
+        return self.loop.wall_s, self.loop.opened
 
     def request_stop(self, signum=None, frame=None) -> None:
         """Signal handler: end the loop at its next check."""
@@ -277,16 +266,18 @@ class BaselineSimNode(Node):
 
     def summary(self, wall_s: float, started: bool) -> dict:
         """The baseline's figures (see :mod:`swarm_bench.baseline`)."""
-        sim_s = self.t_ns / NS_PER_S
+        sim_s = self.loop.gate.t_ns / NS_PER_S
+        ticks = self.world.ticks
         return {
-            "robots": self.n,
-            "ticks": self.ticks,
+            "robots": len(self.names),
+            "ticks": ticks,
             "sim_time_s": round(sim_s, 3),
             "wall_time_s": round(wall_s, 3),
             "rtf": round(sim_s / wall_s, 3) if wall_s > 0 else None,
-            "robot_ticks_per_s": round(self.n * self.ticks / wall_s, 1) if wall_s > 0 else None,
-            "late_ticks": self.late_ticks,
-            "sim_cpu_s": round(self.cpu_s, 3),
+            "robot_ticks_per_s": round(len(self.names) * ticks / wall_s, 1) if wall_s > 0
+            else None,
+            "late_ticks": int(self.loop.gate.late_ticks.sum()),
+            "sim_cpu_s": round(self.loop.cpu_s, 3),
             "started": started,
             "interrupted": self.stop_requested,
         }
@@ -382,7 +373,7 @@ class BaselineNavigatorNode(Node):
 
     def _on_goal_pose(self, msg: PoseStamped) -> None:
         stamp = msg.header.stamp
-        self._goals.append((_stamp_ns(stamp), _stamp_text(_stamp_ns(stamp))))
+        self._goals.append((stamp_ns(stamp), _stamp_text(stamp_ns(stamp))))
         self.handshake.goal_arrived()
         self._release()
 
@@ -515,7 +506,7 @@ class BaselineCommanderNode(Node):
         self._goals += 1
         goal.pose.position.x = float(self._goals % 7)
         goal.pose.orientation.w = 1.0
-        self._sent = _stamp_text(_stamp_ns(goal.header.stamp))
+        self._sent = _stamp_text(stamp_ns(goal.header.stamp))
         self._goal_pub.publish(goal)
 
 

@@ -35,8 +35,10 @@ from swarm_common.faults import (
     KILL_ROBOT,
     START,
     Fault,
+    FaultEvent,
     drop_rng,
 )
+from swarm_common.stamps import NS_PER_S
 
 
 @dataclass
@@ -122,6 +124,31 @@ class SimFaults:
                 self._drops[f.index] = (f, self._rngs[f.index])
             else:
                 self._drops.pop(f.index, None)
+
+    def log_entry(self, f: Fault, phase: str, t_ns: int, poses: np.ndarray) -> dict:
+        """The summary's record of a transition at tick ``t_ns`` [ns]: ``fault``, ``kind``,
+        ``phase``, ``robot``, ``t`` [s] and, for a robot's fault, ``x``, ``y`` [m] where it was
+        (a dead robot's body stays there); ``poses`` (N, 3) in ``map``."""
+        entry = {"fault": f.index, "kind": f.kind, "phase": phase, "robot": f.robot,
+                 "t": round(t_ns / NS_PER_S, 3)}
+        if f.robot is not None:
+            x, y = poses[self.robot(f), :2]
+            entry["x"], entry["y"] = round(float(x), 3), round(float(y), 3)
+        return entry
+
+    def event(self, f: Fault, phase: str, t_ns: int, poses: np.ndarray) -> tuple[dict, str]:
+        """The ``/swarm/events`` status announcing a transition at tick ``t_ns`` [ns]: its
+        values (:class:`swarm_common.faults.FaultEvent`, and ``x``, ``y`` [m] of the robot) and
+        its message."""
+        t = t_ns / NS_PER_S
+        values = FaultEvent(fault=f.index, kind=f.kind, phase=phase, robot=f.robot or "", t=t,
+                            duration=f.duration, topic=f.topic or "",
+                            fraction=f.fraction).encode()
+        if f.robot is not None:
+            x, y = poses[self.robot(f), :2]
+            values["x"], values["y"] = f"{x:.3f}", f"{y:.3f}"
+        verb = "starts" if phase == START else "ends"
+        return values, f"fault {f.index} {f.label()} {verb} at t = {t:.1f} s"
 
     # -- queries -------------------------------------------------------------------------------
 

@@ -207,8 +207,13 @@ class Swarm:
         node.create_subscription(DiagnosticArray, "/swarm/events",
                                  lambda m: self.events.extend(m.status), EVENTS_QOS)
         n = str(len(self.names))
+        # The start gate also waits for the probe's subscriptions to the simulator's topics
+        # (every ground truth and /swarm/events) to be matched: the simulator publishes the
+        # ground truth only to matched readers, so a truth matched late (a loaded machine's slow
+        # discovery) would miss the robots' first moves.
         self.sim = start(["swarm-sim", "--world", self.world, "--swarm-size", n, "--rtf", "0",
-                          "--seed", "3", "--wait-for", n,
+                          "--seed", "3", "--wait-for", n, "--wait-for-reader", "behaviour_probe",
+                          "--reader-subscriptions", str(len(self.names) + 1),
                           "--summary", str(self.summary_path), *self.sim_args],
                          self.dir / "sim.log")
         self.nav = start(["python", "-m", "swarm_up.group", "--namespaces",

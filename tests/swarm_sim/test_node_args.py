@@ -6,7 +6,7 @@ import sys
 import pytest
 
 from swarm_common.errors import InputError
-from swarm_sim.node import parse_settings
+from swarm_sim.settings import parse_settings
 
 
 def test_defaults_are_typed():
@@ -51,7 +51,7 @@ def test_bad_prefix_exits_2_with_one_line_as_a_process():
 
 def test_a_mix_gives_the_engine_every_robots_model_as_swarm_up_interleaves_it():
     from swarm_scene.fleet import fleet_models
-    from swarm_sim.node import prepare
+    from swarm_sim.settings import prepare
 
     mix = "turtlebot3_waffle:3,turtlebot3_burger:2,linorobot2_2wd:1"
     engine, _, namespaces, spawned, _ = prepare(parse_settings(
@@ -87,7 +87,7 @@ class _Pub:
 
 
 class _Gate:
-    """What ``SimulatorNode._reader_matched`` reads of its node: the reader's subscriptions
+    """What ``SimulatorNode.reader_matched`` reads of its node: the reader's subscriptions
     discovered so far, and this node's publishers with their matched counts."""
 
     def __init__(self, need, discovered, matched=1, progress=None):
@@ -118,8 +118,8 @@ def test_the_gate_waits_for_every_subscription_of_the_reader(need, discovered, m
     from swarm_sim.node import SimulatorNode
 
     gate = _Gate(need, discovered, matched)
-    assert SimulatorNode._reader_matched(gate, deadline=float("inf")) is opens
-    assert SimulatorNode._reader_matched(gate, deadline=0.0) is True  # given up
+    assert SimulatorNode.reader_matched(gate, float("inf")) is opens
+    assert SimulatorNode.reader_matched(gate, 0.0) is True  # given up
 
 
 class _Progress:
@@ -135,8 +135,8 @@ def test_the_gate_waits_for_the_recorders_progress_writer(writers, opens):
     from swarm_sim.node import SimulatorNode
 
     gate = _Gate(3, 3, 1, progress=writers)
-    assert SimulatorNode._reader_matched(gate, deadline=float("inf")) is opens
-    assert SimulatorNode._reader_matched(gate, deadline=0.0) is True  # given up
+    assert SimulatorNode.reader_matched(gate, float("inf")) is opens
+    assert SimulatorNode.reader_matched(gate, 0.0) is True  # given up
 
 
 def test_reader_subscriptions_must_be_positive():
