@@ -110,6 +110,8 @@ from swarm_common.coordination import (
     EVENT_TASK,
     check_reservations,
 )
+from swarm_common.events import COLLISION, LATE, ROBOT_ROBOT, ROBOT_WALL, SPAWN, CollisionEvent
+from swarm_common.faults import EVENT_NAME as FAULT
 from swarm_common.faults import FaultEvent
 from swarm_common.nav_status import TOOK_ANOTHER, NavState, decode
 from swarm_common.sim_summary import RobotSummary, SimSummary, SimSummaryError
@@ -189,8 +191,8 @@ class RunRecorder:
     robots: tuple[str, ...]
     per_robot: dict[str, RobotRecord] = field(default_factory=dict)
     last_sim_time_s: float | None = None  # [s] latest /clock
-    collision_events: dict[str, int] = field(default_factory=lambda: {"robot_robot": 0,
-                                                                      "robot_wall": 0})
+    collision_events: dict[str, int] = field(default_factory=lambda: {ROBOT_ROBOT: 0,
+                                                                      ROBOT_WALL: 0})
     fault_events: int = 0  # the simulator's "stopped answering" / "answers again" events
     # every collision event in order: robot, other, kind, x, y [m], t [s] simulated
     collision_log: list[dict] = field(default_factory=list)
@@ -279,32 +281,32 @@ class RunRecorder:
         """One event (one ``DiagnosticStatus``) of ``/swarm/events``.
 
         Args:
-            kind: the status ``name``: ``spawn``, ``collision``, ``late``, ``fault``.
-            values: its values (``robot``, ``other`` for robot-robot, ``x``, ``y``, ``t``).
+            kind: the status ``name`` (:data:`swarm_common.events.KINDS`).
+            values: its values (the fields of the kind's record, :mod:`swarm_common.events`).
         """
         robot = values.get("robot", "").strip().lstrip("/")
         rec = self.per_robot.get(robot)
-        if kind == "collision":
-            other = values.get("other", "").strip().lstrip("/")
-            self.collision_log.append({
-                "robot": robot, "other": other, "kind": values.get("kind", ""),
-                "x": _float(values.get("x")) or 0.0, "y": _float(values.get("y")) or 0.0,
-                "t": _float(values.get("t")) or 0.0})
-            if other in self.per_robot:
-                self.collision_events["robot_robot"] += 1
-                self.per_robot[other].collisions += 1
+        if kind == COLLISION:
+            ev = CollisionEvent.decode(values, lenient=True)  # counted where it is unknown
+            if ev is None:
+                return  # no robot: not counted
+            self.collision_log.append({"robot": ev.robot, "other": ev.other, "kind": ev.kind,
+                                       "x": ev.x, "y": ev.y, "t": ev.t})
+            if ev.other in self.per_robot:
+                self.collision_events[ROBOT_ROBOT] += 1
+                self.per_robot[ev.other].collisions += 1
             else:
-                self.collision_events["robot_wall"] += 1
+                self.collision_events[ROBOT_WALL] += 1
             if rec is not None:
                 rec.collisions += 1
-        elif kind == "spawn":
+        elif kind == SPAWN:
             self.spawn_events += 1
             if rec is not None:
                 rec.spawned = True
-        elif kind == "late":
+        elif kind == LATE:
             if rec is not None:
                 rec.late_events += 1
-        elif kind == "fault":
+        elif kind == FAULT:
             injected = FaultEvent.decode(values)
             if injected is None:
                 self.fault_events += 1
@@ -668,32 +670,11 @@ def _late_ticks(recorder: RunRecorder, sim: SimSummary) -> int | None:
     return late if late else None
 
 
-def aggregate(
-    recorder: RunRecorder,
-    sim_summary: SimSummary,
-    *,
-    world: str,
-    seed: int,
-    coordination: str,
-    wall_time_s: float,
-    resources: dict | None = None,
-    restarts: int = 0,
-    extra: dict | None = None,
-    fault_restarts: int = 0,
-    map_deliveries: dict[str, int] | None = None,
-    workstations: Mapping[str, tuple[float, float]] | None = None,
-    holding: Mapping[str, list[tuple[float, float]]] | None = None,
-    models: Sequence[str] | None = None,
-) -> dict:
-    """The ``--metrics`` dict of a run (docs/reference/contract.md#s6).
+@dataclass(frozen=True)
+class RunFacts:
+    """What the orchestrator knows of a run besides its recorder and the simulator's summary.
 
-    Simulator figures (``sim_time_s``, ``rtf``, ticks, collisions, separation, late ticks,
-    distances) come from the simulator's summary; where it lacks them, from the recorder's
-    ``/clock`` and ``/swarm/events`` (collisions, late ticks) or None.
-
-    Args:
-        recorder: the run's recorder.
-        sim_summary: from :func:`load_sim_summary`.
+    Attributes:
         world: the world's name.
         seed: the run's seed.
         coordination: ``decentralized`` | ``centralized``.
@@ -712,104 +693,232 @@ def aggregate(
         models: the robot model of every robot (name or path), in the recorder's robot order:
             ``fleet`` (model -> robots, :func:`swarm_scene.fleet.fleet_counts`) and each
             ``per_robot`` entry's ``robot``; None: neither.
-
-    Returns:
-        A JSON-serialisable dict with the keys of docs/reference/contract.md#s6 (None where
-        unknown).
     """
-    sim = sim_summary
+
+    world: str
+    seed: int
+    coordination: str
+    wall_time_s: float
+    resources: dict | None = None
+    restarts: int = 0
+    extra: dict | None = None
+    fault_restarts: int = 0
+    map_deliveries: dict[str, int] | None = None
+    workstations: Mapping[str, tuple[float, float]] | None = None
+    holding: Mapping[str, list[tuple[float, float]]] | None = None
+    models: Sequence[str] | None = None
+
+    @property
+    def centralized(self) -> bool:
+        """Whether a central coordinator assigned the tasks."""
+        return self.coordination == "centralized"
+
+
+@dataclass(frozen=True)
+class Timing:
+    """The run's time: the simulator's figures, else the recorder's ``/clock`` and the
+    orchestrator's wall time.
+
+    Attributes:
+        robots: N [-].
+        sim_time_s: [s] simulated, or None.
+        wall_time_s: [s] wall of the simulation loop (the orchestrator's if unknown).
+        ticks: control ticks stepped, or None.
+    """
+
+    robots: int
+    sim_time_s: float | None
+    wall_time_s: float
+    ticks: int | None
+
+    @classmethod
+    def of(cls, recorder: RunRecorder, sim: SimSummary, wall_time_s: float) -> Timing:
+        sim_time = _float(sim.sim_time_s)
+        if sim_time is None:
+            sim_time = recorder.last_sim_time_s
+        sim_wall = _float(sim.wall_time_s)
+        return cls(len(recorder.robots), sim_time,
+                   sim_wall if sim_wall is not None else wall_time_s, sim.ticks)
+
+    def fields(self, orchestrator_wall_s: float) -> dict:
+        """``sim_time_s`` .. ``robot_ticks_per_s`` of ``metrics.json``."""
+        return {
+            "sim_time_s": self.sim_time_s,
+            "wall_time_s": self.wall_time_s,
+            "orchestrator_wall_time_s": orchestrator_wall_s,
+            "rtf": _ratio(self.sim_time_s, self.wall_time_s),
+            "ticks": self.ticks,
+            "robot_ticks_per_s": (_ratio(self.ticks * self.robots, self.wall_time_s)
+                                  if self.ticks is not None else None),
+        }
+
+
+@dataclass(frozen=True)
+class TaskFigures:
+    """The run's tasks (see *task* above) and what follows from them.
+
+    Attributes:
+        tasks: ``(t [s], duration [s], workstation)`` of every task, in time order.
+        completed: tasks completed [-].
+        sim_time_s: [s] simulated, or None.
+    """
+
+    tasks: list[tuple[float, float, str]]
+    completed: int
+    sim_time_s: float | None
+
+    @classmethod
+    def of(cls, recorder: RunRecorder, centralized: bool, goals_reached: int,
+           sim_time_s: float | None) -> TaskFigures:
+        completed = (sum(len(recorder.per_robot[ns].tasks) for ns in recorder.robots)
+                     if centralized else goals_reached)
+        return cls(task_records(recorder, centralized), completed, sim_time_s)
+
+    def fields(self) -> dict:
+        """``tasks_completed`` .. the per-window throughput of ``metrics.json``."""
+        sim_time = self.sim_time_s
+        hours = sim_time / 3600.0 if sim_time else None
+        durations = [d for _, d, _ in self.tasks]
+        times = [t for t, _, _ in self.tasks]
+        after = [t for t in times if t > WARMUP_S]
+        warm_hours = (sim_time - WARMUP_S) / 3600.0 if sim_time and sim_time > WARMUP_S else None
+        return {
+            "tasks_completed": self.completed,
+            "throughput_per_hour": (self.completed / hours) if hours else None,
+            "warmup_s": WARMUP_S,
+            "throughput_after_warmup_per_hour": (len(after) / warm_hours) if warm_hours
+            else None,
+            "time_to_task_mean_s": (sum(durations) / len(durations)) if durations else None,
+            "time_to_task_median_s": _percentile(durations, 50.0),
+            "time_to_task_p95_s": _percentile(durations, 95.0),
+            "task_times_s": [round(t, 3) for t in times],
+            "task_durations_s": [round(d, 3) for d in durations],
+            **tasks_per_window(times, sim_time),
+        }
+
+
+@dataclass(frozen=True)
+class FaultFigures:
+    """The faults applied: the simulator's own log (complete), else the announcements the
+    recorder heard (a listener may miss one).
+
+    Attributes:
+        log: every transition, ``fault``, ``kind``, ``phase``, ``robot``, ``t`` [s] (and
+            ``x``, ``y`` [m] from the simulator).
+        messages_dropped: messages the ``drop`` faults lost [-].
+    """
+
+    log: list
+    messages_dropped: int
+
+    @classmethod
+    def of(cls, recorder: RunRecorder, sim: SimSummary) -> FaultFigures:
+        sim_faults = sim.extras.get("faults") if isinstance(sim.extras, Mapping) else None
+        log = (sim_faults or {}).get("log")
+        if not isinstance(log, list):
+            log = [{"fault": ev.fault, "kind": ev.kind, "phase": ev.phase,
+                    "robot": ev.robot or None, "t": ev.t} for ev in recorder.fault_log]
+        return cls(log, sum(((sim_faults or {}).get("messages_dropped") or {}).values()))
+
+    @property
+    def by_kind(self) -> dict[str, int]:
+        """Faults started, by kind."""
+        out: dict[str, int] = {}
+        for entry in self.log:
+            if isinstance(entry, Mapping) and entry.get("phase") == "start":
+                out[str(entry.get("kind"))] = out.get(str(entry.get("kind")), 0) + 1
+        return out
+
+
+def _per_robot(recorder: RunRecorder, sim: SimSummary, facts: RunFacts,
+               comm: dict) -> tuple[dict, dict | None]:
+    """``per_robot`` of ``metrics.json`` and the ``fleet`` (None without models)."""
     robots = recorder.robots
-    n = len(robots)
-    sim_time = _float(sim.sim_time_s)
-    if sim_time is None:
-        sim_time = recorder.last_sim_time_s
-    sim_wall = _float(sim.wall_time_s)
-    wall = sim_wall if sim_wall is not None else wall_time_s
-    ticks = sim.ticks
     per_robot = {ns: _robot_metrics(recorder.per_robot[ns], sim.robot(ns)) for ns in robots}
-    reached = sum(r["goals_reached"] for r in per_robot.values())
-    ttgs = [t for ns in robots for t in _times_to_goal(recorder.per_robot[ns])]
-    late = _late_ticks(recorder, sim)
-    waits = sum(r.goal_wait_timeouts_total for r in recorder.per_robot.values())
-    hours = sim_time / 3600.0 if sim_time else None
-    resources = resources or {}
-    # The simulator's own log of the faults it applied is complete; the events seen are the
-    # fallback (a listener may miss an announcement).
-    sim_faults = sim.extras.get("faults") if isinstance(sim.extras, Mapping) else None
-    fault_log = (sim_faults or {}).get("log")
-    if not isinstance(fault_log, list):
-        fault_log = [{"fault": ev.fault, "kind": ev.kind, "phase": ev.phase,
-                      "robot": ev.robot or None, "t": ev.t} for ev in recorder.fault_log]
-    by_kind: dict[str, int] = {}
-    for entry in fault_log:
-        if isinstance(entry, Mapping) and entry.get("phase") == "start":
-            by_kind[str(entry.get("kind"))] = by_kind.get(str(entry.get("kind")), 0) + 1
-    wall_restarts = restarts - fault_restarts
-    centralized = coordination == "centralized"
-    tasks = task_records(recorder, centralized)
-    tasks_completed = (sum(len(recorder.per_robot[ns].tasks) for ns in robots) if centralized
-                       else reached)
-    late_goals = sum(recorder.per_robot[ns].late_goals for ns in robots)
-    durations = [d for _, d, _ in tasks]
-    after = [t for t, _, _ in tasks if t > WARMUP_S]
-    warm_hours = (sim_time - WARMUP_S) / 3600.0 if sim_time and sim_time > WARMUP_S else None
-    comm = _comm(recorder, map_deliveries, sim_time)
-    places = {name: [tuple(xy), *map(tuple, (holding or {}).get(name, []))]
-              for name, xy in (workstations or {}).items()}
-    standstills = label_standstills(
-        sim.extras.get("standstills") if isinstance(sim.extras, Mapping) else None, places)
-    spawn = sim.extras.get("spawn") if isinstance(sim.extras, Mapping) else None
-    world_skipped = sim.extras.get("world_skipped") if isinstance(sim.extras, Mapping) else None
     for ns in robots:
         entry = comm["per_robot"][ns]
-        per_robot[ns]["tasks"] = (len(recorder.per_robot[ns].tasks) if centralized
+        per_robot[ns]["tasks"] = (len(recorder.per_robot[ns].tasks) if facts.centralized
                                   else per_robot[ns]["goals_reached"])
-        if centralized:  # its tasks, not its goals (a goal to a waiting spot is no task)
+        if facts.centralized:  # its tasks, not its goals (a goal to a waiting spot is no task)
             per_robot[ns]["task_times_s"] = sorted(round(t, 3) for t, _, _ in
                                                    recorder.per_robot[ns].tasks)
         per_robot[ns]["comm_messages"] = entry["messages"]
         per_robot[ns]["comm_bytes"] = entry["bytes"]
     fleet = None
-    if models is not None:
+    if facts.models is not None:
         from swarm_scene.fleet import fleet_counts, model_label
 
-        fleet = fleet_counts(models)
-        for ns, model in zip(robots, models, strict=True):
+        fleet = fleet_counts(facts.models)
+        for ns, model in zip(robots, facts.models, strict=True):
             per_robot[ns]["robot"] = model_label(model)
-    metrics = {
-        "robots": n,
-        **({"fleet": fleet} if fleet is not None else {}),
-        "world": world,
-        "seed": seed,
-        "coordination": coordination,
+    return per_robot, fleet
+
+
+def _scene_fields(sim: SimSummary, facts: RunFacts) -> dict:
+    """``spawn``, ``world_skipped`` and the standstills of ``metrics.json``."""
+    extras = sim.extras if isinstance(sim.extras, Mapping) else {}
+    places = {name: [tuple(xy), *map(tuple, (facts.holding or {}).get(name, []))]
+              for name, xy in (facts.workstations or {}).items()}
+    standstills = label_standstills(extras.get("standstills"), places)
+    spawn, skipped = extras.get("spawn"), extras.get("world_skipped")
+    return {
         "spawn": spawn if isinstance(spawn, str) else None,
-        "world_skipped": ([str(e) for e in world_skipped] if isinstance(world_skipped, list)
-                          else None),
-        "sim_time_s": sim_time,
-        "wall_time_s": wall,
-        "orchestrator_wall_time_s": wall_time_s,
-        "rtf": _ratio(sim_time, wall),
-        "ticks": ticks,
-        "robot_ticks_per_s": _ratio(ticks * n, wall) if ticks is not None else None,
+        "world_skipped": [str(e) for e in skipped] if isinstance(skipped, list) else None,
+        "standstills": standstills,
+        "standstill_s": round(sum(_float(e.get("duration_s")) or 0.0 for e in standstills), 3),
+    }
+
+
+def aggregate(recorder: RunRecorder, sim_summary: SimSummary, facts: RunFacts) -> dict:
+    """The ``--metrics`` dict of a run (docs/reference/contract.md#s6).
+
+    Simulator figures (``sim_time_s``, ``rtf``, ticks, collisions, separation, late ticks,
+    distances) come from the simulator's summary; where it lacks them, from the recorder's
+    ``/clock`` and ``/swarm/events`` (collisions, late ticks) or None.  Built from the typed
+    pieces :class:`Timing`, :class:`TaskFigures` and :class:`FaultFigures`.
+
+    Args:
+        recorder: the run's recorder.
+        sim_summary: from :func:`load_sim_summary`.
+        facts: what the orchestrator knows of the run (:class:`RunFacts`).
+
+    Returns:
+        A JSON-serialisable dict with the keys of docs/reference/contract.md#s6 (None where
+        unknown), in the contract's order.
+    """
+    sim, robots = sim_summary, recorder.robots
+    timing = Timing.of(recorder, sim, facts.wall_time_s)
+    comm = _comm(recorder, facts.map_deliveries, timing.sim_time_s)
+    per_robot, fleet = _per_robot(recorder, sim, facts, comm)
+    reached = sum(r["goals_reached"] for r in per_robot.values())
+    tasks = TaskFigures.of(recorder, facts.centralized, reached, timing.sim_time_s)
+    faults = FaultFigures.of(recorder, sim)
+    scene = _scene_fields(sim, facts)
+    ttgs = [t for ns in robots for t in _times_to_goal(recorder.per_robot[ns])]
+    late = _late_ticks(recorder, sim)
+    waits = sum(r.goal_wait_timeouts_total for r in recorder.per_robot.values())
+    late_goals = sum(recorder.per_robot[ns].late_goals for ns in robots)
+    resources = facts.resources or {}
+    events = recorder.reservation_events
+    metrics = {
+        "robots": len(robots),
+        **({"fleet": fleet} if fleet is not None else {}),
+        "world": facts.world,
+        "seed": facts.seed,
+        "coordination": facts.coordination,
+        "spawn": scene["spawn"],
+        "world_skipped": scene["world_skipped"],
+        **timing.fields(facts.wall_time_s),
         "spawn_to_ready_s": recorder.spawn_to_ready_s(),
         "goals_reached": reached,
         "goals_aborted": sum(r["goals_aborted"] for r in per_robot.values()),
         "goals_at_another_workstation": sum(r["goals_at_another_workstation"]
                                             for r in per_robot.values()),
-        "tasks_completed": tasks_completed,
-        "throughput_per_hour": (tasks_completed / hours) if hours else None,
-        "warmup_s": WARMUP_S,
-        "throughput_after_warmup_per_hour": (len(after) / warm_hours) if warm_hours else None,
-        "time_to_task_mean_s": (sum(durations) / len(durations)) if durations else None,
-        "time_to_task_median_s": _percentile(durations, 50.0),
-        "time_to_task_p95_s": _percentile(durations, 95.0),
-        "task_times_s": [round(t, 3) for t, _, _ in tasks],
-        "task_durations_s": [round(d, 3) for _, d, _ in tasks],
-        **tasks_per_window([t for t, _, _ in tasks], sim_time),
+        **tasks.fields(),
         "tasks_per_robot": tasks_per_robot([per_robot[ns]["tasks"] for ns in robots]),
-        "workstations": workstation_table(recorder, workstations or {}),
-        "standstills": standstills,
-        "standstill_s": round(sum(_float(e.get("duration_s")) or 0.0 for e in standstills), 3),
+        "workstations": workstation_table(recorder, facts.workstations or {}),
+        "standstills": scene["standstills"],
+        "standstill_s": scene["standstill_s"],
         "collisions": _collisions(recorder, sim),
         "min_separation_m": _float(sim.min_separation_m),
         "mean_time_to_goal_s": (sum(ttgs) / len(ttgs)) if ttgs else None,
@@ -818,12 +927,13 @@ def aggregate(
         "goal_wait_timeouts": waits,
         "late_goals": late_goals,
         "reproducible": None if late is None else (
-            late == 0 and waits == 0 and wall_restarts == 0 and late_goals == 0),
-        "coordinator_wait_s": (_spot_wait_s(recorder.reservation_events, sim_time)
-                               if centralized else None),
-        "reservation_events": len(recorder.reservation_events),
-        "reservation_conflicts": (len(check_reservations(recorder.reservation_events))
-                                  if centralized else None),
+            late == 0 and waits == 0 and facts.restarts == facts.fault_restarts
+            and late_goals == 0),
+        "coordinator_wait_s": (_spot_wait_s(events, timing.sim_time_s) if facts.centralized
+                               else None),
+        "reservation_events": len(events),
+        "reservation_conflicts": (len(check_reservations(events)) if facts.centralized
+                                  else None),
         "coordinator_starts": recorder.coordinator_starts,
         "comm_messages_per_s": comm["messages_per_s"],
         "comm_bytes_per_s": comm["bytes_per_s"],
@@ -831,15 +941,14 @@ def aggregate(
         "cpu_percent": resources.get("cpu_percent"),
         "peak_rss_mb_per_robot": resources.get("peak_rss_mb_per_robot"),
         "sim_peak_rss_mb": resources.get("sim_peak_rss_mb"),
-        "restarts": restarts,
-        "faults": sum(by_kind.values()),
-        "faults_by_kind": by_kind,
-        "fault_log": fault_log,
-        "fault_messages_dropped": sum(((sim_faults or {}).get("messages_dropped") or {}
-                                       ).values()),
+        "restarts": facts.restarts,
+        "faults": sum(faults.by_kind.values()),
+        "faults_by_kind": faults.by_kind,
+        "fault_log": faults.log,
+        "fault_messages_dropped": faults.messages_dropped,
         "unresponsive_events": recorder.fault_events,
         "per_robot": per_robot,
     }
-    if extra:
-        metrics.update(extra)
+    if facts.extra:
+        metrics.update(facts.extra)
     return metrics

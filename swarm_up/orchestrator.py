@@ -439,7 +439,7 @@ class Orchestrator:
 
     def report(self, outcome: Outcome, wall_s: float) -> dict:
         """Merge the simulator's summary, write the metrics files, print the summary table."""
-        from swarm_metrics.aggregate import aggregate, load_sim_summary
+        from swarm_metrics.aggregate import RunFacts, aggregate, load_sim_summary
 
         cfg = self.cfg
         summary, warnings = load_sim_summary(cfg.run_dir / "sim_summary.json")
@@ -453,19 +453,16 @@ class Orchestrator:
         fault_restarts = (sum(h["fault_restarts"] or 0 for h in hosts) if hosts
                           else self.faults.fault_restarts if self.faults is not None else 0)
         with self.listener.lock:
-            metrics = aggregate(
-                self.listener.recorder, summary, world=cfg.world_name, seed=cfg.seed,
-                coordination=cfg.coordination, wall_time_s=wall_s,
-                resources=self.sampler.result(), restarts=restarts,
-                fault_restarts=fault_restarts,
-                map_deliveries=self._map_deliveries(summary),
+            metrics = aggregate(self.listener.recorder, summary, RunFacts(
+                world=cfg.world_name, seed=cfg.seed, coordination=cfg.coordination,
+                wall_time_s=wall_s, resources=self.sampler.result(), restarts=restarts,
+                fault_restarts=fault_restarts, map_deliveries=self._map_deliveries(summary),
                 workstations=stations, holding=holding, models=cfg.models,
                 extra={"ended_by": outcome.ended_by, "run_dir": str(cfg.run_dir),
                        "processes": PER_ROBOT if cfg.groups is None else len(cfg.groups),
                        "commanders": cfg.commanders, "rtf_requested": cfg.rtf,
                        **({"hosts": hosts} if hosts else {}),
-                       **({"recording": str(cfg.record_path)} if cfg.record_path else {})},
-            )
+                       **({"recording": str(cfg.record_path)} if cfg.record_path else {})}))
         files = [cfg.run_dir / "metrics.json"]
         if cfg.metrics_path:
             files.append(cfg.metrics_path)

@@ -9,7 +9,7 @@ import pytest
 
 from swarm_common.nav_status import TOOK_ANOTHER
 from swarm_common.sim_summary import SimSummary
-from swarm_metrics.aggregate import RunRecorder, aggregate, load_sim_summary
+from swarm_metrics.aggregate import RunFacts, RunRecorder, aggregate, load_sim_summary
 
 ROBOTS = ("Srobot1", "Srobot2", "Srobot3")
 
@@ -74,7 +74,7 @@ def _metrics(summary=SUMMARY_RECORD, **kw):
     args = dict(world="slim_blockage", seed=7, coordination="decentralized", wall_time_s=22.0,
                 resources={"cpu_percent": 150.0, "peak_rss_mb_per_robot": 35.0}, restarts=1)
     args.update(kw)
-    return rec, aggregate(rec, summary, **args)
+    return rec, aggregate(rec, summary, RunFacts(**args))
 
 
 def test_readiness_and_spawn_to_ready():
@@ -155,8 +155,8 @@ def test_anonymous_goals_count_on_transition():
     rec = RunRecorder(robots=("a",))
     for state in ("DRIVING", "SUCCEEDED", "SUCCEEDED", "DRIVING", "SUCCEEDED", "ABORTED"):
         rec.on_status("a", _status(state, nav_t=4.0), 0.0)
-    m = aggregate(rec, load_sim_summary(None)[0], world="w", seed=0,
-                  coordination="decentralized", wall_time_s=1.0)
+    m = aggregate(rec, load_sim_summary(None)[0], RunFacts(world="w", seed=0,
+                  coordination="decentralized", wall_time_s=1.0))
     assert (m["goals_reached"], m["goals_aborted"]) == (2, 1)
     assert m["mean_time_to_goal_s"] == 4.0
     assert m["throughput_per_hour"] is None  # no simulated time known
@@ -174,7 +174,8 @@ def test_goal_wait_timeouts_summed_over_restarts_and_reproducibility():
         rec.on_status("a", _waits(n), 0.0)
     rec.on_status("b", _waits("x"), 0.0)  # malformed: ignored
     clean = SimSummary(late_ticks=0, sim_time_s=10.0)
-    m = aggregate(rec, clean, world="w", seed=0, coordination="decentralized", wall_time_s=1.0)
+    m = aggregate(rec, clean, RunFacts(world="w", seed=0, coordination="decentralized",
+                                       wall_time_s=1.0))
     assert m["goal_wait_timeouts"] == 3
     assert m["per_robot"]["a"]["goal_wait_timeouts"] == 3
     assert m["per_robot"]["b"]["goal_wait_timeouts"] == 0
@@ -182,18 +183,18 @@ def test_goal_wait_timeouts_summed_over_restarts_and_reproducibility():
     quiet = RunRecorder(robots=("a",))
     quiet.on_status("a", _waits(0), 0.0)
     args = dict(world="w", seed=0, coordination="decentralized", wall_time_s=1.0)
-    assert aggregate(quiet, clean, **args)["reproducible"] is True
-    assert aggregate(quiet, clean, restarts=1, **args)["reproducible"] is False
+    assert aggregate(quiet, clean, RunFacts(**args))["reproducible"] is True
+    assert aggregate(quiet, clean, RunFacts(restarts=1, **args))["reproducible"] is False
     late = dataclasses.replace(clean, late_ticks=2)
-    assert aggregate(quiet, late, **args)["reproducible"] is False
-    assert aggregate(quiet, SimSummary(sim_time_s=10.0), **args)["reproducible"] is None
+    assert aggregate(quiet, late, RunFacts(**args))["reproducible"] is False
+    assert aggregate(quiet, SimSummary(sim_time_s=10.0), RunFacts(**args))["reproducible"] is None
 
 
 def test_malformed_numbers_are_ignored():
     rec = RunRecorder(robots=("a",))
     rec.on_status("a", _status("SUCCEEDED", "g", nav_t="nan", hold="x"), 0.0)
-    m = aggregate(rec, load_sim_summary(None)[0], world="w", seed=0,
-                  coordination="decentralized", wall_time_s=1.0)
+    m = aggregate(rec, load_sim_summary(None)[0], RunFacts(world="w", seed=0,
+                  coordination="decentralized", wall_time_s=1.0))
     assert m["goals_reached"] == 1
     assert m["mean_time_to_goal_s"] is None
     assert m["holding_time_s"] == 0.0
@@ -258,8 +259,8 @@ def test_late_goals_are_those_applied_after_the_tick_after_their_stamp():
     rec.on_status("r1", _st("SUCCEEDED", "30.000000000", "41.000000000", "10.700"), 1.0)
     assert rec.per_robot["r1"].late_goals == 1
     assert rec.per_robot["r1"].reached_at["30.000000000"] == 41.0
-    m = aggregate(rec, SimSummary(), world="w", seed=0, coordination="decentralized",
-                  wall_time_s=1.0)
+    m = aggregate(rec, SimSummary(), RunFacts(world="w", seed=0, coordination="decentralized",
+                  wall_time_s=1.0))
     assert m["late_goals"] == 1 and m["task_times_s"] == [41.0]
     assert m["time_to_task_mean_s"] == pytest.approx(10.7)
 
@@ -288,15 +289,15 @@ def test_centralized_tasks_waiting_conflicts_and_communication_load():
     rec.on_comm("assignment", "r2", 220)
     rec.on_comm("state", "", 60)  # one copy per robot
     rec.map_bytes = 1000
-    m = aggregate(rec, SimSummary(), world="w", seed=0, coordination="centralized",
-                  wall_time_s=1.0, map_deliveries={"r1": 1, "r2": 2})
+    m = aggregate(rec, SimSummary(), RunFacts(world="w", seed=0, coordination="centralized",
+                  wall_time_s=1.0, map_deliveries={"r1": 1, "r2": 2}))
     assert m["tasks_completed"] == 1 and m["goals_reached"] == 0
     assert m["task_times_s"] == [130.0] and m["time_to_task_mean_s"] == 130.0
     # per robot too, its tasks and not its goals: r2 reaching its waiting spot is no task
     rec.on_status("r2", {"state": "SUCCEEDED", "goal_id": "5.000000000",
                          "stamp": "40.000000000", "navigation_time_s": "35.0"}, 1.0)
-    m = aggregate(rec, SimSummary(), world="w", seed=0, coordination="centralized",
-                  wall_time_s=1.0, map_deliveries={"r1": 1, "r2": 2})
+    m = aggregate(rec, SimSummary(), RunFacts(world="w", seed=0, coordination="centralized",
+                  wall_time_s=1.0, map_deliveries={"r1": 1, "r2": 2}))
     assert m["per_robot"]["r1"]["task_times_s"] == [130.0]
     assert m["per_robot"]["r2"]["task_times_s"] == []
     assert m["per_robot"]["r2"]["goals_reached"] == 1
@@ -323,8 +324,8 @@ def test_coordinator_starts_count_each_epoch_once_from_either_source():
     rec.on_coordinator_up("b")  # a restart whose "up" event went unheard
     assert rec.coordinator_starts == 2
     assert rec.coordinator_serving == {"a"}  # only the event says it answers requests
-    m = aggregate(rec, SimSummary(), world="w", seed=0, coordination="centralized",
-                  wall_time_s=1.0, map_deliveries={})
+    m = aggregate(rec, SimSummary(), RunFacts(world="w", seed=0, coordination="centralized",
+                  wall_time_s=1.0, map_deliveries={}))
     assert m["coordinator_starts"] == 2
 
 
@@ -418,15 +419,15 @@ def test_metrics_carry_windows_and_the_workstation_table():
     rec.on_status("r1", _goal("DRIVING", "1.000000000", 1.0, 1.0, 0.0), 1.0)
     rec.on_status("r1", {**_goal("SUCCEEDED", "1.000000000", 1.0, 1.0, 12.0),
                          "stamp": "13.000000000"}, 2.0)
-    m = aggregate(rec, SimSummary.from_dict({**SUMMARY, "sim_time_s": 1300.0}), world="w",
+    m = aggregate(rec, SimSummary.from_dict({**SUMMARY, "sim_time_s": 1300.0}), RunFacts(world="w",
                   seed=0, coordination="decentralized", wall_time_s=1.0,
-                  workstations={"ws": (1.0, 1.0)})
+                  workstations={"ws": (1.0, 1.0)}))
     assert m["tasks_per_window"] == [1, 0, 0] and m["task_windows_full"] == 2
     assert m["tasks_per_robot"] == {"min": 1, "median": 1, "max": 1, "without_task": 0}
     assert m["workstations"][0]["name"] == "ws" and m["workstations"][0]["visits"] == 1
     json.dumps(m)  # the metrics file stays JSON
-    m0 = aggregate(rec, SimSummary(), world="w", seed=0, coordination="decentralized",
-                   wall_time_s=1.0)
+    m0 = aggregate(rec, SimSummary(), RunFacts(world="w", seed=0, coordination="decentralized",
+                   wall_time_s=1.0))
     assert [r["name"] for r in m0["workstations"]] == ["(other)"]
 
 

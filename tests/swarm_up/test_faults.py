@@ -8,7 +8,7 @@ import pytest
 
 from swarm_common.faults import FaultAck, FaultEvent
 from swarm_common.sim_summary import SimSummary
-from swarm_metrics.aggregate import RunRecorder, aggregate
+from swarm_metrics.aggregate import RunFacts, RunRecorder, aggregate
 from swarm_up.faults import ProcessFaults
 from swarm_up.supervisor import ChildSpec, Supervisor
 
@@ -152,8 +152,8 @@ def test_metrics_count_faults_by_kind_and_keep_fault_restarts_reproducible():
                 {"fault": 1, "kind": "kill-nav", "phase": "end", "robot": "Srobot1", "t": 12.0},
                 {"fault": 2, "kind": "freeze", "phase": "start", "robot": "Srobot2", "t": 20.0}],
     }})
-    m = aggregate(rec, summary, world="w", seed=0, coordination="decentralized",
-                  wall_time_s=10.0, restarts=1, fault_restarts=1)
+    m = aggregate(rec, summary, RunFacts(world="w", seed=0, coordination="decentralized",
+                  wall_time_s=10.0, restarts=1, fault_restarts=1))
     assert m["faults"] == 3
     assert m["faults_by_kind"] == {"drop": 1, "kill-nav": 1, "freeze": 1}
     assert m["fault_messages_dropped"] == 12 and "fault_ack_timeouts" not in m
@@ -162,8 +162,8 @@ def test_metrics_count_faults_by_kind_and_keep_fault_restarts_reproducible():
     assert m["reproducible"] is True and m["restarts"] == 1
     # Without the simulator's log: the announcements seen; a restart not caused by a fault makes
     # the run irreproducible (an unacknowledged fault cannot happen: the simulator waits).
-    m = aggregate(rec, SimSummary(sim_time_s=60.0, late_ticks=0), world="w", seed=0,
-                  coordination="decentralized", wall_time_s=10.0, restarts=2, fault_restarts=1)
+    m = aggregate(rec, SimSummary(sim_time_s=60.0, late_ticks=0), RunFacts(world="w", seed=0,
+                  coordination="decentralized", wall_time_s=10.0, restarts=2, fault_restarts=1))
     assert m["faults_by_kind"] == {"kill-nav": 1, "freeze": 1}
     assert [e["t"] for e in m["fault_log"]] == [10.0, 12.0, 20.0]
     assert m["reproducible"] is False
