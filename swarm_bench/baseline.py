@@ -268,6 +268,37 @@ def _stop(procs: dict[str, subprocess.Popen], names: list[str]) -> dict[str, int
     return codes
 
 
+def _follow(procs: dict[str, subprocess.Popen], sim_log: Path,
+            should_stop: Callable[[], bool],
+            on_progress: Callable[[float, float | None], None] | None) -> bool:
+    """Wait for the ``sim`` process's end, passing its progress lines on; stop it (SIGINT) when
+    ``should_stop()`` or another process died (the run cannot complete then).
+
+    Returns:
+        Whether the run was interrupted.
+    """
+    sim, pos, partial, interrupted = procs["sim"], 0, "", False
+    while sim.poll() is None:
+        if should_stop() and not interrupted:
+            interrupted = True
+            sim.send_signal(signal.SIGINT)
+        time.sleep(0.2)
+        with open(sim_log, encoding="utf-8", errors="replace") as fh:
+            fh.seek(pos)
+            text = partial + fh.read()
+            pos = fh.tell()
+        *lines, partial = text.split("\n")
+        for line in lines:
+            m = PROGRESS_RE.search(line)
+            if m and on_progress is not None:
+                on_progress(float(m.group(1)), float(m.group(2)))
+        others_dead = [n for n, p in procs.items() if n != "sim" and p.poll() is not None]
+        if others_dead and not interrupted:
+            interrupted = True  # a robot process died: the run cannot complete
+            sim.send_signal(signal.SIGINT)
+    return interrupted
+
+
 def run_baseline(cfg: BaselineConfig, processes: str | int, run_dir: Path, *,
                  env: dict | None = None,
                  should_stop: Callable[[], bool] = lambda: False,
@@ -306,26 +337,7 @@ def run_baseline(cfg: BaselineConfig, processes: str | int, run_dir: Path, *,
                 procs[p.name] = subprocess.Popen(
                     [sys.executable, "-m", NODES_PROG, *p.args], stdout=log,
                     stderr=subprocess.STDOUT, env=env, start_new_session=True)
-        sim = procs["sim"]
-        sim_log, pos, partial = logs / "sim.log", 0, ""
-        while sim.poll() is None:
-            if should_stop() and not interrupted:
-                interrupted = True
-                sim.send_signal(signal.SIGINT)
-            time.sleep(0.2)
-            with open(sim_log, encoding="utf-8", errors="replace") as fh:
-                fh.seek(pos)
-                text = partial + fh.read()
-                pos = fh.tell()
-            *lines, partial = text.split("\n")
-            for line in lines:
-                m = PROGRESS_RE.search(line)
-                if m and on_progress is not None:
-                    on_progress(float(m.group(1)), float(m.group(2)))
-            others_dead = [n for n, p in procs.items() if n != "sim" and p.poll() is not None]
-            if others_dead and not interrupted:
-                interrupted = True  # a robot process died: the run cannot complete
-                sim.send_signal(signal.SIGINT)
+        interrupted = _follow(procs, logs / "sim.log", should_stop, on_progress)
     finally:
         codes = _stop(procs, list(procs))
         shm.clean_after_run(shm_before)

@@ -3,7 +3,7 @@
 Three roles, each one process (``python -m swarm_bench.baseline_nodes ROLE --config PATH``)
 started by :func:`swarm_bench.baseline.run_baseline`:
 
-- :class:`BaselineSimNode` (``sim``): the simulator's lockstep loop of ``swarm_sim/node.py`` with
+- :class:`BaselineSimNode` (``sim``): the simulator's loop (:class:`swarm_sim.loop.SimLoop`) with
   the physics, the ray casting and the collision checks taken out: every control tick ``/clock``,
   every robot's ``odom`` and ``ground_truth`` and, on lidar ticks, a ``scan`` with fixed ranges;
   then it waits for every active robot's ``cmd_vel`` stamped with that tick, and steps time.

@@ -383,31 +383,17 @@ def _error_line(log: Path) -> str:
     return errors[-1] if errors else (lines[-1].strip() if lines else "")
 
 
-def run_swarm_up(cfg: BenchConfig, n: int, r: int, stop: StopFlag, view: BenchView) -> dict:
-    """One ``swarm-up`` run, followed to its end.
+def _follow_run(proc: subprocess.Popen, log_path: Path, stop: StopFlag,
+                view: BenchView) -> tuple[int, bool, float | None]:
+    """Follow a ``swarm-up`` process to its end: its progress to ``view``, the CPU time of its
+    process tree from every robot ready to the stop (sampled every ``CPU_PERIOD_S``), SIGINT
+    when ``stop`` is set (SIGKILL ``STOP_GRACE_S`` later).
 
     Returns:
-        The record (see the module doc); ``interrupted`` True if ``stop`` was set meanwhile.
+        ``(exit code, interrupted, CPU seconds from ready to stopping or None)``.
     """
     from swarm_bench.proc_cpu import TreeCpu
 
-    name = f"n{n}-r{r}"
-    seed = cfg.seed + r
-    metrics_path = cfg.run_dir / f"{name}.metrics.json"
-    metrics_path.unlink(missing_ok=True)
-    log_path = cfg.run_dir / f"{name}.log"
-    argv = swarm_up_command(cfg, n, seed, cfg.run_dir / name, metrics_path)
-    view.start(f"size {n}, run {r + 1}/{cfg.runs}", cfg.duration_s)
-    (cfg.run_dir / name).mkdir(parents=True, exist_ok=True)
-    with open(log_path, "wb") as log:
-        # cwd: the run's own directory, so that the ``python -m`` children of a swarm-up from
-        # another checkout (--swarm-up) cannot import this checkout's packages from the cwd.
-        try:
-            proc = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT,
-                                    cwd=cfg.run_dir / name, env=dict(os.environ),
-                                    start_new_session=True)
-        except OSError as exc:
-            raise InputError(f"--swarm-up: cannot run '{argv[0]}': {exc.strerror}") from None
     tail, cpu = LogTail(log_path), TreeCpu([proc.pid])
     stopping = interrupted = False
     signalled_at: float | None = None
@@ -425,7 +411,7 @@ def run_swarm_up(cfg: BenchConfig, n: int, r: int, stop: StopFlag, view: BenchVi
             if m:
                 view.update(float(m.group(1)), float(m.group(2)))
         if code is not None:
-            break
+            return code, interrupted, cpu.since_mark() if stopping else None
         now = time.monotonic()
         if stop and signalled_at is None:
             interrupted, signalled_at = True, now
@@ -436,13 +422,39 @@ def run_swarm_up(cfg: BenchConfig, n: int, r: int, stop: StopFlag, view: BenchVi
             last_cpu = now
             cpu.sample()
         time.sleep(TAIL_PERIOD_S)
+
+
+def run_swarm_up(cfg: BenchConfig, n: int, r: int, stop: StopFlag, view: BenchView) -> dict:
+    """One ``swarm-up`` run, followed to its end.
+
+    Returns:
+        The record (see the module doc); ``interrupted`` True if ``stop`` was set meanwhile.
+    """
+    name = f"n{n}-r{r}"
+    seed = cfg.seed + r
+    metrics_path = cfg.run_dir / f"{name}.metrics.json"
+    metrics_path.unlink(missing_ok=True)
+    log_path = cfg.run_dir / f"{name}.log"
+    argv = swarm_up_command(cfg, n, seed, cfg.run_dir / name, metrics_path)
+    view.start(f"size {n}, run {r + 1}/{cfg.runs}", cfg.duration_s)
+    (cfg.run_dir / name).mkdir(parents=True, exist_ok=True)
+    with open(log_path, "wb") as log:
+        # cwd: the run's own directory, so that the ``python -m`` children of a swarm-up from
+        # another checkout (--swarm-up) cannot import this checkout's packages from the cwd.
+        try:
+            proc = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT,
+                                    cwd=cfg.run_dir / name, env=dict(os.environ),
+                                    start_new_session=True)
+        except OSError as exc:
+            raise InputError(f"--swarm-up: cannot run '{argv[0]}': {exc.strerror}") from None
+    code, interrupted, cpu_s = _follow_run(proc, log_path, stop, view)
     try:
         metrics = json.loads(metrics_path.read_text())
     except (OSError, ValueError):
         metrics = None
     metrics = metrics if isinstance(metrics, dict) else None
     sim_s = _num(metrics, "sim_time_s")
-    cpu_s, cpu_source = (cpu.since_mark() if stopping else None), "bench"
+    cpu_source = "bench"
     if not cpu_s:  # the run ended within one poll: no sample fell between ready and stopping
         cpu_pct, wall = _num(metrics, "cpu_percent"), _num(metrics, "orchestrator_wall_time_s")
         cpu_s = cpu_pct / 100.0 * wall if cpu_pct and wall else None

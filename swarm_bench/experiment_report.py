@@ -566,11 +566,23 @@ def build_report(plan: Plan, settings: dict, records: list[dict], summaries: lis
     if len(records) < expected:
         lines += [f"**This report is partial**: {expected - len(records)} runs of the plan are "
                   "still missing; a cell with fewer than 5 seeds claims nothing.", ""]
-    lines += ["## Primary measure: throughput after the warm-up", "",
-              f"Tasks completed per simulated hour after the first {plan.warmup_s:g} s (the "
-              "warm-up: the tasks-over-time figure shows the rate settled by then). Mean ± "
-              "half-width of the 95 % interval across seeds (Student's t).", ""]
     plain = [s for s in summaries if not s["fault"]]
+    lines += _primary_section(plan, plain, stats, figures)
+    lines += _secondary_section(plan, plain, stats, figures)
+    lines += _littles_section(summaries)
+    lines += _fault_section(plan, summaries, figures, stats)
+    lines += _threats(plan)
+    return "\n".join(lines) + "\n"
+
+
+def _primary_section(plan: Plan, plain: list[dict], stats: list[dict],
+                     figures: dict[str, str]) -> list[str]:
+    """Throughput after the warm-up: the table, its figures, the paired tests, the ablations'
+    shares and the horizons."""
+    lines = ["## Primary measure: throughput after the warm-up", "",
+             f"Tasks completed per simulated hour after the first {plan.warmup_s:g} s (the "
+             "warm-up: the tasks-over-time figure shows the rate settled by then). Mean ± "
+             "half-width of the 95 % interval across seeds (Student's t).", ""]
     vs = _variants_in(plain)
     sizes = sorted({s["size"] for s in plain})
     lines += ["| variant | " + " | ".join(f"{n} robots" for n in sizes) + " |",
@@ -587,9 +599,16 @@ def build_report(plan: Plan, settings: dict, records: list[dict], summaries: lis
                           f"explains ({plan.ablation_size} robots)", PRIMARY)
     lines += _shares(stats)
     lines += _horizons(plan, plain)
-    lines += ["## Secondary measures", "",
-              "Mean ± 95 % interval across seeds; the paired tests of the main pair are in the "
-              "table after.", ""]
+    return lines
+
+
+def _secondary_section(plan: Plan, plain: list[dict], stats: list[dict],
+                       figures: dict[str, str]) -> list[str]:
+    """The secondary measures: their table and paired tests, their figures, where robots wait
+    and the robots without a task."""
+    lines = ["## Secondary measures", "",
+             "Mean ± 95 % interval across seeds; the paired tests of the main pair are in the "
+             "table after.", ""]
     cols = sorted(plain, key=lambda s: (s["size"], list(VARIANTS).index(s["variant"])))
     zero = []
     lines += ["| measure | " + " | ".join(f"{s['variant']} {s['size']}" for s in cols) + " |",
@@ -604,10 +623,8 @@ def build_report(plan: Plan, settings: dict, records: list[dict], summaries: lis
         lines += [f"Zero in every run (so not plotted): {', '.join(zero)}.", ""]
     lines += _stats_table(stats, "main", "Paired differences of the secondary measures",
                           None)
-    for key in ("ttt_mean", "holding_per_robot", "comm_bytes", "rtf", "cpu_per_robot_ms"):
-        if key in figures:
-            lines += [f"![{key}]({figures[key]})", ""]
-    for key in ("time_to_task_ecdf", "tasks_per_robot"):
+    for key in ("ttt_mean", "holding_per_robot", "comm_bytes", "rtf", "cpu_per_robot_ms",
+                "time_to_task_ecdf", "tasks_per_robot"):
         if key in figures:
             lines += [f"![{key}]({figures[key]})", ""]
     lines += ["Where robots wait: the simulator's standstills of 60 s or more (a robot within "
@@ -624,34 +641,41 @@ def build_report(plan: Plan, settings: dict, records: list[dict], summaries: lis
               "| cell | robots without a task, per seed |", "|---|---|"]
     lines += [f"| {s['label']} | {', '.join(str(x) for x in s['robots_without_task'])} |"
               for s in plain]
-    lines += ["", "## Sanity check: Little's law", "",
-              "After the warm-up every robot always has a task, so λ·W (tasks per second × "
-              "mean time to task) should be near N; tasks still open at the end are censored, "
-              "so the ratio λ·W / N stays a little below 1.", "",
-              "| cell | N | λ·W / N |", "|---|---|---|"]
+    return lines
+
+
+def _littles_section(summaries: list[dict]) -> list[str]:
+    """Little's law as a sanity check of every cell."""
+    lines = ["", "## Sanity check: Little's law", "",
+             "After the warm-up every robot always has a task, so λ·W (tasks per second × "
+             "mean time to task) should be near N; tasks still open at the end are censored, "
+             "so the ratio λ·W / N stays a little below 1.", "",
+             "| cell | N | λ·W / N |", "|---|---|---|"]
     for s in summaries:
         ratio = s["littles_ratio"]
         lines.append(f"| {s['label']} | {s['size']} | "
                      f"{'-' if ratio is None else f'{ratio:.2f}'} |")
-    lines += [""]
-    lines += _fault_section(plan, summaries, figures, stats)
-    lines += ["## Threats to validity", "",
-              "- One machine type with 2 cores; CPU and RTF figures depend on its load (other "
-              "work ran beside some runs), the simulated figures do not.",
-              "- Simulated perfect odometry and lidar; one robot model.",
-              f"- {len({Path(plan.world).stem})} world in this report; the other world's report "
-              "is beside it.",
-              "- The centralized policy is one reasonable scheduler (nearest free workstation "
-              "of the kind, queue order for moving up, the nearest waiter for a freed "
-              "workstation), not an optimal one; the decentralized navigator's parameters were "
-              "tuned on slim_blockage (the thesis' world), the coordinator's were not tuned.",
-              "- The waiting spots near the workstations are few where the world is narrow "
-              "(slim_blockage: nine beside the blockage); the rest of a long queue parks in "
-              "the hall.",
-              "- Standstill maps and queue curves count only episodes of 60 s or more.",
-              "- Communication counts serialized message bytes, not DDS headers, discovery or "
-              "acknowledgements.", ""]
-    return "\n".join(lines) + "\n"
+    return lines + [""]
+
+
+def _threats(plan: Plan) -> list[str]:
+    """The threats to validity."""
+    return ["## Threats to validity", "",
+            "- One machine type with 2 cores; CPU and RTF figures depend on its load (other "
+            "work ran beside some runs), the simulated figures do not.",
+            "- Simulated perfect odometry and lidar; one robot model.",
+            f"- {len({Path(plan.world).stem})} world in this report; the other world's report "
+            "is beside it.",
+            "- The centralized policy is one reasonable scheduler (nearest free workstation "
+            "of the kind, queue order for moving up, the nearest waiter for a freed "
+            "workstation), not an optimal one; the decentralized navigator's parameters were "
+            "tuned on slim_blockage (the thesis' world), the coordinator's were not tuned.",
+            "- The waiting spots near the workstations are few where the world is narrow "
+            "(slim_blockage: nine beside the blockage); the rest of a long queue parks in "
+            "the hall.",
+            "- Standstill maps and queue curves count only episodes of 60 s or more.",
+            "- Communication counts serialized message bytes, not DDS headers, discovery or "
+            "acknowledgements.", ""]
 
 
 def _stats_table(stats: list[dict], role: str, title: str, measure: str | None) -> list[str]:

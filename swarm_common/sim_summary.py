@@ -1,6 +1,6 @@
 """The simulator's run summary: the file ``swarm-sim --summary PATH`` writes at exit, typed.
 
-The simulator (:meth:`swarm_sim.node.SimulatorNode.summary_record`) builds a :class:`SimSummary`
+The simulator (:func:`swarm_sim.summary.summarize`) builds a :class:`SimSummary`
 and writes its :meth:`~SimSummary.to_dict` as :meth:`~SimSummary.to_json` does; ``swarm-up``
 reads it back (:func:`swarm_metrics.aggregate.load_sim_summary`) and merges its figures into
 ``--metrics``. Both go through this module (STYLE.md rule 15).

@@ -829,6 +829,24 @@ class FaultFigures:
                 out[str(entry.get("kind"))] = out.get(str(entry.get("kind")), 0) + 1
         return out
 
+    def fields(self) -> dict:
+        """``faults`` .. ``fault_messages_dropped`` of ``metrics.json``."""
+        by_kind = self.by_kind
+        return {"faults": sum(by_kind.values()), "faults_by_kind": by_kind,
+                "fault_log": self.log, "fault_messages_dropped": self.messages_dropped}
+
+
+def _coordination_fields(recorder: RunRecorder, centralized: bool,
+                         sim_time_s: float | None) -> dict:
+    """``coordinator_wait_s`` .. ``coordinator_starts`` of ``metrics.json``."""
+    events = recorder.reservation_events
+    return {
+        "coordinator_wait_s": _spot_wait_s(events, sim_time_s) if centralized else None,
+        "reservation_events": len(events),
+        "reservation_conflicts": len(check_reservations(events)) if centralized else None,
+        "coordinator_starts": recorder.coordinator_starts,
+    }
+
 
 def _per_robot(recorder: RunRecorder, sim: SimSummary, facts: RunFacts,
                comm: dict) -> tuple[dict, dict | None]:
@@ -892,14 +910,12 @@ def aggregate(recorder: RunRecorder, sim_summary: SimSummary, facts: RunFacts) -
     per_robot, fleet = _per_robot(recorder, sim, facts, comm)
     reached = sum(r["goals_reached"] for r in per_robot.values())
     tasks = TaskFigures.of(recorder, facts.centralized, reached, timing.sim_time_s)
-    faults = FaultFigures.of(recorder, sim)
     scene = _scene_fields(sim, facts)
     ttgs = [t for ns in robots for t in _times_to_goal(recorder.per_robot[ns])]
     late = _late_ticks(recorder, sim)
     waits = sum(r.goal_wait_timeouts_total for r in recorder.per_robot.values())
     late_goals = sum(recorder.per_robot[ns].late_goals for ns in robots)
     resources = facts.resources or {}
-    events = recorder.reservation_events
     metrics = {
         "robots": len(robots),
         **({"fleet": fleet} if fleet is not None else {}),
@@ -929,12 +945,7 @@ def aggregate(recorder: RunRecorder, sim_summary: SimSummary, facts: RunFacts) -
         "reproducible": None if late is None else (
             late == 0 and waits == 0 and facts.restarts == facts.fault_restarts
             and late_goals == 0),
-        "coordinator_wait_s": (_spot_wait_s(events, timing.sim_time_s) if facts.centralized
-                               else None),
-        "reservation_events": len(events),
-        "reservation_conflicts": (len(check_reservations(events)) if facts.centralized
-                                  else None),
-        "coordinator_starts": recorder.coordinator_starts,
+        **_coordination_fields(recorder, facts.centralized, timing.sim_time_s),
         "comm_messages_per_s": comm["messages_per_s"],
         "comm_bytes_per_s": comm["bytes_per_s"],
         "comm": comm,
@@ -942,10 +953,7 @@ def aggregate(recorder: RunRecorder, sim_summary: SimSummary, facts: RunFacts) -
         "peak_rss_mb_per_robot": resources.get("peak_rss_mb_per_robot"),
         "sim_peak_rss_mb": resources.get("sim_peak_rss_mb"),
         "restarts": facts.restarts,
-        "faults": sum(faults.by_kind.values()),
-        "faults_by_kind": faults.by_kind,
-        "fault_log": faults.log,
-        "fault_messages_dropped": faults.messages_dropped,
+        **FaultFigures.of(recorder, sim).fields(),
         "unresponsive_events": recorder.fault_events,
         "per_robot": per_robot,
     }

@@ -131,6 +131,96 @@ def _records(fh):
     return gen(), state
 
 
+class _TraceReader:
+    """What :func:`read_run` takes from a recording's messages, one message at a time."""
+
+    def __init__(self):
+        from mcap_ros2.decoder import DecoderFactory
+
+        self._factory = DecoderFactory()
+        self._decoders: dict[int, object] = {}
+        self.truth: dict[str, list] = {}
+        self.odom: dict[str, list] = {}
+        self.collisions: list[tuple[float, float]] = []
+        self.holding_t: dict[str, list[float]] = {}
+        self.reached: dict[tuple[str, str], float] = {}
+        self.last_state: dict[str, NavState | None] = {}
+        self.trace = RunTrace()
+        self.last_t = 0
+
+    def _decoded(self, schema, channel, message):
+        fn = self._decoders.get(channel.id)
+        if fn is None:
+            fn = self._decoders[channel.id] = self._factory.decoder_for(
+                channel.message_encoding, schema)
+        return fn(message.data)
+
+    def take(self, schema, channel, message) -> None:
+        """One recorded message: a pose, a status, the events or the map."""
+        topic = channel.topic
+        self.last_t = max(self.last_t, message.log_time)
+        parts = topic.strip("/").split("/")
+        if len(parts) == 2 and parts[1] in (topics.GROUND_TRUTH.name, topics.ODOM.name):
+            stamp, pose = cdr.odometry_pose(message.data)
+            rows = self.truth if parts[1] == topics.GROUND_TRUTH.name else self.odom
+            rows.setdefault(parts[0], []).append((stamp / 1e9, pose[0], pose[1]))
+        elif len(parts) == 2 and parts[1] == topics.NAV_STATUS.name:
+            self._take_status(parts[0], self._decoded(schema, channel, message),
+                              message.log_time)
+        elif topic == topics.EVENTS.name:
+            for status in self._decoded(schema, channel, message).status:
+                if status.name == COLLISION:
+                    ev = CollisionEvent.decode({kv.key: kv.value for kv in status.values})
+                    if ev is not None:
+                        self.collisions.append((ev.x, ev.y))
+        elif topic == topics.MAP.name and self.trace.grid is None:
+            info = (msg := self._decoded(schema, channel, message)).info
+            self.trace.grid = np.frombuffer(bytes(np.asarray(msg.data, dtype=np.int8)),
+                                            dtype=np.int8).reshape(info.height, info.width)
+            self.trace.origin = (info.origin.position.x, info.origin.position.y)
+            self.trace.resolution = info.resolution
+
+    def _take_status(self, ns: str, msg, log_time: int) -> None:
+        status = decode({kv.key: kv.value for kv in msg.values}, msg.message)
+        t = (status.stamp_ns if status.stamp_ns is not None else log_time) / 1e9
+        if status.state == NavState.SUCCEEDED and status.goal_id:
+            self.reached.setdefault((ns, status.goal_id), t)
+        if status.state == NavState.HOLDING and self.last_state.get(ns) != NavState.HOLDING:
+            self.holding_t.setdefault(ns, []).append(t)
+        self.last_state[ns] = status.state
+
+    def finish(self, state: dict, path: Path) -> RunTrace:
+        """The trace, with the recording's metadata (``state`` of :func:`_records`).
+
+        Raises:
+            InputError: no trajectory in the recording.
+        """
+        trace = self.trace
+        meta = state["metadata"].get(rec.META_NAME, {})
+        trace.truncated = state["truncated"]
+        trace.world = Path(meta.get("world", "")).stem
+        try:
+            trace.workstations = json.loads(meta.get("workstations", "[]"))
+        except ValueError:
+            trace.workstations = []
+        source = self.truth if self.truth else self.odom
+        if not source:
+            raise InputError(f"RUN: '{path}' holds no ground_truth or odom messages to draw")
+        order = [r for r in meta.get("robots", "").split(",") if r in source]
+        trace.robots = order + sorted(r for r in source if r not in order)
+        for ns, rows in source.items():
+            arr = np.asarray(sorted(set(rows)), dtype=float)
+            trace.paths[ns] = arr
+            times = self.holding_t.get(ns, [])
+            if times and len(arr):
+                idx = np.clip(np.searchsorted(arr[:, 0], times), 0, len(arr) - 1)
+                trace.holding_starts[ns] = arr[idx, 1:3]
+        trace.collisions = np.asarray(self.collisions, dtype=float).reshape(-1, 2)
+        trace.tasks = sorted(self.reached.values())
+        trace.duration_s = self.last_t / 1e9
+        return trace
+
+
 def read_run(path: Path) -> RunTrace:
     """Read a recording into a :class:`RunTrace`.
 
@@ -141,85 +231,15 @@ def read_run(path: Path) -> RunTrace:
         InputError: not an MCAP file, or no trajectory in it (``ground_truth`` and ``odom`` were
             not recorded).
     """
-    from mcap_ros2.decoder import DecoderFactory
-
-    factory = DecoderFactory()
-    decoders: dict[int, object] = {}
-    truth: dict[str, list] = {}
-    odom: dict[str, list] = {}
-    collisions: list[tuple[float, float]] = []
-    holding_t: dict[str, list[float]] = {}
-    reached: dict[tuple[str, str], float] = {}
-    last_state: dict[str, NavState | None] = {}
-    trace = RunTrace()
-    last_t = 0
-
-    def decoded(schema, channel, message):
-        fn = decoders.get(channel.id)
-        if fn is None:
-            fn = decoders[channel.id] = factory.decoder_for(channel.message_encoding, schema)
-        return fn(message.data)
-
+    reader = _TraceReader()
     with open(path, "rb") as fh:
-        head = fh.read(8)
-        if head != b"\x89MCAP0\r\n":
+        if fh.read(8) != b"\x89MCAP0\r\n":
             raise InputError(f"RUN: '{path}' is not an MCAP file")
         fh.seek(0)
         messages, state = _records(fh)
         for schema, channel, message in messages:
-            topic = channel.topic
-            last_t = max(last_t, message.log_time)
-            parts = topic.strip("/").split("/")
-            if len(parts) == 2 and parts[1] in (topics.GROUND_TRUTH.name, topics.ODOM.name):
-                stamp, pose = cdr.odometry_pose(message.data)
-                (truth if parts[1] == "ground_truth" else odom).setdefault(parts[0], []).append(
-                    (stamp / 1e9, pose[0], pose[1]))
-            elif len(parts) == 2 and parts[1] == topics.NAV_STATUS.name:
-                msg = decoded(schema, channel, message)
-                status = decode({kv.key: kv.value for kv in msg.values}, msg.message)
-                ns = parts[0]
-                t = (status.stamp_ns if status.stamp_ns is not None else message.log_time) / 1e9
-                if status.state == NavState.SUCCEEDED and status.goal_id:
-                    reached.setdefault((ns, status.goal_id), t)
-                if status.state == NavState.HOLDING and last_state.get(ns) != NavState.HOLDING:
-                    holding_t.setdefault(ns, []).append(t)
-                last_state[ns] = status.state
-            elif topic == topics.EVENTS.name:
-                for status in decoded(schema, channel, message).status:
-                    if status.name == COLLISION:
-                        ev = CollisionEvent.decode({kv.key: kv.value for kv in status.values})
-                        if ev is not None:
-                            collisions.append((ev.x, ev.y))
-            elif topic == topics.MAP.name and trace.grid is None:
-                msg = decoded(schema, channel, message)
-                info = msg.info
-                trace.grid = np.frombuffer(bytes(np.asarray(msg.data, dtype=np.int8)),
-                                           dtype=np.int8).reshape(info.height, info.width)
-                trace.origin = (info.origin.position.x, info.origin.position.y)
-                trace.resolution = info.resolution
-    meta = state["metadata"].get(rec.META_NAME, {})
-    trace.truncated = state["truncated"]
-    trace.world = Path(meta.get("world", "")).stem
-    try:
-        trace.workstations = json.loads(meta.get("workstations", "[]"))
-    except ValueError:
-        trace.workstations = []
-    source = truth if truth else odom
-    if not source:
-        raise InputError(f"RUN: '{path}' holds no ground_truth or odom messages to draw")
-    order = [r for r in meta.get("robots", "").split(",") if r in source]
-    trace.robots = order + sorted(r for r in source if r not in order)
-    for ns, rows in source.items():
-        arr = np.asarray(sorted(set(rows)), dtype=float)
-        trace.paths[ns] = arr
-        times = holding_t.get(ns, [])
-        if times and len(arr):
-            idx = np.clip(np.searchsorted(arr[:, 0], times), 0, len(arr) - 1)
-            trace.holding_starts[ns] = arr[idx, 1:3]
-    trace.collisions = np.asarray(collisions, dtype=float).reshape(-1, 2)
-    trace.tasks = sorted(reached.values())
-    trace.duration_s = last_t / 1e9
-    return trace
+            reader.take(schema, channel, message)
+    return reader.finish(state, path)
 
 
 # --------------------------------------------------------------------------------------- drawing

@@ -70,7 +70,6 @@ def default_processes(n: int) -> str | int:
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``swarm-up`` argument parser (docs/reference/contract.md#s2)."""
-    cores = os.cpu_count() or 1
     p = cli.ArgumentParser(
         prog=PROG,
         allow_abbrev=False,
@@ -79,6 +78,15 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="Exit codes: 0 success, 2 bad input, 1 runtime failure. "
         "Ctrl-C stops every process within 5 s.",
     )
+    _add_run_flags(p)
+    _add_output_flags(p)
+    _add_process_flags(p)
+    _add_host_flags(p)
+    return p
+
+
+def _add_run_flags(p: argparse.ArgumentParser) -> None:
+    """What runs: the swarm, the world, the robots, time, commanders and coordination."""
     cli.add_shared(p, "--swarm-size", default=None,
                    help=f"number of robots (default: {DEFAULT_SWARM_SIZE}, or the total of a "
                    "--robot mix)")
@@ -112,6 +120,10 @@ def build_parser() -> argparse.ArgumentParser:
     add_policy_args(p.add_argument_group(
         "centralized coordination", "the coordinator's policy (with --coordination "
         "centralized; docs/guides/coordination.md)"), defaults=False)
+
+
+def _add_output_flags(p: argparse.ArgumentParser) -> None:
+    """What the run writes and serves: metrics, recording, dashboard, Foxglove, markers."""
     p.add_argument("--metrics", type=Path, default=None, metavar="PATH",
                    help="write the run's figures as JSON here at exit (always also "
                    "RUN/metrics.json)")
@@ -136,6 +148,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--markers", action="store_true",
                    help="publish /swarm/markers (visualization_msgs/MarkerArray in map) for "
                    "RViz2 or Foxglove")
+
+
+def _add_process_flags(p: argparse.ArgumentParser) -> None:
+    """How it runs: faults, the process layout, the window, the run directory, timeouts."""
+    cores = os.cpu_count() or 1
     p.add_argument("--faults", default=None, metavar="SPEC",
                    help="inject faults at simulated times: a comma-separated list of "
                    "KIND[:TARGET]@TIME[+DURATION] (kill-nav:3@60, kill-robot:3@60, "
@@ -157,6 +174,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "(default: %(default)s)")
     p.add_argument("--nav-params", type=Path, default=None, metavar="PATH",
                    help="navigator parameter template (default: params/navigator.yaml)")
+
+
+def _add_host_flags(p: argparse.ArgumentParser) -> None:
+    """Several hosts (docs/guides/multi_host.md)."""
     hosts = p.add_argument_group(
         "several hosts", "one swarm over N hosts: run swarm-up with the same run flags on every "
         "host, each with its own --host-rank (docs/guides/multi_host.md)")
@@ -180,7 +201,6 @@ def build_parser() -> argparse.ArgumentParser:
     hosts.add_argument("--on-rank-loss", choices=("end", "continue"), default="end",
                        help="when a rank is lost: end the run (exit 1, metrics written) or "
                        "continue without its robots (default: %(default)s)")
-    return p
 
 
 
@@ -384,39 +404,9 @@ def validate(args: argparse.Namespace) -> RunConfig:
     Raises:
         InputError: the first bad flag or file (the one line shown, naming it).
     """
-    from swarm_coordinator.node import policy_argv
-
-    policy = policy_argv(args)
-    if policy and args.coordination != "centralized":
-        raise InputError(f"{policy[0]}: needs --coordination centralized (only the "
-                         "coordinator has a policy)")
-    if args.coordination == "centralized" and not args.commanders:
-        raise InputError("--coordination: centralized needs --commanders (the coordinator "
-                         "assigns the commanders' tasks)")
-    if args.dashboard is not None:
-        from swarm_viz.server import check_port
-
-        check_port(args.dashboard)
-    if args.foxglove is not None:
-        from swarm_viz.server import check_port
-
-        if args.foxglove == args.dashboard:
-            raise InputError(f"--foxglove: port {args.foxglove} is --dashboard's")
-        check_port(args.foxglove, flag="--foxglove")
-    if args.metrics is not None:
-        parent = args.metrics.expanduser().resolve().parent
-        if not parent.is_dir():
-            raise InputError(f"--metrics: directory '{parent}' does not exist")
-        if args.metrics.is_dir():
-            raise InputError(f"--metrics: '{args.metrics}' is a directory")
-    if args.run_dir is not None and args.run_dir.exists() and not args.run_dir.is_dir():
-        raise InputError(f"--run-dir: '{args.run_dir}' exists and is not a directory")
-    nav_template = args.nav_params if args.nav_params is not None else (
-        paths.PARAMS_DIR / "navigator.yaml")
-    if args.nav_params is not None and not args.nav_params.is_file():
-        raise InputError(f"--nav-params: no such file '{args.nav_params}'")
-    if nav_template.is_file():  # the default one missing is an installation problem (exit 1)
-        _check_nav_template(nav_template)
+    policy = _check_modes(args)
+    _check_outputs(args)
+    nav_template = _check_nav_params(args)
 
     map_path = _check_map(args.map) if args.map is not None else None
     world_path = resolve_world(args.world)
@@ -478,6 +468,67 @@ def validate(args: argparse.Namespace) -> RunConfig:
         rank_timeout=args.rank_timeout,
         on_rank_loss=args.on_rank_loss,
     )
+
+
+def _check_modes(args: argparse.Namespace) -> list[str]:
+    """The coordination flags agree; returns the coordinator's policy argv.
+
+    Raises:
+        InputError: a policy flag without centralized coordination, or centralized without
+            commanders.
+    """
+    from swarm_coordinator.node import policy_argv
+
+    policy = policy_argv(args)
+    if policy and args.coordination != "centralized":
+        raise InputError(f"{policy[0]}: needs --coordination centralized (only the "
+                         "coordinator has a policy)")
+    if args.coordination == "centralized" and not args.commanders:
+        raise InputError("--coordination: centralized needs --commanders (the coordinator "
+                         "assigns the commanders' tasks)")
+    return policy
+
+
+def _check_outputs(args: argparse.Namespace) -> None:
+    """The ports, the metrics file and the run directory can be used.
+
+    Raises:
+        InputError: a port taken or twice, a metrics path in no directory, a run directory
+            that is a file.
+    """
+    if args.dashboard is not None:
+        from swarm_viz.server import check_port
+
+        check_port(args.dashboard)
+    if args.foxglove is not None:
+        from swarm_viz.server import check_port
+
+        if args.foxglove == args.dashboard:
+            raise InputError(f"--foxglove: port {args.foxglove} is --dashboard's")
+        check_port(args.foxglove, flag="--foxglove")
+    if args.metrics is not None:
+        parent = args.metrics.expanduser().resolve().parent
+        if not parent.is_dir():
+            raise InputError(f"--metrics: directory '{parent}' does not exist")
+        if args.metrics.is_dir():
+            raise InputError(f"--metrics: '{args.metrics}' is a directory")
+    if args.run_dir is not None and args.run_dir.exists() and not args.run_dir.is_dir():
+        raise InputError(f"--run-dir: '{args.run_dir}' exists and is not a directory")
+
+
+def _check_nav_params(args: argparse.Namespace) -> Path:
+    """The navigator's parameter template (``--nav-params`` or the default), checked.
+
+    Raises:
+        InputError: ``--nav-params`` names no file, or the template is malformed.
+    """
+    nav_template = args.nav_params if args.nav_params is not None else (
+        paths.PARAMS_DIR / "navigator.yaml")
+    if args.nav_params is not None and not args.nav_params.is_file():
+        raise InputError(f"--nav-params: no such file '{args.nav_params}'")
+    if nav_template.is_file():  # the default one missing is an installation problem (exit 1)
+        _check_nav_template(nav_template)
+    return nav_template
 
 
 def _check_hosts(args: argparse.Namespace, robots: tuple[str, ...]

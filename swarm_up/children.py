@@ -89,8 +89,6 @@ def child_specs(cfg: RunConfig):
     Returns:
         A list of :class:`swarm_up.supervisor.ChildSpec`.
     """
-    from swarm_common import topics
-    from swarm_record.mcap_format import RECORDER_NODE, simulator_readers
     from swarm_up.supervisor import ChildSpec
 
     logs = cfg.run_dir / "logs"
@@ -99,9 +97,45 @@ def child_specs(cfg: RunConfig):
     if cfg.discovery_server:
         env[DISCOVERY_ENV] = cfg.discovery_server
     world = str(cfg.world_path)
+    sim = sim_argv(cfg)
+    specs = []
+    if cfg.leader:  # rank 0 (or the only host): simulator, recorder, coordinator
+        specs.append(ChildSpec("sim", tuple(sim), logs / "sim.log", kind="sim", restart=False,
+                               env=env))
+        if cfg.record_path is not None:  # started first: swarm-up waits for it before the rest
+            specs.insert(0, recorder_spec(cfg, env))
+        if cfg.discovery_server:  # first of all: every other process is its client
+            specs.insert(0, discovery_server_spec(cfg, env))
+    coordinated = cfg.coordination == "centralized"
+    if coordinated and cfg.leader:
+        specs.append(coordinator_spec(cfg, env))
+
+    if cfg.groups is None:
+        specs += _per_robot_specs(cfg, env)
+    else:
+        for g, group in enumerate(cfg.groups, start=1):
+            argv = [sys.executable, "-m", "swarm_up.group", "--namespaces", ",".join(group),
+                    "--params-dir", str(params)]
+            if cfg.commanders:
+                argv += ["--commanders", "--world", world, "--seed", str(cfg.seed)]
+                if coordinated:
+                    argv += ["--coordinated", "--coordinator-timeout", repr(cfg.ready_timeout)]
+            if cfg.faults:
+                argv += ["--faults", str(faults_file(cfg))]
+            specs.append(ChildSpec(f"group_{g}", tuple(argv), logs / f"group_{g}.log",
+                                   kind="group", robots=group, env=env))
+    return specs
+
+
+
+def sim_argv(cfg: RunConfig) -> list[str]:
+    """The simulator's command line (``swarm-sim``) for a run."""
+    from swarm_common import topics
+    from swarm_record.mcap_format import RECORDER_NODE, simulator_readers
+
     sim = command("swarm-sim", "swarm_sim.node") + [
-        "--world", world, "--robot", cfg.robot, "--swarm-size", str(len(cfg.robots)),
-        "--name-prefix", cfg.name_prefix,
+        "--world", str(cfg.world_path), "--robot", cfg.robot,
+        "--swarm-size", str(len(cfg.robots)), "--name-prefix", cfg.name_prefix,
         "--seed", str(cfg.seed), "--rtf", repr(cfg.rtf),
         # Simulated time starts when every navigator answers (the synchronous loop:
         # docs/reference/contract.md#s5-simulation).
@@ -120,51 +154,34 @@ def child_specs(cfg: RunConfig):
     if readers:  # the recorder gets the first tick on (docs/ARCHITECTURE.md)
         sim += ["--wait-for-reader", RECORDER_NODE, "--reader-subscriptions", str(readers)]
         sim += ["--record-window", str(topics.RECORD_WINDOW_TICKS)]  # a stalled recorder
-    specs = []
-    if cfg.leader:  # rank 0 (or the only host): simulator, recorder, coordinator
-        specs.append(ChildSpec("sim", tuple(sim), logs / "sim.log", kind="sim", restart=False,
-                               env=env))
-        if cfg.record_path is not None:  # started first: swarm-up waits for it before the rest
-            specs.insert(0, recorder_spec(cfg, env))
-        if cfg.discovery_server:  # first of all: every other process is its client
-            specs.insert(0, discovery_server_spec(cfg, env))
-    coordinated = cfg.coordination == "centralized"
-    if coordinated and cfg.leader:
-        specs.append(coordinator_spec(cfg, env))
+    return sim
 
-    if cfg.groups is None:
-        # A robot that a fault kills gets processes that own no shared-memory port.
-        killed, free_env = fault_killed_robots(cfg), shm_free_env(env)
-        robot_env = {ns: free_env if ns in killed else env for ns in cfg.local_robots}
-        nav = command("swarm-nav", "swarm_nav.node")
+
+def _per_robot_specs(cfg: RunConfig, env: dict[str, str]) -> list:
+    """One navigator process (and one commander process) per local robot."""
+    from swarm_up.supervisor import ChildSpec
+
+    logs, params, specs = cfg.run_dir / "logs", cfg.run_dir / "params", []
+    # A robot that a fault kills gets processes that own no shared-memory port.
+    killed, free_env = fault_killed_robots(cfg), shm_free_env(env)
+    robot_env = {ns: free_env if ns in killed else env for ns in cfg.local_robots}
+    nav = command("swarm-nav", "swarm_nav.node")
+    for ns in cfg.local_robots:
+        argv = nav + ["--ros-args", "-r", f"__ns:=/{ns}",
+                      "--params-file", str(params / f"{ns}.yaml")]
+        specs.append(ChildSpec(f"nav_{ns}", tuple(argv), logs / f"nav_{ns}.log",
+                               kind="nav", robots=(ns,), env=robot_env[ns]))
+    if cfg.commanders:
+        cmd = command("swarm-commander", "swarm_commander.cli")
         for ns in cfg.local_robots:
-            argv = nav + ["--ros-args", "-r", f"__ns:=/{ns}",
-                          "--params-file", str(params / f"{ns}.yaml")]
-            specs.append(ChildSpec(f"nav_{ns}", tuple(argv), logs / f"nav_{ns}.log",
-                                   kind="nav", robots=(ns,), env=robot_env[ns]))
-        if cfg.commanders:
-            cmd = command("swarm-commander", "swarm_commander.cli")
-            for ns in cfg.local_robots:
-                argv = cmd + [ns, "--world", world, "--seed", str(cfg.seed),
-                              "--wait-timeout", repr(cfg.ready_timeout)]
-                if coordinated:
-                    argv.append("--coordinated")
-                    if cfg.faults:
-                        argv += ["--faults", str(faults_file(cfg))]
-                specs.append(ChildSpec(f"cmd_{ns}", tuple(argv), logs / f"cmd_{ns}.log",
-                                       kind="cmd", robots=(ns,), env=robot_env[ns]))
-    else:
-        for g, group in enumerate(cfg.groups, start=1):
-            argv = [sys.executable, "-m", "swarm_up.group", "--namespaces", ",".join(group),
-                    "--params-dir", str(params)]
-            if cfg.commanders:
-                argv += ["--commanders", "--world", world, "--seed", str(cfg.seed)]
-                if coordinated:
-                    argv += ["--coordinated", "--coordinator-timeout", repr(cfg.ready_timeout)]
-            if cfg.faults:
-                argv += ["--faults", str(faults_file(cfg))]
-            specs.append(ChildSpec(f"group_{g}", tuple(argv), logs / f"group_{g}.log",
-                                   kind="group", robots=group, env=env))
+            argv = cmd + [ns, "--world", str(cfg.world_path), "--seed", str(cfg.seed),
+                          "--wait-timeout", repr(cfg.ready_timeout)]
+            if cfg.coordination == "centralized":
+                argv.append("--coordinated")
+                if cfg.faults:
+                    argv += ["--faults", str(faults_file(cfg))]
+            specs.append(ChildSpec(f"cmd_{ns}", tuple(argv), logs / f"cmd_{ns}.log",
+                                   kind="cmd", robots=(ns,), env=robot_env[ns]))
     return specs
 
 

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.swarm_common.test_collada import box, collada, enclosed, hexagon_band
+from tests.swarm_scene.test_collada import box, collada, enclosed, hexagon_band
 from tests.test_e2e_swarm_up import _run_to_end
 
 pytestmark = pytest.mark.e2e
