@@ -187,6 +187,23 @@ class BenchConfig:
     extra_args: tuple[str, ...] = ()
 
 
+def world_arg(world: str) -> str:
+    """``--world``, checked: a world name as it is, a path made absolute (swarm-up runs in its
+    run directory).
+
+    Raises:
+        InputError: no such world (the line names ``--world``).
+    """
+    from swarm_scene.world import resolve_world
+
+    try:
+        resolve_world(world)
+    except InputError as exc:
+        msg = str(exc)
+        raise InputError(msg if msg.startswith("--world") else f"--world: {msg}") from None
+    return str(Path(world).resolve()) if Path(world).is_file() else world
+
+
 def _check_file_flag(flag: str, path: Path, suffix: str | None = None) -> Path:
     path = path.expanduser()
     if suffix is not None and path.suffix.lower() != suffix:
@@ -205,15 +222,7 @@ def validate(args: argparse.Namespace) -> BenchConfig:
     Raises:
         InputError: the first bad flag (the one line shown, naming it).
     """
-    from swarm_scene.world import resolve_world
-
-    try:
-        resolve_world(args.world)
-    except InputError as exc:
-        msg = str(exc)
-        raise InputError(msg if msg.startswith("--world") else f"--world: {msg}") from None
-    # swarm-up runs in its run directory: a world given by path is passed on absolute
-    world = str(Path(args.world).resolve()) if Path(args.world).is_file() else args.world
+    world = world_arg(args.world)
     output = _check_file_flag("--output", args.output)
     plot = _check_file_flag("--plot", args.plot, ".png")
     if args.run_dir is not None and args.run_dir.exists() and not args.run_dir.is_dir():

@@ -176,15 +176,9 @@ def validate(args: argparse.Namespace) -> ExperimentConfig:
     Raises:
         InputError: the first bad flag (one line naming it).
     """
-    from swarm_bench.bench import swarm_up_path
-    from swarm_scene.world import resolve_world
+    from swarm_bench.bench import swarm_up_path, world_arg
 
-    try:
-        resolve_world(args.world)
-    except InputError as exc:
-        msg = str(exc)
-        raise InputError(msg if msg.startswith("--world") else f"--world: {msg}") from None
-    world = str(Path(args.world).resolve()) if Path(args.world).is_file() else args.world
+    world = world_arg(args.world)
     if args.warmup >= args.duration:
         raise InputError(f"--warmup: {args.warmup:g} s leaves nothing of --duration "
                          f"{args.duration:g} s")

@@ -305,6 +305,18 @@ def _panels(plt, n: int):
     return fig, axes[0]
 
 
+def _save_panels(fig, axes, sizes: list[int], xlabel: str, ylabel: str, out: Path,
+                 stem: str) -> str:
+    """Title each size's panel, label the axes, add a grid and the first panel's legend; save."""
+    for ax, n in zip(axes, sizes, strict=True):
+        ax.set_title(f"{n} robots", fontsize=10)
+        ax.set_xlabel(xlabel)
+        ax.grid(True, alpha=0.3)
+    axes[0].set_ylabel(ylabel)
+    axes[0].legend(fontsize=7)
+    return _save(fig, out, stem)
+
+
 def plot_tasks_over_time(out: Path, plan: Plan, summaries: list[dict], figs: dict) -> str:
     """Cumulative tasks over simulated time (mean over seeds), one panel per size, the
     warm-up marked: where the rate settles."""
@@ -324,12 +336,8 @@ def plot_tasks_over_time(out: Path, plan: Plan, summaries: list[dict], figs: dic
             ax.plot(grid, mean, color=colour, label=s["variant"])
         ax.axvline(plan.warmup_s, color="black", linestyle=":", linewidth=1.0,
                    label=f"warm-up {plan.warmup_s:g} s")
-        ax.set_title(f"{n} robots", fontsize=10)
-        ax.set_xlabel("simulated time [s]")
-        ax.grid(True, alpha=0.3)
-    axes[0].set_ylabel("tasks completed (mean over seeds)")
-    axes[0].legend(fontsize=7)
-    return _save(fig, out, "tasks_over_time")
+    return _save_panels(fig, axes, sizes, "simulated time [s]",
+                        "tasks completed (mean over seeds)", out, "tasks_over_time")
 
 
 def plot_ecdf(out: Path, plan: Plan, summaries: list[dict], figs: dict) -> str:
@@ -348,12 +356,8 @@ def plot_ecdf(out: Path, plan: Plan, summaries: list[dict], figs: dict) -> str:
             colour, _ = STYLE[s["variant"]]
             ax.step(ds, [(i + 1) / len(ds) for i in range(len(ds))], where="post",
                     color=colour, label=s["variant"])
-        ax.set_title(f"{n} robots", fontsize=10)
-        ax.set_xlabel("time to task [s]")
-        ax.grid(True, alpha=0.3)
-    axes[0].set_ylabel("fraction of tasks (after the warm-up)")
-    axes[0].legend(fontsize=7)
-    return _save(fig, out, "time_to_task_ecdf")
+    return _save_panels(fig, axes, sizes, "time to task [s]",
+                        "fraction of tasks (after the warm-up)", out, "time_to_task_ecdf")
 
 
 def plot_tasks_per_robot(out: Path, plan: Plan, summaries: list[dict], figs: dict) -> str:

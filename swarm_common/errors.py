@@ -32,6 +32,36 @@ def did_you_mean(word: str, choices) -> str:
     return f" (did you mean '{close[0]}'?)" if close else ""
 
 
+def unknown_name(prefix: str, kind: str, name: str, names, hint: str = "") -> InputError:
+    """The error for a name that is none of ``names``: ``"<prefix>unknown <kind> '<name>' (did
+    you mean ...); available: a, b<hint>"``."""
+    names = list(names)
+    available = ", ".join(names) if names else "none"
+    return InputError(f"{prefix}unknown {kind} '{name}'{did_you_mean(name, names)}; "
+                      f"available: {available}{hint}")
+
+
+def read_yaml(path, missing: Exception | None = None):
+    """The YAML document of the file at ``path``.
+
+    Args:
+        path: a ``pathlib.Path``.
+        missing: raised if there is no such file (default: ``InputError("<path>: no such
+            file")``).
+
+    Raises:
+        InputError: the file is not readable YAML (the first line of the parser's message).
+    """
+    import yaml
+
+    if not path.is_file():
+        raise missing if missing is not None else InputError(f"{path}: no such file")
+    try:
+        return yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError) as exc:
+        raise InputError(f"{path}: not readable YAML ({exc})".splitlines()[0]) from None
+
+
 def check_keys(where: str, mapping, allowed, required=()) -> None:
     """A strict loader's key check: every key of ``mapping`` is ``allowed``, every ``required``
     one is there.

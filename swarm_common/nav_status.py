@@ -182,16 +182,16 @@ def decode(values: Mapping[str, str], message: str = "") -> NavStatusRecord:
         is not a finite float (a count: not a finite float >= 0, truncated to an int), a stamp
         not in ``"<sec>.<nanosec:09d>"`` form and a goal lacking one finite coordinate are None.
     """
-    goal = tuple(_float(values.get(k)) for k in ("goal_x", "goal_y", "goal_yaw"))
+    goal = tuple(finite_float(values.get(k)) for k in ("goal_x", "goal_y", "goal_yaw"))
     return NavStatusRecord(
         state=_state(values.get("state") or message),
         goal_id=_text(values.get("goal_id")).strip(),
         stamp_ns=parse_stamp(_text(values.get("stamp"))),
         goal=None if None in goal else goal,
-        distance_remaining=_float(values.get("distance_remaining_m")),
-        navigation_time=_float(values.get("navigation_time_s")),
+        distance_remaining=finite_float(values.get("distance_remaining_m")),
+        navigation_time=finite_float(values.get("navigation_time_s")),
         recoveries=_count(values.get("recoveries")),
-        holding_time=_float(values.get("holding_time_s")),
+        holding_time=finite_float(values.get("holding_time_s")),
         goal_wait_timeouts=_count(values.get("goal_wait_timeouts")),
         pending_goal_id=_text(values.get("pending_goal_id")).strip(),
         reason=_text(values.get("reason")),
@@ -209,7 +209,7 @@ def _state(text) -> NavState | None:
         return None
 
 
-def _float(text) -> float | None:
+def finite_float(text) -> float | None:
     """A finite float from a text (or number), else None."""
     try:
         value = float(text)
@@ -220,5 +220,5 @@ def _float(text) -> float | None:
 
 def _count(text) -> int | None:
     """A count from a text: a finite float >= 0 truncated to an int, else None."""
-    value = _float(text)
+    value = finite_float(text)
     return int(value) if value is not None and value >= 0 else None

@@ -113,7 +113,7 @@ from swarm_common.coordination import (
 from swarm_common.events import COLLISION, LATE, ROBOT_ROBOT, ROBOT_WALL, SPAWN, CollisionEvent
 from swarm_common.faults import EVENT_NAME as FAULT
 from swarm_common.faults import FaultEvent
-from swarm_common.nav_status import TOOK_ANOTHER, NavState, decode
+from swarm_common.nav_status import TOOK_ANOTHER, NavState, decode, finite_float
 from swarm_common.sim_summary import RobotSummary, SimSummary, SimSummaryError
 from swarm_common.stamps import NS_PER_S, parse_stamp
 
@@ -133,15 +133,6 @@ SIM_SUMMARY_KEYS = (
     "min_separation_m",
     "per_robot",
 )
-
-
-def _float(value) -> float | None:
-    """A finite float from a string/number, else None."""
-    try:
-        out = float(value)
-    except (TypeError, ValueError):
-        return None
-    return out if math.isfinite(out) else None
 
 
 @dataclass
@@ -424,7 +415,7 @@ def load_sim_summary(path: Path | str | None) -> tuple[SimSummary, list[str]]:
 
 
 def _ratio(num, den) -> float | None:
-    num, den = _float(num), _float(den)
+    num, den = finite_float(num), finite_float(den)
     if num is None or den is None or den <= 0:
         return None
     return num / den
@@ -578,7 +569,7 @@ def label_standstills(episodes, places: Mapping[str, list[tuple[float, float]]],
     for ep in episodes if isinstance(episodes, list) else []:
         if not isinstance(ep, Mapping):
             continue
-        x, y = _float(ep.get("x")), _float(ep.get("y"))
+        x, y = finite_float(ep.get("x")), finite_float(ep.get("y"))
         if x is None or y is None:
             continue
         best, best_d = None, near_m
@@ -733,10 +724,10 @@ class Timing:
 
     @classmethod
     def of(cls, recorder: RunRecorder, sim: SimSummary, wall_time_s: float) -> Timing:
-        sim_time = _float(sim.sim_time_s)
+        sim_time = finite_float(sim.sim_time_s)
         if sim_time is None:
             sim_time = recorder.last_sim_time_s
-        sim_wall = _float(sim.wall_time_s)
+        sim_wall = finite_float(sim.wall_time_s)
         return cls(len(recorder.robots), sim_time,
                    sim_wall if sim_wall is not None else wall_time_s, sim.ticks)
 
@@ -883,7 +874,8 @@ def _scene_fields(sim: SimSummary, facts: RunFacts) -> dict:
         "spawn": spawn if isinstance(spawn, str) else None,
         "world_skipped": [str(e) for e in skipped] if isinstance(skipped, list) else None,
         "standstills": standstills,
-        "standstill_s": round(sum(_float(e.get("duration_s")) or 0.0 for e in standstills), 3),
+        "standstill_s": round(sum(finite_float(e.get("duration_s")) or 0.0
+                                  for e in standstills), 3),
     }
 
 
@@ -936,7 +928,7 @@ def aggregate(recorder: RunRecorder, sim_summary: SimSummary, facts: RunFacts) -
         "standstills": scene["standstills"],
         "standstill_s": scene["standstill_s"],
         "collisions": _collisions(recorder, sim),
-        "min_separation_m": _float(sim.min_separation_m),
+        "min_separation_m": finite_float(sim.min_separation_m),
         "mean_time_to_goal_s": (sum(ttgs) / len(ttgs)) if ttgs else None,
         "holding_time_s": sum((r["holding_time_s"] for r in per_robot.values()), 0.0),
         "late_ticks": late,

@@ -72,15 +72,10 @@ class Costmap(GridGeometry):
     changed: tuple[int, int, int, int] | None = field(default=None, compare=False, repr=False)
     _cache: dict = field(default_factory=dict, compare=False, repr=False)
 
-    @property
-    def height(self) -> int:
-        """Number of rows (cells along y)."""
-        return int(self.costs.shape[0])
-
-    @property
-    def width(self) -> int:
-        """Number of columns (cells along x)."""
-        return int(self.costs.shape[1])
+    height = property(lambda self: int(self.costs.shape[0]),
+                      doc="Number of rows (cells along y).")
+    width = property(lambda self: int(self.costs.shape[1]),
+                     doc="Number of columns (cells along x).")
 
     def cost_at(self, xy) -> np.ndarray:
         """The (...,) uint8 costs at (..., 2) points x, y [m] in ``map``; ``LETHAL`` outside."""

@@ -30,9 +30,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-import yaml
-
-from swarm_common.errors import InputError, check_keys, did_you_mean
+from swarm_common.errors import InputError, check_keys, did_you_mean, read_yaml
 
 FLEET_SUFFIXES = (".yaml", ".yml")
 _ENTRY_KEYS = ("robot", "count")
@@ -196,12 +194,7 @@ def _no_repeats(entries) -> None:
 
 def _read_fleet_file(path: Path) -> tuple[tuple[str, int], ...]:
     """The entries of a fleet file (module docstring), paths made relative to the cwd."""
-    if not path.is_file():
-        raise InputError(f"{path}: no such fleet file")
-    try:
-        data = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise InputError(f"{path}: not readable YAML ({exc})".splitlines()[0]) from None
+    data = read_yaml(path, InputError(f"{path}: no such fleet file"))
     if not isinstance(data, dict):
         raise InputError(f"{path}: expected a mapping with the key 'fleet'")
     for key in data:

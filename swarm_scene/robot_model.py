@@ -44,7 +44,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from swarm_common.errors import InputError, did_you_mean
+from swarm_common.errors import InputError, did_you_mean, unknown_name
 from swarm_common.geometry import convex_hull_2d, pose_to_matrix
 from swarm_common.paths import ROBOT_PARAMS_DIR, ROBOTS_DIR, ROOT, find_named
 
@@ -201,12 +201,8 @@ def resolve_robot(name_or_path: str | Path) -> Path:
         found = find_named(text, ROBOTS_DIR, (".urdf.xacro", ".urdf"))
         if found is not None:
             return found
-        names = robot_names()
-        available = ", ".join(names) if names else "none"
-        raise InputError(
-            f"{_display(ROBOTS_DIR / (text + '.urdf.xacro'))}: unknown robot '{text}'"
-            f"{did_you_mean(text, names)}; available: {available}"
-        )
+        raise unknown_name(f"{_display(ROBOTS_DIR / (text + '.urdf.xacro'))}: ", "robot",
+                           text, robot_names())
     path = Path(name_or_path).expanduser()
     if not _is_robot_file(path):
         raise InputError(f"{_display(path)}: not a robot description (expected .urdf, .xacro "

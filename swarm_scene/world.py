@@ -49,7 +49,7 @@ from pathlib import Path
 
 import numpy as np
 
-from swarm_common.errors import InputError, did_you_mean
+from swarm_common.errors import InputError, did_you_mean, unknown_name
 from swarm_common.geometry import (
     convex_hull_2d,
     matrix_to_pose,
@@ -156,12 +156,8 @@ def resolve_world(name_or_path: str | Path) -> Path:
     found = find_named(text, WORLDS_DIR, WORLD_SUFFIXES)
     if found is not None:
         return found
-    names = available_worlds()
-    listing = ", ".join(names) if names else "none"
-    raise InputError(
-        f"unknown world '{text}'{did_you_mean(text, names)}; available: {listing}"
-        " (or give a path to a .world/.sdf file)"
-    )
+    raise unknown_name("", "world", text, available_worlds(),
+                       " (or give a path to a .world/.sdf file)")
 
 
 # --------------------------------------------------------------------------------------- parsing

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import yaml
 
-from swarm_common.errors import InputError
+from swarm_common.errors import InputError, read_yaml
 from swarm_scene.map_io import save_map
 from swarm_scene.rasterize import rasterize_world
 from swarm_scene.world import load_world
@@ -45,12 +45,7 @@ def load_nav_template(path: Path) -> dict:
         RunError: the default template is missing (an installation problem).
         InputError: the file is not such a template (names the file).
     """
-    if not path.is_file():
-        raise RunError(f"{path}: navigator parameter template missing")
-    try:
-        data = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise InputError(f"{path}: not readable YAML ({exc})".splitlines()[0]) from None
+    data = read_yaml(path, RunError(f"{path}: navigator parameter template missing"))
     if not isinstance(data, dict) or len(data) != 1:
         raise InputError(f"{path}: expected one top-level key 'navigator'")
     (root, body), = data.items()

@@ -102,10 +102,16 @@ def _stamp(ns: int):
     return Timestamp(sec=int(ns // 1_000_000_000), nsec=int(ns % 1_000_000_000))
 
 
-def _pose(x: float, y: float, yaw: float, z: float = 0.0):
-    from foxglove.messages import Pose, Vector3
+def _vec(x: float, y: float, z: float = 0.0):
+    from foxglove.messages import Vector3
 
-    return Pose(position=Vector3(x=float(x), y=float(y), z=z), orientation=_quat(float(yaw)))
+    return Vector3(x=x, y=y, z=z)
+
+
+def _pose(x: float, y: float, yaw: float, z: float = 0.0):
+    from foxglove.messages import Pose
+
+    return Pose(position=_vec(float(x), float(y), z), orientation=_quat(float(yaw)))
 
 
 def goal_from_json(data: bytes) -> tuple[float, float, float, str]:
@@ -286,18 +292,7 @@ class FoxgloveView:
 
     def send_frame(self) -> None:
         """Build and send what is subscribed to (the sending thread; callable from tests)."""
-        from foxglove.messages import (
-            Event,
-            FrameTransform,
-            FrameTransforms,
-            KeyValuePair,
-            LaserScan,
-            Log,
-            LogLevel,
-            PosesInFrame,
-            SceneUpdate,
-            Vector3,
-        )
+        from foxglove.messages import SceneUpdate
 
         with self.fleet_lock:
             f = self.fleet
@@ -326,33 +321,8 @@ class FoxgloveView:
         if self._map_pending:
             self._map_pending = False
             self.ch_map.log(self._grid(), log_time=t_ns)
-        robots = self.fleet.robots
         if known.any():
-            if self._wanted(self.ch_tf):
-                tfs = []
-                for i in np.flatnonzero(known):
-                    x, y, yaw = poses[i]
-                    ts = _stamp(int(stamps[i]))
-                    tfs.append(FrameTransform(
-                        timestamp=ts, parent_frame_id="map",
-                        child_frame_id=f"{robots[i]}/base_footprint",
-                        translation=Vector3(x=float(x), y=float(y), z=0.0),
-                        rotation=_quat(float(yaw))))
-                    lx, ly, lyaw = self.lidar_pose[i]
-                    tfs.append(FrameTransform(
-                        timestamp=ts, parent_frame_id=f"{robots[i]}/base_footprint",
-                        child_frame_id=f"{robots[i]}/base_scan",
-                        translation=Vector3(x=float(lx), y=float(ly), z=0.0),
-                        rotation=_quat(float(lyaw))))
-                self.ch_tf.log(FrameTransforms(transforms=tfs), log_time=t_ns)
-            if self._wanted(self.ch_poses):
-                self.ch_poses.log(PosesInFrame(
-                    timestamp=stamp, frame_id="map",
-                    poses=[_pose(*poses[i]) if known[i] else _pose(0.0, 0.0, 0.0)
-                           for i in range(len(robots))]), log_time=t_ns)
-            if self._wanted(self.ch_footprints):
-                self.ch_footprints.log(SceneUpdate(entities=[
-                    self._footprint(i, stamp) for i in np.flatnonzero(known)]), log_time=t_ns)
+            self._send_robots(poses, stamps, known, t_ns)
         if paths and self._wanted(self.ch_plans):
             self.ch_plans.log(SceneUpdate(entities=[
                 self._plan(i, p, stamp) for i, p in paths.items()]), log_time=t_ns)
@@ -360,6 +330,53 @@ class FoxgloveView:
             self.ch_ws.log(SceneUpdate(entities=[
                 self._workstation(w, s, stamp) for w, s in zip(self.workstations, ws_states,
                                                                strict=True)]), log_time=t_ns)
+        self._send_scans(scans)
+        for i, (state, goal, values) in status.items():
+            if self._wanted(self.ch_status[i]):
+                self.ch_status[i].log({
+                    "state": None if state is None else state.name.lower(),
+                    "goal": None if not np.isfinite(goal).all() else [float(goal[0]),
+                                                                       float(goal[1])],
+                    "values": values}, log_time=t_ns)
+        self._send_collisions(collisions)
+        if self._wanted(self.ch_kpi):
+            self.ch_kpi.log(kpi, log_time=t_ns)
+        self.frames_sent += 1
+
+    def _send_robots(self, poses: np.ndarray, stamps: np.ndarray, known: np.ndarray,
+                     t_ns: int) -> None:
+        """The robots' transforms, poses and footprints (those with a known pose)."""
+        from foxglove.messages import FrameTransform, FrameTransforms, PosesInFrame, SceneUpdate
+
+        robots, stamp = self.fleet.robots, _stamp(t_ns)
+        if self._wanted(self.ch_tf):
+            tfs = []
+            for i in np.flatnonzero(known):
+                x, y, yaw = poses[i]
+                ts = _stamp(int(stamps[i]))
+                tfs.append(FrameTransform(
+                    timestamp=ts, parent_frame_id="map",
+                    child_frame_id=f"{robots[i]}/base_footprint",
+                    translation=_vec(float(x), float(y)), rotation=_quat(float(yaw))))
+                lx, ly, lyaw = self.lidar_pose[i]
+                tfs.append(FrameTransform(
+                    timestamp=ts, parent_frame_id=f"{robots[i]}/base_footprint",
+                    child_frame_id=f"{robots[i]}/base_scan",
+                    translation=_vec(float(lx), float(ly)), rotation=_quat(float(lyaw))))
+            self.ch_tf.log(FrameTransforms(transforms=tfs), log_time=t_ns)
+        if self._wanted(self.ch_poses):
+            self.ch_poses.log(PosesInFrame(
+                timestamp=stamp, frame_id="map",
+                poses=[_pose(*poses[i]) if known[i] else _pose(0.0, 0.0, 0.0)
+                       for i in range(len(robots))]), log_time=t_ns)
+        if self._wanted(self.ch_footprints):
+            self.ch_footprints.log(SceneUpdate(entities=[
+                self._footprint(i, stamp) for i in np.flatnonzero(known)]), log_time=t_ns)
+
+    def _send_scans(self, scans: dict) -> None:
+        """The new scans, each in ``map`` at its lidar's pose."""
+        from foxglove.messages import LaserScan
+
         for i, sample in scans.items():
             if self._wanted(self.ch_scans[i]):
                 lx, ly, lyaw = self.lidar_pose[i]
@@ -374,13 +391,11 @@ class FoxgloveView:
                     ranges=[float(r) if sample.range_min <= r <= sample.range_max
                             else float("inf") for r in np.asarray(sample.ranges).tolist()],
                     intensities=[]), log_time=int(sample.stamp_ns))
-        for i, (state, goal, values) in status.items():
-            if self._wanted(self.ch_status[i]):
-                self.ch_status[i].log({
-                    "state": None if state is None else state.name.lower(),
-                    "goal": None if not np.isfinite(goal).all() else [float(goal[0]),
-                                                                       float(goal[1])],
-                    "values": values}, log_time=t_ns)
+
+    def _send_collisions(self, collisions: list[dict]) -> None:
+        """Each new collision as an event and a warning line, at its simulated time."""
+        from foxglove.messages import Event, KeyValuePair, Log, LogLevel
+
         for ev in collisions:
             at = int(round(ev["t"] * 1e9))
             text = (f"collision ({ev['kind']}): {ev['robot']} and {ev['other']} at "
@@ -391,9 +406,6 @@ class FoxgloveView:
                           for k in ("robot", "other", "kind", "x", "y")]), log_time=at)
             self.ch_log.log(Log(timestamp=_stamp(at), level=LogLevel.Warning, message=text,
                                 name="swarm_sim"), log_time=at)
-        if self._wanted(self.ch_kpi):
-            self.ch_kpi.log(kpi, log_time=t_ns)
-        self.frames_sent += 1
 
     def _grid(self):
         from foxglove.messages import (
