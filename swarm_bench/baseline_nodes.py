@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 import rclpy
 from builtin_interfaces.msg import Time
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseArray, PoseStamped, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry
 from rclpy.clock import Clock as RclpyClock
@@ -58,7 +58,7 @@ from swarm_common.lockstep import COMING, POLL_S, GoalHandshake
 from swarm_common.nav_status import TERMINAL
 from swarm_common.stamps import NS_PER_S
 from swarm_common.supervision import LOST, RobotsLost
-from swarm_ros.messages import occupancy_grid_msg, stamp_ns, time_msg
+from swarm_ros.messages import key_values, occupancy_grid_msg, stamp_ns, time_msg
 from swarm_ros.navigator import navigator_interface
 from swarm_ros.qos import publisher, subscription
 from swarm_ros.robot_topics import RobotTopics, publish_sensors
@@ -172,8 +172,8 @@ class BaselineSimNode(Node):
         self.map_pub.publish(occupancy_grid_msg(load_map(cfg.map_yaml), time_msg(0)))
         self.events_pub.publish(DiagnosticArray(status=[
             DiagnosticStatus(name=SPAWN, message=f"spawned {ns}", hardware_id=ns,
-                             values=[KeyValue(key=k, value=v) for k, v in SpawnEvent(
-                                 ns, float(x), float(y), 0.0, float(yaw)).encode().items()])
+                             values=key_values(SpawnEvent(ns, float(x), float(y), 0.0,
+                                                          float(yaw)).encode()))
             for ns, (x, y, yaw) in zip(cfg.robots, self.world.poses, strict=True)]))
 
     def _on_cmd_vel(self, i: int, buf: bytes) -> None:

@@ -41,6 +41,8 @@ from swarm_common.coordination import (
 from swarm_metrics.aggregate import RunRecorder
 from swarm_ros.qos import subscription
 
+TEARDOWN_S = 15.0  # [s] wall: how long stop() waits for the nodes' teardown
+
 
 def _text(raw: bytes) -> str:
     """The text of a serialized ``std_msgs/String`` (:func:`swarm_common.cdr.string_data`);
@@ -167,6 +169,8 @@ class MetricsListener:
         self._status_hooks: list[Callable[[str, dict, str], None]] = []
         self._extra_nodes: list[Node] = []
         self._calls: queue.SimpleQueue[Callable[[], None]] = queue.SimpleQueue()
+        self.stuck = False
+        """The last :meth:`stop` did not finish its teardown in time."""
 
     def attach(self, factory: Callable[[rclpy.Context], Node],
                on_status: Callable[[str, dict, str], None] | None = None) -> None:
@@ -212,23 +216,40 @@ class MetricsListener:
                     break
                 raise
 
-    def stop(self) -> None:
-        """Stop spinning, destroy the node and shut its context down (idempotent)."""
+    def stop(self) -> bool:
+        """Stop spinning, destroy the nodes and shut their context down (idempotent).
+
+        The nodes are destroyed in a thread of their own, waited for at most
+        :data:`TEARDOWN_S` wall seconds: Fast DDS 2.14 can deadlock while it removes a local
+        writer and the participant takes in the departure of many others at once (the
+        children just stopped; seen once on a 2-core machine under a stress test).  Nothing
+        simulated depends on the teardown: the recorder's figures are complete by then.
+
+        Returns:
+            False if the teardown did not finish in time (:attr:`stuck`; the process should
+            then end without finalizing the middleware, see :func:`swarm_up.orchestrator.run`).
+        """
         self._running.clear()
         if self._thread is not None:
             self._thread.join(timeout=2.0)
             self._thread = None
-        if self._executor is not None:
-            self._executor.shutdown(timeout_sec=1.0)
-            self._executor = None
-        for node in self._extra_nodes:
-            node.destroy_node()
-        self._extra_nodes.clear()
-        if self._node is not None:
-            self._node.destroy_node()
-            self._node = None
-        if self._context.ok():
-            self._context.try_shutdown()
+        nodes = [*self._extra_nodes, *([self._node] if self._node is not None else [])]
+        executor, self._executor, self._node = self._executor, None, None
+        self._extra_nodes = []
+        done = threading.Event()
+
+        def teardown() -> None:
+            if executor is not None:
+                executor.shutdown(timeout_sec=1.0)
+            for node in nodes:
+                node.destroy_node()
+            if self._context.ok():
+                self._context.try_shutdown()
+            done.set()
+
+        threading.Thread(target=teardown, name="swarm_up_metrics_teardown", daemon=True).start()
+        self.stuck = not done.wait(TEARDOWN_S)
+        return not self.stuck
 
     def snapshot(self) -> tuple[int, int]:
         """``(spawned, ready)`` robot counts now."""

@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import KeyValue
 from nav_msgs.msg import OccupancyGrid
 
 from swarm_common.stamps import NS_PER_S
@@ -20,6 +21,11 @@ def time_msg(t_ns: int) -> Time:
 def stamp_ns(stamp) -> int:
     """[ns] of a ``builtin_interfaces/Time``."""
     return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
+
+
+def key_values(values: dict) -> list[KeyValue]:
+    """``diagnostic_msgs/KeyValue`` pairs of a record's encoded fields (values as strings)."""
+    return [KeyValue(key=str(k), value=str(v)) for k, v in values.items()]
 
 
 def occupancy_grid_msg(occ, stamp: Time) -> OccupancyGrid:

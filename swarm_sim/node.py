@@ -23,7 +23,7 @@ import sys
 import time
 
 import rclpy
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseArray, TwistStamped
 from nav_msgs.msg import OccupancyGrid
 from rclpy.duration import Duration
@@ -40,7 +40,7 @@ from swarm_common.events import COLLISION, CollisionEvent, LateEvent, RobotNotic
 from swarm_common.faults import ACK_NAME, EVENT_NAME, FaultAck
 from swarm_common.stamps import NS_PER_S
 from swarm_common.supervision import LOST, RobotsLost
-from swarm_ros.messages import occupancy_grid_msg, stamp_ns, time_msg
+from swarm_ros.messages import key_values, occupancy_grid_msg, stamp_ns, time_msg
 from swarm_ros.qos import publisher, subscription
 from swarm_ros.robot_topics import RobotTopics, publish_sensors
 from swarm_ros.session import node_session
@@ -58,10 +58,6 @@ from swarm_sim.summary import summarize
 
 ACK_WAIT_S = 1.0  # [s] wall: how long the simulator waits at exit for its last ticks' acks
 _LEVELS = {COLLISION: DiagnosticStatus.ERROR, EVENT_NAME: DiagnosticStatus.WARN}
-
-
-def _kv(key: str, value) -> KeyValue:
-    return KeyValue(key=key, value=str(value))
 
 
 class SimulatorNode(Node):
@@ -186,7 +182,7 @@ class SimulatorNode(Node):
         event = cls(self.names[i], x, y, self.gate.t_ns / NS_PER_S, **fields)
         return DiagnosticStatus(level=_LEVELS.get(event.KIND, DiagnosticStatus.OK),
                                 name=event.KIND, message=message, hardware_id=event.robot,
-                                values=[_kv(k, v) for k, v in event.encode().items()])
+                                values=key_values(event.encode()))
 
     def _publish_events(self, statuses: list[DiagnosticStatus]) -> None:
         if statuses:
@@ -234,7 +230,7 @@ class SimulatorNode(Node):
             statuses.append(DiagnosticStatus(
                 level=DiagnosticStatus.WARN, name=EVENT_NAME, message=message,
                 hardware_id=f.robot or "coordinator",
-                values=[_kv(k, v) for k, v in values.items()]))
+                values=key_values(values)))
         self._publish_events(statuses)
         for f, phase in due:
             self.get_logger().warning(f"fault {f.index}: {f.label()} {phase} at "
@@ -249,7 +245,10 @@ class SimulatorNode(Node):
         return self.stop_requested or not rclpy.ok()
 
     def log(self, level: str, text: str) -> None:
-        getattr(self.get_logger(), level)(text)
+        if level == "warning":  # one call site per severity (rclpy's logger requires it)
+            self.get_logger().warning(text)
+        else:
+            self.get_logger().info(text)
 
     def cmd_writer(self, i: int) -> bool:
         return self._cmd_subs[i].get_publisher_count() > 0

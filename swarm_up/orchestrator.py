@@ -402,7 +402,9 @@ class Orchestrator:
         wall = time.monotonic() - self.t0
         if self.live is not None:
             self.live.stop()
-        self.listener.stop()
+        if not self.listener.stop():
+            warn("the metrics node's teardown is stuck in the middleware (Fast DDS); the run's "
+                 "figures are complete, swarm-up ends without finalizing it")
         if self._announcer is not None:
             self._announcer.close()
         if self.link is not None:
@@ -583,5 +585,9 @@ def run(cfg: RunConfig) -> int:
             f"{cfg.record_path}")
     if outcome.error:
         print(f"{PROG}: error: {outcome.error}", file=sys.stderr, flush=True)
+    if orch.listener.stuck:  # finalizing the middleware would wait on the same lock
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(outcome.code)
     return outcome.code
 

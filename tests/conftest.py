@@ -53,6 +53,17 @@ def pytest_configure(config):
     jit.warm_up()
 
 
+SLOW_TIERS = ("node", "e2e", "slow")
+
+
+def pytest_collection_modifyitems(config, items):
+    """Mark ``quick`` every test that is neither ``node``, ``e2e`` nor ``slow``: the inner loop's
+    tier (``pytest -m quick``, a few minutes; the README's developer section)."""
+    for item in items:
+        if not any(item.get_closest_marker(m) for m in SLOW_TIERS):
+            item.add_marker(pytest.mark.quick)
+
+
 @pytest.fixture(scope="session")
 def repo_root() -> Path:
     return Path(__file__).resolve().parents[1]

@@ -71,7 +71,7 @@ async def _watch(url: str, seconds_of_tf: int) -> FoxgloveClient:
 
 def test_a_foxglove_client_sees_the_run(tmp_path):
     port = _free_port()
-    args = ["--swarm-size", str(len(ROBOTS)), "--commanders", "--rtf", "1", "--duration", "40",
+    args = ["--swarm-size", str(len(ROBOTS)), "--commanders", "--rtf", "2", "--duration", "40",
             "--foxglove", str(port), "--record", "--record-topics", "ground_truth"]
     with SwarmUp(args, tmp_path, "fox") as run:
         url = run.wait_for_stdout(r"foxglove: (ws://127\.0\.0\.1:\d+)", 60.0).group(1)

@@ -48,6 +48,18 @@ def hosts3():
         yield h
 
 
+@pytest.fixture(scope="module")
+def one_host(tmp_path_factory):
+    """The reference: ``RUN`` on one host (a namespace, over UDP), its metrics; the two- and
+    three-host runs must give its simulated figures."""
+    tag = int(os.environ.get("SWARM_WB_TEST_DOMAIN", "150"))
+    tmp = tmp_path_factory.mktemp("one_host")
+    with Hosts(3, tag) as hosts, SwarmUp(RUN, tmp, "one", wrap=lambda argv: hosts.argv(0, argv),
+                                         env=Hosts.env()) as run:
+        assert run.wait(READY_TIMEOUT_S + DURATION_S + EXIT_SLACK_S) == 0, run.diagnostics()
+        return run.metrics()
+
+
 def _rank(hosts: Hosts, i: int, args: list[str], tmp_path, name: str) -> SwarmUp:
     return SwarmUp(args, tmp_path, name, wrap=lambda argv: hosts.argv(i, argv),
                    env=Hosts.env())
@@ -65,12 +77,8 @@ def _wait_all(runs: list[SwarmUp], timeout: float) -> list[int]:
     return [run.wait(timeout) for run in runs]
 
 
-def test_two_hosts_give_the_one_host_run_and_refuse_other_flags(hosts3, tmp_path):
-    env_one = Hosts.env()
-    with SwarmUp(RUN, tmp_path, "one", wrap=lambda argv: hosts3.argv(0, argv),
-                 env=env_one) as run:
-        assert run.wait(READY_TIMEOUT_S + DURATION_S + EXIT_SLACK_S) == 0, run.diagnostics()
-        one = run.metrics()
+def test_two_hosts_give_the_one_host_run_and_refuse_other_flags(one_host, hosts3, tmp_path):
+    one = one_host
     two = RUN + ["--hosts", "2"]
     paced = ["--rtf", "2"]  # the run lasts 30 s wall: time for the two refusals below
     with _rank(hosts3, 1, two + paced + ["--host-rank", "1"], tmp_path, "r1") as r1, \
@@ -99,11 +107,8 @@ def test_two_hosts_give_the_one_host_run_and_refuse_other_flags(hosts3, tmp_path
     assert "hosts" in r0.stdout()  # the per-host table
 
 
-def test_three_hosts_with_the_discovery_server(hosts3, tmp_path):
-    with SwarmUp(RUN, tmp_path, "one", wrap=lambda argv: hosts3.argv(0, argv),
-                 env=Hosts.env()) as run:
-        assert run.wait(READY_TIMEOUT_S + DURATION_S + EXIT_SLACK_S) == 0, run.diagnostics()
-        one = run.metrics()
+def test_three_hosts_with_the_discovery_server(one_host, hosts3, tmp_path):
+    one = one_host
     three = RUN + ["--hosts", "3", "--discovery-server", f"{hosts3.addr[0]}:11811"]
     with _rank(hosts3, 2, three + ["--host-rank", "2"], tmp_path, "r2") as r2, \
             _rank(hosts3, 1, three + ["--host-rank", "1"], tmp_path, "r1") as r1, \
