@@ -80,7 +80,7 @@ def _wait_all(runs: list[SwarmUp], timeout: float) -> list[int]:
 def test_two_hosts_give_the_one_host_run_and_refuse_other_flags(one_host, hosts3, tmp_path):
     one = one_host
     two = RUN + ["--hosts", "2"]
-    paced = ["--rtf", "2"]  # the run lasts 30 s wall: time for the two refusals below
+    paced = ["--rtf", "3"]  # the run lasts 20 s wall: time for the two refusals below
     with _rank(hosts3, 1, two + paced + ["--host-rank", "1"], tmp_path, "r1") as r1, \
             _rank(hosts3, 0, two + paced + ["--host-rank", "0"], tmp_path, "r0") as r0:
         r0.wait_for_stdout(r"rank 1 is up", READY_TIMEOUT_S)

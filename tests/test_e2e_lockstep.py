@@ -32,11 +32,11 @@ pytestmark = pytest.mark.e2e
 PAUSED = ("swarm-nav", "swarm-commander", "swarm-coordinator", "swarm_up.group")
 COMMON = ["--commanders", "--rtf", "0", "--processes", "per-robot"]
 SCENARIOS = {
-    "decentralized": ["--swarm-size", "4", "--duration", "90", "--seed", "9"],
-    "kill-nav": ["--swarm-size", "4", "--duration", "90", "--seed", "9",
+    "decentralized": ["--swarm-size", "4", "--duration", "75", "--seed", "9"],
+    "kill-nav": ["--swarm-size", "4", "--duration", "75", "--seed", "9",
                  "--faults", "kill-nav:2@30+3"],
     "centralized, coordinator restarted": [
-        "--swarm-size", "6", "--duration", "120", "--seed", "2",
+        "--swarm-size", "6", "--duration", "100", "--seed", "2",
         "--coordination", "centralized", "--faults", "kill-coordinator@40+10"],
 }
 

@@ -297,7 +297,7 @@ def _navigators_of(run: SwarmUp, ns: str) -> list[psutil.Process]:
 
 
 def test_killed_navigator_is_restarted_and_goes_on(tmp_path):
-    args = ["--swarm-size", "4", "--commanders", "--rtf", "2", "--duration", "60",
+    args = ["--swarm-size", "4", "--commanders", "--rtf", "3", "--duration", "60",
             "--metrics", "m.json", "--processes", "per-robot"]
     with SwarmUp(args, tmp_path) as run:
         run.wait_for_stdout(r"all 4 navigators ready", READY_TIMEOUT_S)
@@ -330,7 +330,7 @@ def test_killed_navigator_is_restarted_and_goes_on(tmp_path):
         assert "nav_Srobot2" in run.stderr() and "restarted" in run.stderr(), msg
         # The restarted navigator takes a goal again: its commander goes on with the task.
         # (Whether Srobot2 also *reaches* a goal within the 60 s is a matter of timing: the
-        # restart costs ~16 simulated s at rtf 2 and its first goal is ~50 s away, so that is
+        # restart costs ~24 simulated s at rtf 3 and its first goal is ~50 s away, so that is
         # not asserted.)
         after = nav_log.read_text(errors="replace")[len(log_before):]
         assert "--- swarm-up: restart" in after, msg

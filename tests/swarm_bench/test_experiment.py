@@ -415,7 +415,7 @@ def test_help_exits_0():
 def test_tiny_sweep_writes_the_report(tmp_path):
     out = tmp_path / "report"
     # one size (several sizes in one report: the fake sweeps above), both modes, a fault
-    argv = [str(SWARM_EXPERIMENT), "--sizes", "2", "--duration", "15", "--runs", "2",
+    argv = [str(SWARM_EXPERIMENT), "--sizes", "2", "--duration", "12", "--runs", "2",
             "--warmup", "5", "--output", str(out), "--no-ablations",
             "--fault-spec", "kill-coordinator@8+3", "--fault-size", "2"]
     res = subprocess.run(argv, capture_output=True, text=True, cwd=tmp_path, timeout=1500)
