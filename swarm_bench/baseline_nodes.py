@@ -236,18 +236,21 @@ class BaselineSimNode(Node):
                   + ", ".join(self.names[i] for i in robots), file=sys.stderr, flush=True)
 
     def stepped(self, events: list) -> None:
-        """A progress line every ``PROGRESS_EVERY_S`` wall (nothing collides here)."""
+        """Once the gate opened: say so, then a progress line every ``PROGRESS_EVERY_S`` wall
+        (nothing collides here)."""
+        if not self.loop.opened:
+            return
         now = time.monotonic()
-        if self.loop.opened and now - self._last_line >= PROGRESS_EVERY_S:
-            if self._last_line:
-                sim_s = self.loop.gate.t_ns / NS_PER_S
-                print(f"baseline: t = {sim_s:.0f} / {self.cfg.duration_s:g} s simulated, "
-                      f"RTF {sim_s / max(now - self._opened_at, 1e-9):.2f}", flush=True)
-            else:
-                self._opened_at = now
-                print(f"baseline: all {len(self.names)} robots answering; running "
-                      f"{self.cfg.duration_s:g} simulated s", flush=True)
-            self._last_line = now
+        if not self._last_line:
+            print(f"baseline: all {len(self.names)} robots answering; running "
+                  f"{self.cfg.duration_s:g} simulated s", flush=True)
+        elif now - self._last_line >= PROGRESS_EVERY_S:
+            sim_s = self.loop.gate.t_ns / NS_PER_S
+            print(f"baseline: t = {sim_s:.0f} / {self.cfg.duration_s:g} s simulated, "
+                  f"RTF {sim_s / max(now - self.loop.opened_at, 1e-9):.2f}", flush=True)
+        else:
+            return
+        self._last_line = now
 
     # -- life --------------------------------------------------------------------------------
     def run(self, executor) -> tuple[float, bool]:

@@ -38,7 +38,7 @@ import time
 import uuid
 from collections.abc import Callable
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy._rclpy_pybind11 import RCLInvalidROSArgsError
 from rclpy.clock import Clock as RclpyClock
 from rclpy.clock import ClockType
@@ -65,6 +65,7 @@ from swarm_common.stall import StallReport
 from swarm_common.stamps import NS_PER_S
 from swarm_common.supervision import LOST, RobotsLost
 from swarm_coordinator.core import CoordinatorConfig, CoordinatorCore
+from swarm_ros.messages import key_values
 from swarm_ros.qos import publisher, subscription
 from swarm_ros.session import node_session, spin_forever
 
@@ -295,7 +296,7 @@ class CoordinatorNode(Node):
             msg.status.append(DiagnosticStatus(
                 level=DiagnosticStatus.OK, name=e.kind, message=e.message(),
                 hardware_id=e.robot,
-                values=[KeyValue(key=k, value=v) for k, v in e.values().items()]))
+                values=key_values(e.values())))
         self._events_pub.publish(msg)
 
     def _warn(self, text: str) -> None:

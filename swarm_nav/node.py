@@ -42,6 +42,7 @@ from swarm_nav import jit
 from swarm_nav.config import NavigatorConfig, flat_defaults
 from swarm_nav.core import NavigatorCore
 from swarm_nav.holding import holding_sites_from_poi, site_kinds_from_poi
+from swarm_ros.messages import stamp_ns
 from swarm_ros.navigator import navigator_interface
 from swarm_ros.session import node_session, spin_forever
 from swarm_scene.occupancy import OccupancyMap
@@ -76,11 +77,6 @@ _CONTEXT_PARAMS = {
                           "a goal ended may wait for its next goal; a wait that times out makes "
                           "the run irreproducible and is counted (nav_status goal_wait_timeouts)"),
 }
-
-
-def stamp_ns(stamp) -> int:
-    """``builtin_interfaces/Time`` -> integer nanoseconds."""
-    return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
 
 
 def goal_id_of(stamp) -> str:

@@ -91,6 +91,7 @@ class SimLoop:
         drops: the messages the faults lose at this tick.
         acks: the fault acknowledgements received, ``(fault index, phase)``.
         opened: the start gate opened (False: a stop came first).
+        opened_at: [s] wall (monotonic) when it opened, or None.
         wall_s: [s] wall, from the start gate's opening to the end of :meth:`run`.
         cpu_s: [s] this process's CPU time over the same span.
     """
@@ -111,6 +112,7 @@ class SimLoop:
         self.drops = TickDrops()
         self.acks: set[tuple[int, str]] = set()
         self.opened = False
+        self.opened_at: float | None = None
         self.wall_s = 0.0
         self.cpu_s = 0.0
 
@@ -280,6 +282,7 @@ class SimLoop:
         self.wait_for_robots()
         self.opened = not self.ports.stopped()
         wall0, cpu0 = time.monotonic(), time.process_time()
+        self.opened_at = wall0
         sim0_ns = self.gate.t_ns
         end_ns = None if duration_s is None else round(duration_s * NS_PER_S)
         timeline = self.log.wall_timeline

@@ -27,7 +27,7 @@ from collections import deque
 from collections.abc import Callable
 
 import rclpy
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
@@ -45,6 +45,7 @@ from swarm_common.faults import (
 )
 from swarm_common.stall import StallReport
 from swarm_common.supervision import LOST, RobotsLost
+from swarm_ros.messages import key_values
 from swarm_ros.qos import publisher, subscription
 
 GROUP_RESTART_DELAY_S = 0.5  # [s] wall: a group recreates a killed navigator this much later
@@ -54,7 +55,7 @@ def ack_status(ack: FaultAck) -> DiagnosticStatus:
     """The ``/swarm/fault_acks`` message of an acknowledgement."""
     return DiagnosticStatus(name=ACK_NAME, message=f"fault {ack.fault} {ack.phase} done",
                             hardware_id=ack.by,
-                            values=[KeyValue(key=k, value=v) for k, v in ack.encode().items()])
+                            values=key_values(ack.encode()))
 
 
 class Announcer:
@@ -84,7 +85,7 @@ class Announcer:
         self._lost.publish(DiagnosticStatus(
             level=DiagnosticStatus.WARN, name=LOST, message=word.reason,
             hardware_id="swarm-up",
-            values=[KeyValue(key=k, value=v) for k, v in word.encode().items()]))
+            values=key_values(word.encode())))
 
     def close(self) -> None:
         """Destroy the node and shut its context down (idempotent)."""
