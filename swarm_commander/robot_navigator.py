@@ -47,6 +47,12 @@ If the navigator reports ``IDLE`` while our goal should be running (it was resta
 message was lost), the current pose is sent again after :attr:`BasicNavigator.resend_after`
 seconds; a goal replaced by someone else's goal ends the task as ``FAILED``, as a preempted nav2
 goal is aborted.
+
+A navigator that has not been heard from :data:`STATUS_REMATCH_S` seconds (wall) after the
+``nav_status`` reader was made gets a new reader, until the first status arrives: Fast DDS can
+intermittently leave a late-joining reliable, transient-local reader without the writer's history
+(eProsima/Fast-DDS#3822, open), and the navigator publishes nothing new while the simulation
+waits for this very commander.
 """
 
 from __future__ import annotations
@@ -62,6 +68,7 @@ from builtin_interfaces.msg import Duration, Time
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from rclpy._rclpy_pybind11 import RCLError  # what a call on a shut-down context raises
+from rclpy.clock import Clock, ClockType
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from std_srvs.srv import Trigger
@@ -74,6 +81,11 @@ from swarm_ros.qos import publisher, subscription
 __all__ = ["BasicNavigator", "NavFeedback", "TaskResult"]
 
 MAP_FRAME = "map"
+
+STATUS_REMATCH_S = 10.0
+"""[s] wall: how long the commander waits for its first ``nav_status`` before it makes the reader
+again (eProsima/Fast-DDS#3822); long beside discovery on one host (well under a second), short
+beside the commander's ``wait_timeout`` (120 s)."""
 
 
 class TaskResult(IntEnum):
@@ -169,13 +181,16 @@ class BasicNavigator(Node):
     cancel_timeout = 5.0
     """[s] wall: how long ``cancelTask`` waits for the navigator's answer when it spins."""
 
-    def __init__(self, node_name="basic_navigator", namespace="", connect=True, **kwargs):
+    def __init__(self, node_name="basic_navigator", namespace="", connect=True,
+                 status_rematch_s=STATUS_REMATCH_S, **kwargs):
         """Args:
             node_name, namespace, kwargs: as ``rclpy.node.Node``.
             connect: create the ``goal_pose`` publisher now (nav2's behaviour).  False defers it
                 to :meth:`connect`: a navigator started by swarm-up with ``wait_for_commander``
                 holds the simulation until a ``goal_pose`` publisher appears, so a commander
                 that must first reach someone else (the coordinator) connects only then.
+            status_rematch_s: [s] wall, > 0: until the first ``nav_status``, the reader is made
+                again this often (:data:`STATUS_REMATCH_S`, the module docstring).
         """
         super().__init__(node_name=node_name, namespace=namespace, **kwargs)
         # state
@@ -200,10 +215,30 @@ class BasicNavigator(Node):
         self._goal_pub = None
         if connect:
             self.connect()
-        self._status_sub = subscription(self, DiagnosticStatus, topics.NAV_STATUS,
-                                        self._on_nav_status,
-                                        qos=topics.NAV_STATUS_COMMANDER_READER_QOS)
+        self._status_sub = self._status_reader()
+        self.status_rematches = 0
+        """How many times the ``nav_status`` reader was made again (:data:`STATUS_REMATCH_S`)."""
+        self._rematch_timer = self.create_timer(status_rematch_s, self._rematch_status,
+                                                clock=Clock(clock_type=ClockType.STEADY_TIME))
         self._cancel_client = self.create_client(Trigger, topics.CANCEL_SERVICE)
+
+    def _status_reader(self):
+        return subscription(self, DiagnosticStatus, topics.NAV_STATUS, self._on_nav_status,
+                            qos=topics.NAV_STATUS_COMMANDER_READER_QOS)
+
+    def _rematch_status(self) -> None:
+        """Until the first ``nav_status``: replace the reader (module docstring)."""
+        if self._nav_status_received:
+            self.destroy_timer(self._rematch_timer)
+            return
+        topic, writers = self._status_sub.topic_name, self._status_sub.get_publisher_count()
+        log = self.warn if writers else self.debug
+        log(f"no status on {topic} within {self._rematch_timer.timer_period_ns / 1e9:g} s (wall) "
+            f"of making its reader "
+            f"({writers} writer(s) matched); making the reader again (eProsima/Fast-DDS#3822)")
+        self.destroy_subscription(self._status_sub)
+        self._status_sub = self._status_reader()
+        self.status_rematches += 1
 
     def connect(self) -> None:
         """Create the ``goal_pose`` publisher (idempotent): the navigator sees a commander."""

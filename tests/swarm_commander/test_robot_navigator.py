@@ -94,6 +94,24 @@ def test_wait_until_active_times_out_without_navigator(navigator):
     assert 0.3 <= time.monotonic() - t0 < 2.0
 
 
+def test_a_silent_navigator_gets_a_new_reader_until_it_is_heard(context, ns):
+    """The workaround for eProsima/Fast-DDS#3822: the remade reader still gets the latched status,
+    and once a status arrived no more readers are made."""
+    nav = BasicNavigator(namespace=ns, context=context, status_rematch_s=0.2)
+    try:
+        assert nav.waitUntilNav2Active(timeout_sec=1.0) is False
+        assert nav.status_rematches >= 2
+        with running_fake_navigator(ns, context):
+            assert nav.waitUntilNav2Active(timeout_sec=10.0)
+            nav._spin_until(lambda: False, 0.6)  # the timer fires at least twice more
+            made = nav.status_rematches
+            nav._spin_until(lambda: False, 0.6)
+            assert nav.status_rematches == made
+            assert nav.count_subscribers(f"/{ns}/nav_status") == 1  # the old readers are gone
+    finally:
+        nav.destroyNode()
+
+
 def test_go_to_pose_succeeds(context, ns, navigator):
     with running_fake_navigator(ns, context, drive_time=0.6) as fake:
         assert navigator.waitUntilNav2Active(timeout_sec=10.0)
