@@ -15,11 +15,14 @@ engine as triangle meshes, and so do we where a hull would be wrong):
   triangle mesh (PyBullet's ``GEOM_FORCE_CONCAVE_TRIMESH``, for bodies that never move). So a
   wall mesh of segments never fills the arena it encloses.
 
-Collada (``.dae``, any case; read by trimesh through pycollada): every ``<node>``'s geometry with
-its node transforms; ``<asset><unit meter="...">`` scales to metres, ``<asset><up_axis>``
-(``Y_UP``, the Collada spec's default when a file names none, or ``X_UP``) is rotated to z
-up. STL and OBJ are in metres, z up, as Gazebo reads them. The SDF's ``<scale>`` applies on
-top (:mod:`swarm_scene.world`).
+Collada (``.dae``, any case; read by trimesh through pycollada) as Gazebo reads it: every
+``<node>``'s geometry with its node transforms; ``<asset><unit meter="...">`` scales to metres;
+``<asset><up_axis>`` is read (:attr:`Mesh.up_axis`) but **not applied**: the vertices are taken
+as z up. Gazebo-classic's ``common/ColladaLoader.cc`` reads only ``<unit meter>`` from
+``<asset>``, gz-common's loader (Harmonic and later) does the same, and RViz2 tells its mesh
+importer to ignore the up direction; SketchUp exports (ROBOTIS's ``turtlebot3_world`` among
+them) declare ``Y_UP`` over z-up data and rely on that. STL and OBJ are in metres, z up, as
+Gazebo reads them. The SDF's ``<scale>`` applies on top (:mod:`swarm_scene.world`).
 """
 
 from __future__ import annotations
@@ -35,11 +38,8 @@ MESH_SUFFIXES = (".stl", ".obj", ".dae")
 """Loaded mesh formats, compared case-insensitively (``.DAE`` is Collada too)."""
 WALL_STRIP_M = 0.02
 """[m] width of the plan-view strip a vertical triangle of a non-convex part is drawn as."""
-_UP = {  # Collada up axis -> rotation (3, 3) to z up
-    "Z_UP": np.eye(3),
-    "Y_UP": np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]),  # y -> z
-    "X_UP": np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]]),  # x -> z
-}
+UP_AXES = ("X_UP", "Y_UP", "Z_UP")
+"""Collada's ``<up_axis>`` values; read and reported, never applied (module doc)."""
 
 
 @dataclass(frozen=True)
@@ -64,7 +64,8 @@ class Mesh:
     Attributes:
         parts: its connected pieces.
         unit_m: the file's unit [m] (Collada ``<unit meter>``; 1 for STL/OBJ).
-        up_axis: the file's up axis (``Z_UP`` for STL/OBJ).
+        up_axis: the up axis the file declares (``Z_UP`` for STL/OBJ); not applied, as in
+            Gazebo (module doc).
     """
 
     parts: tuple[MeshPart, ...]
@@ -102,7 +103,7 @@ def collada_asset(path: Path) -> tuple[float, str]:
                 unit = float(el.get("meter"))
             except ValueError:
                 raise ValueError(f"<unit meter={el.get('meter')!r}> is not a number") from None
-        elif tag == "up_axis" and (el.text or "").strip() in _UP:
+        elif tag == "up_axis" and (el.text or "").strip() in UP_AXES:
             up = (el.text or "").strip()
     if not unit > 0:
         raise ValueError(f"<unit meter={unit!r}> must be positive")
@@ -125,7 +126,7 @@ def _load_cached(path: str, mtime: float) -> Mesh:
             pieces = [trimesh.load(path, force="mesh", process=False)]
     except Exception as exc:  # noqa: BLE001 - trimesh and pycollada raise many kinds
         raise ValueError(f"cannot load mesh: {' '.join(str(exc).split())[:200]}") from None
-    rot = _UP[up] * unit
+    rot = np.eye(3) * unit  # <up_axis> is not applied (module doc)
     parts = []
     for piece in pieces:
         verts = np.asarray(getattr(piece, "vertices", np.zeros((0, 3))), dtype=float)

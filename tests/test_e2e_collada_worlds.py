@@ -2,7 +2,8 @@
 ``swarm-up`` as a user runs them: 10 robots, 120 simulated s, commanders, no collision.
 
 - an arena like ROBOTIS' ``turtlebot3_world``: one hexagonal wall band (a single non-convex
-  Collada mesh, in centimetres, Y up) and nine pillars (one Collada file of nine parts), the
+  Collada mesh, in centimetres, declaring Y_UP over z-up data as SketchUp exports do) and
+  nine pillars (one Collada file of nine parts), the
   files found through ``model://`` on ``GAZEBO_MODEL_PATH``;
 - a warehouse like AWS RoboMaker's small warehouse: outer walls and two rows of shelving, each a
   ``.DAE`` (upper case) found through ``package://`` on ``AMENT_PREFIX_PATH``.
@@ -41,9 +42,10 @@ def _prism(cx: float, cy: float, r: float, h: float, sides: int = 8):
     return v, f
 
 
-def _to_y_up_cm(v: np.ndarray) -> np.ndarray:
-    """z-up metres -> the file's Y-up centimetres (the loader turns it back)."""
-    return np.column_stack((v[:, 0], v[:, 2], -v[:, 1])) * 100.0
+def _to_cm(v: np.ndarray) -> np.ndarray:
+    """z-up metres -> centimetres, still z up: the file declares Y_UP over it, as ROBOTIS's
+    SketchUp exports do, and the loader ignores the declaration as Gazebo does."""
+    return v * 100.0
 
 
 def _arena(tmp: Path) -> Path:
@@ -52,7 +54,7 @@ def _arena(tmp: Path) -> Path:
         (models / name / "meshes").mkdir(parents=True)
     v, f = hexagon_band(radius=5.0, thick=0.2, height=0.5)
     (models / "tb3_wall" / "meshes" / "wall.dae").write_text(
-        collada([(_to_y_up_cm(v), f)], unit=0.01, up="Y_UP"))
+        collada([(_to_cm(v), f)], unit=0.01, up="Y_UP"))
     pillars = [_prism(x, y, 0.15, 0.5) for x in (-1.1, 0.0, 1.1) for y in (-1.1, 0.0, 1.1)]
     (models / "tb3_pillars" / "meshes" / "hexagon.dae").write_text(collada(pillars))
     meshes = "".join(
@@ -109,6 +111,7 @@ def _warehouse(tmp: Path) -> Path:
 @pytest.mark.parametrize("kind", ["turtlebot3_world_like", "warehouse_like"])
 def test_ten_robots_run_a_collada_world_without_a_collision(kind, tmp_path, monkeypatch):
     from swarm_scene.rasterize import rasterize_world
+    from swarm_scene.spawn import choose_free_region
     from swarm_scene.world import load_world
 
     if kind == "turtlebot3_world_like":
@@ -121,6 +124,10 @@ def test_ten_robots_run_a_collada_world_without_a_collision(kind, tmp_path, monk
     assert loaded.skipped == (), loaded.skipped
     occ = rasterize_world(loaded, resolution=0.05, padding=1.0)
     assert enclosed(occ, inside, outside), "the walls do not enclose the spawn area"
+    # without its spawn area the robots would start in the arena too, not outside its wall
+    region = choose_free_region(occ)
+    cell = occ.world_to_cell(np.array([inside]))[0]
+    assert region.enclosed and region.mask[cell[0], cell[1]], region.describe()
     args = ["--swarm-size", "10", "--world", str(world), "--commanders", "--rtf", "0",
             "--duration", str(DURATION)]
     _, m, diag = _run_to_end(args, tmp_path, kind, DURATION)

@@ -1,6 +1,7 @@
 """Collada meshes in worlds (issue 41): small .dae files written here load wherever STL and OBJ
-do, with <unit>, <up_axis>, node transforms and the SDF <scale> applied, kept in their parts, so
-a ring of walls encloses its arena and a non-convex wall does not fill it."""
+do, with <unit>, node transforms and the SDF <scale> applied and <up_axis> ignored (as Gazebo
+reads Collada), kept in their parts, so a ring of walls encloses its arena and a non-convex wall
+does not fill it."""
 
 from __future__ import annotations
 
@@ -125,15 +126,35 @@ def test_a_collada_box_loads_with_its_unit_and_the_sdf_scale(tmp_path):
     assert mesh.unit_m == 0.01 and len(mesh.parts) == 1 and mesh.parts[0].convex
 
 
-def test_y_up_is_turned_to_z_up_and_upper_case_dae_loads(tmp_path):
-    # in Y_UP the box is 3 m tall along y: in the world it stands 3 m tall along z
+def test_the_up_axis_is_ignored_as_gazebo_does_and_upper_case_dae_loads(tmp_path):
+    # a box 2 m tall along z in a file that declares Y_UP (as SketchUp exports do): it stands
+    # 2 m tall along z, its footprint 1 x 3 m, as in Gazebo and RViz2
     v, f = box((0, 0, 0), (1, 3, 2))
     (tmp_path / "TOWER.DAE").write_text(collada([(v, f)], up="Y_UP"))
-    verts = load_mesh(tmp_path / "TOWER.DAE").vertices
-    np.testing.assert_allclose(verts.min(axis=0), [0, -2, 0], atol=1e-9)
-    np.testing.assert_allclose(verts.max(axis=0), [1, 0, 3], atol=1e-9)
+    mesh = load_mesh(tmp_path / "TOWER.DAE")
+    assert mesh.up_axis == "Y_UP"
+    np.testing.assert_allclose(mesh.vertices.min(axis=0), [0, 0, 0], atol=1e-9)
+    np.testing.assert_allclose(mesh.vertices.max(axis=0), [1, 3, 2], atol=1e-9)
     world = load_world(world_with(tmp_path, "TOWER.DAE"))
-    assert world.skipped == () and len(world_polygons(world)) == 1
+    assert world.skipped == ()
+    (poly,) = world_polygons(world)
+    np.testing.assert_allclose(poly.max(axis=0) - poly.min(axis=0), [1, 3], atol=1e-6)
+
+
+def test_a_y_up_ring_of_z_up_wall_segments_maps_as_a_ring(tmp_path):
+    """SketchUp's kind of file (ROBOTIS's wall.dae): Y_UP declared, z-up vertices, inches."""
+    pieces, mats = ring_of_boxes()
+    inch = 0.0254
+    scaled = [(v / inch, f) for v, f in pieces]
+    mats = [np.asarray(m, float) for m in mats]
+    for m in mats:
+        m[:3, 3] /= inch
+    (tmp_path / "wall.dae").write_text(collada(scaled, unit=inch, up="Y_UP", matrices=mats))
+    world = load_world(world_with(tmp_path, "wall.dae"))
+    assert len(world_polygons(world)) == 6
+    occ = rasterize_world(world, resolution=0.05, padding=1.0)
+    assert enclosed(occ, (0.0, 0.0), (3.8, 0.0))
+    assert occ.data[tuple(occ.world_to_cell(np.array([[0.0, 0.0]]))[0])] == 0  # centre free
 
 
 def test_a_ring_of_wall_segments_keeps_its_parts_and_encloses_the_arena(tmp_path):
