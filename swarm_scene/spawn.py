@@ -1,4 +1,5 @@
-"""Where the robots start: spawn poses on a world's spawn grid, or in its largest free area.
+"""Where the robots start: spawn poses on a world's spawn grid, or in its chosen free region (the
+largest enclosed free region, else the largest free region).
 
 Pure (numpy and scipy only), so ``swarm-up`` can check that ``--swarm-size`` robots fit without
 loading the simulator or PyBullet, and ``swarm-sim`` places them with the same code.
@@ -77,7 +78,7 @@ def spawn_poses(spawn, n: int, radius: float, polygons, clearance: float = 0.05,
 
 @dataclass(frozen=True)
 class FreeRegion:
-    """Where robots spawn in a world without a spawn area (:func:`largest_free_region`).
+    """Where robots spawn in a world without a spawn area (:func:`choose_free_region`).
 
     Attributes:
         origin: (2,) x, y [m] in ``map`` of the region's clearest cell (the first robot).
@@ -87,6 +88,9 @@ class FreeRegion:
         mask: (H, W) bool, the region's cells in the map's layout (row 0 at the bottom).
         distance: (H, W) float, distance [m] from each cell's centre to the nearest cell
             centre outside the region (0 outside it).
+        enclosed: the region touches no edge of the map (walls, or unknown cells, close it).
+        open_area: [m^2] the largest free region that touches the map's edge (0 if none): the
+            space outside the walls when ``enclosed``.
     """
 
     origin: np.ndarray
@@ -94,16 +98,34 @@ class FreeRegion:
     area: float
     mask: np.ndarray
     distance: np.ndarray
+    enclosed: bool = False
+    open_area: float = 0.0
+
+    def describe(self, why: str = "") -> str:
+        """The rule that chose the region and its size, for a log line, with ``why`` (a reason
+        for using it) at the end of the brackets: e.g. ``"the largest enclosed free region (269
+        m^2; 36 m^2 of free space touch the map's edge; no points-of-interest file)"``."""
+        notes = [f"{self.area:.0f} m^2"]
+        if not self.enclosed:
+            notes.append("none is enclosed")
+        elif self.open_area > 0:
+            notes.append(f"{self.open_area:.0f} m^2 of free space touch the map's edge")
+        if why:
+            notes.append(why)
+        kind = "enclosed free region" if self.enclosed else "free region"
+        return f"the largest {kind} ({'; '.join(notes)})"
 
 
-def largest_free_region(occ) -> FreeRegion:
-    """The largest connected free region of a map, and its clearest cell.
+def choose_free_region(occ) -> FreeRegion:
+    """The free region robots spawn in, and its clearest cell.
 
-    The spawn rule of a world without points of interest (docs/reference/contract.md#s4:
-    "spawn in the largest free area"): take the 4-connected region of free cells (value 0) with
-    the most cells, then the cell of that region farthest from anything outside it (Euclidean
-    distance transform, the map's edge counting as outside). Ties go to the first cell in
-    row-major order.
+    The spawn rule of a world without a spawn area (docs/reference/contract.md#s4: "spawn in the
+    largest free area", made precise): label the 4-connected regions of free cells (value 0);
+    if some region touches no edge of the map (an arena closed by its walls), take the enclosed
+    region with the most cells, never one that touches the edge (the space between a world's
+    outer wall and the map's edge); otherwise the region with the most cells. Then the cell of
+    that region farthest from anything outside it (Euclidean distance transform, the map's edge
+    counting as outside). Ties go to the first in row-major order.
 
     Args:
         occ: a :class:`swarm_scene.occupancy.OccupancyMap`.
@@ -121,31 +143,41 @@ def largest_free_region(occ) -> FreeRegion:
     if count == 0:
         raise InputError("the map has no free cell: nowhere to spawn robots")
     sizes = np.bincount(labels.ravel())[1:]
-    region = labels == int(np.argmax(sizes)) + 1
+    edge = np.unique(np.concatenate((labels[0], labels[-1], labels[:, 0], labels[:, -1])))
+    touches = np.zeros(count, dtype=bool)
+    touches[edge[edge > 0] - 1] = True
+    enclosed = not touches.all()
+    pick = np.where(touches, -1, sizes) if enclosed else sizes
+    region = labels == int(np.argmax(pick)) + 1
     res = float(occ.resolution)
+    open_cells = int(sizes[touches].max()) if touches.any() else 0
     clear = ndimage.distance_transform_edt(np.pad(region, 1))[1:-1, 1:-1] * res
     best = np.unravel_index(int(np.argmax(clear)), clear.shape)
     origin = occ.cell_to_world(np.array(best))
     for array in (origin, region, clear):
         array.setflags(write=False)
     return FreeRegion(origin=origin, clearance=float(clear[best]),
-                      area=float(region.sum()) * res * res, mask=region, distance=clear)
+                      area=float(region.sum()) * res * res, mask=region, distance=clear,
+                      enclosed=enclosed, open_area=open_cells * res * res)
 
 
 def spawn_poses_free(occ, n: int, radius: float, polygons, clearance: float = 0.05,
-                     where: str = "largest free area") -> np.ndarray:
-    """Spawn for a world without a spawn area: a grid in its largest free region.
+                     where: str = "largest free area", region: FreeRegion | None = None
+                     ) -> np.ndarray:
+    """Spawn for a world without a spawn area: a grid in its chosen free region.
 
     The grid (spacing 1 m, or the robot's diameter plus twice ``clearance`` if larger) starts at
-    the clearest cell of the largest connected free region (:func:`largest_free_region`) and
-    keeps to that region, so no robot is shut in a closed pocket: a node is used only when the
-    robot's circle plus ``clearance`` stays inside the region (clear of obstacles, unknown cells
+    the clearest cell of the chosen free region (:func:`choose_free_region`: the largest
+    enclosed free region, else the largest free region) and keeps to that region, so every robot
+    can reach every other's start: a node is used only when the robot's circle plus
+    ``clearance`` stays inside the region (clear of obstacles, unknown cells
     and the map's edge, to the map's resolution) and of every world polygon. Robots take the grid
     nodes nearest the start first (the order of :func:`spawn_poses`) and face +x (yaw 0).
 
     Args:
         occ: the world's :class:`swarm_scene.occupancy.OccupancyMap`.
         n, radius, polygons, clearance, where: as :func:`spawn_poses`.
+        region: ``choose_free_region(occ)`` when the caller has it already.
 
     Returns:
         (n, 3) poses in ``map``.
@@ -153,7 +185,7 @@ def spawn_poses_free(occ, n: int, radius: float, polygons, clearance: float = 0.
     Raises:
         InputError: the robots do not fit; the message says how many fit.
     """
-    free = largest_free_region(occ)
+    free = choose_free_region(occ) if region is None else region
     x0, y0 = occ.origin[0], occ.origin[1]
     area = np.array([x0, y0, x0 + occ.width * occ.resolution, y0 + occ.height * occ.resolution])
     spacing = max(1.0, 2.0 * radius + 2.0 * clearance)
@@ -186,7 +218,8 @@ def _edges(polygons) -> np.ndarray:
     return np.vstack(segs) if segs else np.zeros((0, 4))
 
 
-def describe_spawn(poses: np.ndarray, from_spawn_area: bool, poi_file: str | None = None) -> str:
+def describe_spawn(poses: np.ndarray, from_spawn_area: bool, poi_file: str | None = None,
+                   region: FreeRegion | None = None) -> str:
     """Where the robots went, for a log line and the run's summary: the rule used and the block
     they stand in.
 
@@ -196,17 +229,20 @@ def describe_spawn(poses: np.ndarray, from_spawn_area: bool, poi_file: str | Non
             False when from :func:`spawn_poses_free`.
         poi_file: the name of the world's points-of-interest file (``"slim_blockage.yaml"``),
             None when the world has none.
+        region: the :func:`choose_free_region` they stand in (not from the spawn area), to name it.
 
     Returns:
-        e.g. ``"in the largest free area (no points-of-interest file), x 3.05..6.05 m, y
-        -2.95..-0.95 m, first at (3.05, -2.95)"``.
+        e.g. ``"in the largest enclosed free region (269 m^2; 36 m^2 of free space touch the
+        map's edge; no points-of-interest file), x 4.73..7.73 m, y 0.48..0.48 m, first at
+        (4.73, 0.48)"``.
     """
     if from_spawn_area:
         rule = f"in the spawn area of {poi_file or 'its points of interest'}"
-    elif poi_file is None:
-        rule = "in the largest free area (no points-of-interest file)"
     else:
-        rule = f"in the largest free area ({poi_file} has no spawn area)"
+        why = ("no points-of-interest file" if poi_file is None
+               else f"{poi_file} has no spawn area")
+        rule = (f"in the largest free area ({why})" if region is None
+                else f"in {region.describe(why)}")
     x, y = poses[:, 0], poses[:, 1]
     return (f"{rule}, x {x.min():.2f}..{x.max():.2f} m, y {y.min():.2f}..{y.max():.2f} m, "
             f"first at ({x[0]:.2f}, {y[0]:.2f})")

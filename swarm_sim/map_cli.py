@@ -20,7 +20,7 @@ from swarm_common.errors import InputError, run_cli
 from swarm_scene.map_io import save_map
 from swarm_scene.poi import poi_for_world
 from swarm_scene.rasterize import rasterize_world
-from swarm_scene.spawn import largest_free_region
+from swarm_scene.spawn import choose_free_region
 from swarm_scene.world import (
     BAND_TOP,
     FLOOR_TOLERANCE,
@@ -111,10 +111,10 @@ def spawn_line(world_path: Path, occ) -> str:
                 f"{sp.spacing:g} m grid from ({sp.origin[0]:g}, {sp.origin[1]:g}) within x "
                 f"{x0:g}..{x1:g}, y {y0:g}..{y1:g} m ({sp.grid_points().shape[0]} nodes before "
                 "the wall check)")
-    region = largest_free_region(occ)
+    region = choose_free_region(occ)
     why = "no points of interest" if poi is None else "no spawn area in its points of interest"
     return (f"spawn: {why}: robots spawn on a 1 m grid (wider for robots over 0.9 m across) in "
-            f"the largest free region ({region.area:.0f} m^2), nearest first to its clearest "
+            f"{region.describe()}, nearest first to its clearest "
             f"point ({region.origin[0]:.2f}, {region.origin[1]:.2f}) m, {region.clearance:.2f} m "
             "from the nearest obstacle")
 

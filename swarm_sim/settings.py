@@ -164,7 +164,12 @@ def prepare(settings: SimSettings):
     from swarm_scene.poi import poi_for_world
     from swarm_scene.rasterize import rasterize_world
     from swarm_scene.robot_model import load_robot
-    from swarm_scene.spawn import describe_spawn, spawn_poses, spawn_poses_free
+    from swarm_scene.spawn import (
+        choose_free_region,
+        describe_spawn,
+        spawn_poses,
+        spawn_poses_free,
+    )
     from swarm_scene.world import load_world, resolve_world, world_polygons
     from swarm_sim.engine import EngineConfig, SimEngine
 
@@ -190,17 +195,20 @@ def prepare(settings: SimSettings):
         occ = rasterize_world(world)
     polygons = world_polygons(world)
     from_spawn_area = poi is not None and poi.spawn is not None
+    region = None
     if from_spawn_area:
         poses = spawn_poses(poi.spawn, settings.swarm_size, radius, polygons,
                             where=f"spawn area of {world.name}")
     else:
+        region = choose_free_region(occ)
         poses = spawn_poses_free(occ, settings.swarm_size, radius, polygons,
-                                 where=f"largest free area of {world.name}")
+                                 where=f"free region of {world.name}", region=region)
     config = EngineConfig(control_period=1.0 / settings.control_rate)
     engine = SimEngine(world, robot, poses, seed=settings.seed, config=config, gui=settings.gui)
     namespaces = [f"{settings.name_prefix}{i + 1}" for i in range(settings.swarm_size)]
     spawned = describe_spawn(engine.poses, from_spawn_area,
-                             None if poi is None or poi.source is None else poi.source.name)
+                             None if poi is None or poi.source is None else poi.source.name,
+                             region)
     if len(robots) > 1:
         spawned += f"; robots: {describe_fleet(names)}"
     return engine, occ, namespaces, spawned, world

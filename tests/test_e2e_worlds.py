@@ -7,7 +7,8 @@ interest:
 1. warehouse_slab (a floor slab, included and nested shelf models, ``relative_to`` poses) and
    narrow_aisles (a Gazebo-saved world, 2.4 m aisles): 10 robots with commanders, 90 simulated
    s at ``--rtf 0``: no collision (the slab is floor, not a wall), no aborted goal, goals reached.
-2. warehouse_slab copied without its ``.yaml``: the robots spawn in the largest free region and
+2. warehouse_slab copied without its ``.yaml``: the robots spawn in its largest enclosed free
+   region and
    the run ends cleanly with no collision; the simulator's log, the metrics (``spawn``) and the
    summary say where they went.
 """
@@ -59,16 +60,18 @@ def test_world_without_points_of_interest_spawns_in_the_largest_free_region(tmp_
     assert metrics["robots"] == 4 and metrics["sim_time_s"] == 20, msg
     assert metrics["collisions"] == {"robot_robot": 0, "robot_wall": 0}, msg
     assert metrics["goals_aborted"] == 0, msg
-    # the simulator says where they went: the largest free region's clearest point is in the
-    # open south-east of the hall, right of the shelves (x > -1.4 m)
+    # the simulator says where they went: the hall is walled all round, so the largest enclosed
+    # free region; its clearest point is in the open south-east of the hall, right of the
+    # shelves (x > -1.4 m)
     sim_log = (tmp_path / "bare" / "logs" / "sim.log").read_text()
     (line,) = [ln for ln in sim_log.splitlines() if ln.startswith("spawned 4 robots")]
-    assert "in the largest free area" in line, msg
+    assert "in the largest enclosed free region (" in line, msg
     x_lo = float(line.split(", x ")[1].split("..")[0])
     assert x_lo > -1.4, msg
     # ... and so do the metrics and the summary (the world loads whole: no skip row)
     assert metrics["spawn"].startswith(
-        "in the largest free area (no points-of-interest file), x "), msg
+        "in the largest enclosed free region ("), msg
+    assert "touch the map's edge; no points-of-interest file), x " in metrics["spawn"], msg
     assert line.endswith(") " + metrics["spawn"]), msg
     assert metrics["world_skipped"] == [], msg
     assert "│ spawned " in diag and "world elements skipped" not in diag, msg

@@ -14,10 +14,11 @@ from swarm_common.paths import MAPS_DIR
 from swarm_scene.map_io import load_map
 from swarm_scene.occupancy import OccupancyMap
 from swarm_scene.poi import SpawnArea, poi_for_world
+from swarm_scene.rasterize import rasterize_world
 from swarm_scene.robot_model import load_robot
 from swarm_scene.spawn import (
+    choose_free_region,
     describe_spawn,
-    largest_free_region,
     spawn_poses,
     spawn_poses_free,
 )
@@ -145,14 +146,14 @@ def test_spawn_module_is_pure():
 # ----------------------------------------------------------------- the largest free region
 
 
-def test_largest_free_region_beats_a_clearer_but_smaller_room(waffle):
+def test_choose_free_region_beats_a_clearer_but_smaller_room(waffle):
     # Left: a 2.5 x 8 m corridor-like room (20 m^2); right: a 4 x 4 m room (16 m^2) whose
     # centre is clearer (2 m vs 1.25 m). The larger region wins, at its own clearest cell.
     data = np.full((100, 100), 100, dtype=np.int8)
     data[10:90, 5:30] = 0     # 8 x 2.5 m
     data[30:70, 50:90] = 0    # 4 x 4 m
     occ = OccupancyMap(data=data, resolution=0.1, origin=np.array([0.0, 0.0, 0.0]))
-    region = largest_free_region(occ)
+    region = choose_free_region(occ)
     assert region.area == pytest.approx(20.0)
     assert region.origin[0] == pytest.approx(1.75, abs=0.051)  # the corridor's middle x
     assert region.clearance == pytest.approx(1.3, abs=0.051)
@@ -165,7 +166,7 @@ def test_open_map_spawns_in_the_middle_not_at_a_corner(waffle):
     data = np.zeros((81, 81), dtype=np.int8)
     data[75, 75] = 100  # one post near a corner, at (3.55, 3.55)
     occ = OccupancyMap(data=data, resolution=0.1, origin=np.array([-4.0, -4.0, 0.0]))
-    region = largest_free_region(occ)
+    region = choose_free_region(occ)
     assert region.origin == pytest.approx([0.05, 0.05], abs=1e-9)
     assert region.clearance == pytest.approx(4.1, abs=1e-9)  # to the pad beyond the map edge
     poses = spawn_poses_free(occ, 9, waffle.radius, [])
@@ -180,18 +181,66 @@ def test_a_map_without_free_cells_is_an_input_error():
     occ = OccupancyMap(data=np.full((5, 5), 100, dtype=np.int8), resolution=0.1,
                        origin=np.zeros(3))
     with pytest.raises(InputError, match="no free cell"):
-        largest_free_region(occ)
+        choose_free_region(occ)
+
+
+def test_an_enclosed_room_wins_over_a_larger_outside(waffle):
+    # a 3 x 3 m room (9 m^2) walled all round, in a 10 x 10 m map: the 60 m^2 outside it
+    # touches the map's edge, so the robots start in the room
+    data = np.zeros((100, 100), dtype=np.int8)
+    data[30:70, 30:70] = 100
+    data[35:65, 35:65] = 0
+    occ = OccupancyMap(data=data, resolution=0.1, origin=np.array([0.0, 0.0, 0.0]))
+    region = choose_free_region(occ)
+    assert region.enclosed
+    assert region.area == pytest.approx(9.0)
+    assert region.open_area == pytest.approx(100.0 - 16.0)
+    assert region.describe() == ("the largest enclosed free region (9 m^2; 84 m^2 of free "
+                                 "space touch the map's edge)")
+    assert region.describe("why").endswith("touch the map's edge; why)")
+    poses = spawn_poses_free(occ, 4, waffle.radius, [])
+    assert np.all((poses[:, :2] > 3.5) & (poses[:, :2] < 6.5))
+    with pytest.raises(InputError, match="at most 9 fit"):  # a 3 x 3 grid: the room, not
+        spawn_poses_free(occ, 10, waffle.radius, [])    # the outside
+
+
+def _walled_world(tmp_path: Path) -> Path:
+    """A 4 x 4 m room of four box walls, and a post 12 m away that widens the map: the free
+    space outside the room is larger than the room."""
+    boxes = [(0.0, 2.0, 4.2, 0.2), (0.0, -2.0, 4.2, 0.2), (2.0, 0.0, 0.2, 4.2),
+             (-2.0, 0.0, 0.2, 4.2), (12.0, 0.0, 0.5, 0.5)]
+    models = "".join(
+        f"<model name='b{k}'><static>true</static><pose>{x} {y} 0.5 0 0 0</pose><link name='l'>"
+        f"<collision name='c'><geometry><box><size>{sx} {sy} 1</size></box></geometry>"
+        "</collision></link></model>" for k, (x, y, sx, sy) in enumerate(boxes))
+    path = tmp_path / "room.world"
+    path.write_text(f'<?xml version="1.0"?><sdf version="1.6"><world name="room">{models}'
+                    "</world></sdf>")
+    return path
+
+
+def test_a_walled_world_spawns_inside_its_walls_though_the_outside_is_larger(tmp_path, waffle):
+    world = load_world(_walled_world(tmp_path))
+    occ = rasterize_world(world)
+    region = choose_free_region(occ)
+    assert region.enclosed and region.open_area > 2 * region.area
+    assert 12.0 < region.area < 16.0
+    poses = spawn_poses_free(occ, 4, waffle.radius, world_polygons(world))
+    assert np.all(np.abs(poses[:, :2]) < 1.9)
+    text = describe_spawn(poses, False, None, region)
+    assert text.startswith("in the largest enclosed free region (")
+    assert "touch the map's edge; no points-of-interest file), x " in text
 
 
 @pytest.mark.parametrize("name", ["warehouse_slab", "narrow_aisles", "slim_blockage"])
-def test_world_without_poi_spawns_20_in_its_largest_free_region(tmp_path, waffle, name):
+def test_world_without_poi_spawns_20_in_its_choose_free_region(tmp_path, waffle, name):
     """The world file alone (no .yaml beside it): 20 robots in the hall, clear of everything."""
     world = load_world(name)
     occ = load_map(MAPS_DIR / f"{name}.yaml")
     polygons = world_polygons(world)
     poses = spawn_poses_free(occ, 20, waffle.radius, polygons)
     assert poses.shape == (20, 3)
-    region = largest_free_region(occ)
+    region = choose_free_region(occ)
     rc = occ.world_to_cell(poses[:, :2])
     assert region.mask[rc[:, 0], rc[:, 1]].all()  # inside the hall, not the padding ring
     gaps = np.linalg.norm(poses[:, None, :2] - poses[None, :, :2], axis=2)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import time
 from pathlib import Path
 
@@ -305,7 +306,8 @@ def test_a_world_with_skipped_elements_says_so_once_at_start(tmp_path):
         "swarm-sim: warning: boxed_walker.world: skipped unsupported elements: actor 'walker', "
         "road 'lane'"]
     assert skip[0] < spawned  # at start
-    assert "in the largest free area (no points-of-interest file), x " in lines[spawned]
+    assert re.search(r"in the largest (enclosed )?free region \(.*; no points-of-interest "
+                     r"file\), x ", lines[spawned]), lines[spawned]
     data = json.loads(summary.read_text())
     assert data["world_skipped"] == ["actor 'walker'", "road 'lane'"]
     assert lines[spawned].endswith(f") {data['spawn']}")  # the line's text, after the names
