@@ -14,7 +14,14 @@ Resolved as ROS 2 and Gazebo resolve them, for the worlds' meshes and includes
 - ``model://<model>/<rest>``: the first of ``GZ_SIM_RESOURCE_PATH``, ``IGN_GAZEBO_RESOURCE_PATH``,
   ``GAZEBO_MODEL_PATH``, ``SDF_PATH`` (each a ``:``-list), the world's directory, its
   ``models/``, ``~/.gazebo/models`` that has ``<model>/<rest>``.
-- ``file://<path>``, an absolute path, or a path relative to the referring file's directory.
+- ``file://<path>`` and a plain path: an absolute one names itself; a relative one is looked
+  for as Gazebo does (gazebo-classic's ``SystemPaths::FindFileURI``, gz-sim's resource path):
+  for ``file://`` in the working directory first, then the referring file's directory; for a
+  plain path the referring file's directory first, then the working directory; then under each
+  entry of ``GAZEBO_RESOURCE_PATH`` and of ``GZ_SIM_RESOURCE_PATH`` (ROS packages export their
+  share directory into the first as ``gazebo_media_path``). AWS RoboMaker's worlds name their
+  meshes ``file://models/<model>/meshes/<mesh>.DAE``, meant for a run from the repository's
+  root or with it on one of those paths.
 - Anything else with ``://`` (``http(s)://``, Fuel) is not resolvable offline.
 
 :func:`resolve` returns where it looked, so an unresolved URI can be named once with the places
@@ -32,6 +39,9 @@ from pathlib import Path
 
 MODEL_PATH_VARS = ("GZ_SIM_RESOURCE_PATH", "IGN_GAZEBO_RESOURCE_PATH", "GAZEBO_MODEL_PATH",
                    "SDF_PATH")
+RESOURCE_PATH_VARS = ("GAZEBO_RESOURCE_PATH", "GZ_SIM_RESOURCE_PATH")
+"""Where a relative ``file://`` URI or path is looked for after the working directory and the
+referring file's directory (module doc)."""
 _MARKERS = Path("share") / "ament_index" / "resource_index" / "packages"
 
 
@@ -86,8 +96,8 @@ def resolve(uri: str, base: Path) -> tuple[Path | None, list[str]]:
         base: the directory of the file that refers to it (a world, a robot description).
 
     Returns:
-        ``(path or None, places looked in)``; the path exists when not None; a path or
-        ``file://`` URI names its one place itself (no places listed).
+        ``(path or None, places looked in)``; the path exists when not None; an absolute path
+        or ``file://`` URI names its one place itself (no places listed).
     """
     if uri.startswith("package://"):
         package, _, rest = uri[len("package://"):].partition("/")
@@ -99,13 +109,25 @@ def resolve(uri: str, base: Path) -> tuple[Path | None, list[str]]:
     if uri.startswith("model://"):
         return _model(uri[len("model://"):], base)
     if uri.startswith("file://"):
-        path = Path(uri[len("file://"):])
-        return (path if path.exists() else None), []
+        return _file(Path(uri[len("file://"):]), [Path.cwd(), base])
     if "://" in uri:
         return None, [f"nowhere: {uri.split('://', 1)[0]}:// is not resolvable offline"]
-    path = Path(uri).expanduser()
-    path = path if path.is_absolute() else base / path
-    return (path if path.exists() else None), []
+    return _file(Path(uri).expanduser(), [base, Path.cwd()])
+
+
+def _file(path: Path, first: list[Path]) -> tuple[Path | None, list[str]]:
+    """An absolute path names itself; a relative one is looked for under ``first``, then each
+    entry of :data:`RESOURCE_PATH_VARS` (module doc)."""
+    if path.is_absolute():
+        return (path if path.exists() else None), []
+    looked = []
+    roots = [(str(d), d) for d in first]
+    roots += [(f"{d} ({var})", d) for var in RESOURCE_PATH_VARS for d in _env_dirs(var)]
+    for name, root in roots:
+        looked.append(name)
+        if (root / path).exists():
+            return root / path, looked
+    return None, looked
 
 
 def _model(rest: str, base: Path) -> tuple[Path | None, list[str]]:

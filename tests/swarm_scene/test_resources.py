@@ -10,6 +10,7 @@ import pytest
 
 from swarm_scene.resources import (
     MODEL_PATH_VARS,
+    RESOURCE_PATH_VARS,
     ament_index_with_ros_package_path,
     describe,
     package_share,
@@ -21,7 +22,7 @@ DATA = Path(__file__).resolve().parents[1] / "data"
 
 @pytest.fixture
 def clean_env(monkeypatch):
-    for var in (*MODEL_PATH_VARS, "AMENT_PREFIX_PATH", "ROS_PACKAGE_PATH"):
+    for var in (*MODEL_PATH_VARS, *RESOURCE_PATH_VARS, "AMENT_PREFIX_PATH", "ROS_PACKAGE_PATH"):
         monkeypatch.delenv(var, raising=False)
     return monkeypatch
 
@@ -80,6 +81,51 @@ def test_an_unresolved_uri_names_where_it_looked(tmp_path, clean_env):
     assert "and 1 more" in text  # ~/.gazebo/models and the world's own places follow
     assert "not resolvable offline" in describe("https://fuel/x.dae",
                                                 resolve("https://fuel/x.dae", tmp_path)[1])
+
+
+def _mesh_under(root: Path) -> Path:
+    """``root/models/crate/meshes/world_cube.stl``, as AWS RoboMaker's worlds lay meshes out."""
+    (root / "models" / "crate" / "meshes").mkdir(parents=True)
+    return Path(shutil.copy(DATA / "world_cube.stl", root / "models" / "crate" / "meshes"))
+
+
+RELATIVE = "file://models/crate/meshes/world_cube.stl"
+
+
+def test_a_relative_file_uri_is_found_in_the_working_directory_first(tmp_path, clean_env):
+    here, world_dir = tmp_path / "here", tmp_path / "world"
+    in_cwd, beside = _mesh_under(here), _mesh_under(world_dir)
+    clean_env.chdir(here)
+    assert resolve(RELATIVE, world_dir)[0] == in_cwd
+    clean_env.chdir(tmp_path)  # not here: beside the referring file
+    assert resolve(RELATIVE, world_dir)[0] == beside
+    # a plain relative path prefers the referring file's directory
+    clean_env.chdir(here)
+    assert resolve("models/crate/meshes/world_cube.stl", world_dir)[0] == beside
+
+
+@pytest.mark.parametrize("var", RESOURCE_PATH_VARS)
+def test_a_relative_file_uri_is_found_on_the_resource_path(tmp_path, clean_env, var):
+    share = tmp_path / "share" / "aws_small_warehouse"
+    expected = _mesh_under(share)
+    clean_env.chdir(tmp_path)
+    clean_env.setenv(var, f"{tmp_path / 'other'}:{share}")
+    path, looked = resolve(RELATIVE, tmp_path / "worlds")
+    assert path == expected
+    assert looked == [str(tmp_path), str(tmp_path / "worlds"), f"{tmp_path / 'other'} ({var})",
+                      f"{share} ({var})"]
+
+
+def test_an_unresolved_relative_file_uri_names_where_it_looked(tmp_path, clean_env):
+    clean_env.chdir(tmp_path)
+    clean_env.setenv("GAZEBO_RESOURCE_PATH", str(tmp_path / "gz"))
+    path, looked = resolve(RELATIVE, tmp_path / "worlds")
+    assert path is None
+    assert describe(RELATIVE, looked) == (
+        f"{RELATIVE} not found (looked in: {tmp_path}, {tmp_path / 'worlds'}, "
+        f"{tmp_path / 'gz'} (GAZEBO_RESOURCE_PATH))")
+    absolute = f"file://{tmp_path}/nothing.stl"
+    assert resolve(absolute, tmp_path) == (None, [])  # an absolute path names its one place
 
 
 def test_a_world_mesh_by_package_uri_loads(tmp_path, clean_env):

@@ -156,15 +156,20 @@ def test_composition_fixture_skips_ground_plane_sun_light_silently(composition):
 # --------------------------------------------------------------------------- skipping
 
 
-def test_unsupported_elements_reported_once_each_by_name():
+def test_unsupported_elements_reported_once_each_by_name(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # a relative mesh is also looked for here (resources.py)
+    for var in ("GAZEBO_RESOURCE_PATH", "GZ_SIM_RESOURCE_PATH"):
+        monkeypatch.delenv(var, raising=False)
     world = load_world(DATA / "world_unsupported.world")
+    statue = (f"mesh 'statue::link::collision' (meshes/missing_statue.stl not found (looked in: "
+              f"{DATA}, {tmp_path}))")
     assert world.skipped == (
         "include 'model://turtlebot3_world'",  # included twice, reported once
         "actor 'walker'",
         "road 'lane'",
         "polyline 'fence::link::collision'",
         "polyline 'fence::link::collision_2'",
-        "mesh 'statue::link::collision' (meshes/missing_statue.stl not found)",
+        statue,
     )
     # ground_plane, sun, light, scene, gui and the horizontal floor plane: silent
     assert not any("ground" in s or "sun" in s or "bulb" in s or "floor" in s
@@ -178,8 +183,7 @@ def test_unsupported_elements_reported_once_each_by_name():
     assert describe_skipped(world) == (
         "world_unsupported.world: skipped unsupported elements: "
         "include 'model://turtlebot3_world', actor 'walker', road 'lane', "
-        "polyline 'fence::link::collision', polyline 'fence::link::collision_2', "
-        "mesh 'statue::link::collision' (meshes/missing_statue.stl not found)")
+        "polyline 'fence::link::collision', polyline 'fence::link::collision_2', " + statue)
 
 
 def test_a_world_that_loads_whole_has_no_skip_line(composition):
