@@ -413,6 +413,7 @@ def validate(args: argparse.Namespace) -> RunConfig:
     if map_path is None:
         map_path = paths.default_map_for(world_path)
     poi_path = _check_poi(world_path)
+    _check_workstations(args, world_path)
     robot, fleet, n = resolve_fleet(args.robot, args.swarm_size)
     if nav_template.is_file():
         _check_fitted_params(nav_template, fleet or (robot,))
@@ -487,6 +488,24 @@ def _check_modes(args: argparse.Namespace) -> list[str]:
         raise InputError("--coordination: centralized needs --commanders (the coordinator "
                          "assigns the commanders' tasks)")
     return policy
+
+
+def _check_workstations(args: argparse.Namespace, world_path: Path) -> None:
+    """Commanders have workstations to visit (each takes a random route over the world's
+    workstations: :func:`swarm_commander.route.make_route`).
+
+    Raises:
+        InputError: ``--commanders`` on a world without workstations (names the flag, the world
+            and where its workstations would be).
+    """
+    if not args.commanders:
+        return
+    poi = poi_for_world(world_path)
+    if poi is None or not poi.workstations:
+        where = (f"none in {poi.source.name}" if poi is not None and poi.source is not None
+                 else f"no {world_path.with_suffix('.yaml').name} beside it")
+        raise InputError(f"--commanders: world {world_path.stem} has no workstations to visit "
+                         f"({where}); run it without --commanders, or add workstations")
 
 
 def _check_outputs(args: argparse.Namespace) -> None:

@@ -95,3 +95,16 @@ def test_per_robot_processes_are_refused_beyond_what_one_host_serves():
     assert participants(10, True, False, False, leader=False, hosts=2) == 22
     assert participants(10, True, True, True, leader=True, hosts=2,
                         discovery_server=True) == 27
+
+
+def test_commanders_on_a_world_without_workstations_are_refused_up_front(tmp_path):
+    with pytest.raises(InputError) as err:
+        _validate(tmp_path, "--world", "empty", "--commanders", "--swarm-size", "2")
+    assert str(err.value) == ("--commanders: world empty has no workstations to visit (none in "
+                              "empty.yaml); run it without --commanders, or add workstations")
+    shutil.copy(paths.WORLDS_DIR / "empty.world", tmp_path / "bare.world")  # no .yaml beside it
+    with pytest.raises(InputError, match=r"^--commanders: world bare has no workstations to "
+                                         r"visit \(no bare.yaml beside it\)"):
+        _validate(tmp_path, "--world", str(tmp_path / "bare.world"), "--commanders")
+    assert not (tmp_path / "run").exists()  # nothing started
+    _validate(tmp_path, "--world", "empty", "--swarm-size", "2")  # without commanders: runs
