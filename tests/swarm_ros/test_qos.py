@@ -28,7 +28,8 @@ RELIABLE, TL = ReliabilityPolicy.RELIABLE, DurabilityPolicy.TRANSIENT_LOCAL
     (topics.CMD_VEL.qos, QoSProfile(depth=300, reliability=RELIABLE, durability=TL)),
     (topics.CLOCK_METRICS_READER_QOS, QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                                                  reliability=ReliabilityPolicy.BEST_EFFORT)),
-], ids=lambda v: repr(v)[:40])
+], ids=["default", "default-reliable", "sensor-data", "latched", "cmd-vel",
+        "clock-metrics-reader"])
 def test_profile_is_rclpys(qos, rclpy_profile):
     assert profile(qos) == rclpy_profile
 

@@ -139,6 +139,7 @@ WORLD = ("<?xml version='1.0'?><sdf version='1.6'><world name='w'><model name='b
          "<static>true</static><pose>1 1 0.5 0 0 0</pose><link name='l'><collision name='c'>"
          "<geometry><box><size>1 1 1</size></box></geometry></collision></link></model>"
          "</world></sdf>")
+POI = "workstations:\n  - {name: station1, x: 0.5, y: 0.5, yaw: 0.0}\n"
 
 
 @pytest.fixture
@@ -154,6 +155,7 @@ def setup(tmp_path):
     (tmp_path / "m.yaml").write_text(MAP_YAML)
     (tmp_path / "m.pgm").write_bytes(b"P5\n20 20\n255\n" + bytes([254]) * 400)
     (tmp_path / "w.world").write_text(WORLD)
+    (tmp_path / "w.yaml").write_text(POI)  # --commanders needs a workstation to visit
     env = dict(os.environ, PATH=f"{bin_dir}{os.pathsep}{os.environ.get('PATH', '')}")
     return tmp_path, env
 
