@@ -148,6 +148,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--swarm-up", type=Path, default=None, metavar="PATH",
                    help="the swarm-up executable to measure, e.g. another checkout's "
                    "venv/bin/swarm-up to compare versions (default: the one beside this Python)")
+    p.add_argument("--ledger", action="store_true",
+                   help="also profile every run with py-spy and report the cost ledger: CPU per "
+                   "robot per simulated second by process role and stage (pip install -e "
+                   "\".[ledger]\")")
+    p.add_argument("--ledger-plot", type=Path, default=Path("ledger.png"), metavar="PATH.png",
+                   help="the ledger's PNG chart, with --ledger (default: %(default)s)")
     return p
 
 
@@ -170,6 +176,8 @@ class BenchConfig:
         swarm_up: the ``swarm-up`` executable measured (absolute).
         extra_args: more ``swarm-up`` flags for every run (``swarm-experiment``'s
             ``--faults SPEC``).
+        py_spy: the ``py-spy`` executable with ``--ledger``, else None (no ledger).
+        ledger_plot: the ledger's PNG with ``--ledger``.
     """
 
     sizes: tuple[int, ...]
@@ -185,6 +193,8 @@ class BenchConfig:
     run_dir: Path
     swarm_up: Path
     extra_args: tuple[str, ...] = ()
+    py_spy: str | None = None
+    ledger_plot: Path | None = None
 
 
 def world_arg(world: str) -> str:
@@ -228,11 +238,17 @@ def validate(args: argparse.Namespace) -> BenchConfig:
     if args.run_dir is not None and args.run_dir.exists() and not args.run_dir.is_dir():
         raise InputError(f"--run-dir: '{args.run_dir}' exists and is not a directory")
     run_dir = args.run_dir or default_run_dir(prefix="bench-")
+    py_spy = ledger_plot = None
+    if args.ledger:
+        from swarm_bench.ledger import py_spy_path
+
+        py_spy = py_spy_path()
+        ledger_plot = _check_file_flag("--ledger-plot", args.ledger_plot, ".png")
     return BenchConfig(
         sizes=args.sizes, duration_s=args.duration, runs=args.runs, world=world,
         seed=args.seed, coordination=args.coordination, processes=args.processes,
         output=output, plot=plot, baseline=args.baseline, run_dir=run_dir.expanduser().resolve(),
-        swarm_up=swarm_up_path(args.swarm_up))
+        swarm_up=swarm_up_path(args.swarm_up), py_spy=py_spy, ledger_plot=ledger_plot)
 
 
 # -------------------------------------------------------------------------------------- context
@@ -392,18 +408,18 @@ def _error_line(log: Path) -> str:
     return errors[-1] if errors else (lines[-1].strip() if lines else "")
 
 
-def _follow_run(proc: subprocess.Popen, log_path: Path, stop: StopFlag,
-                view: BenchView) -> tuple[int, bool, float | None]:
+def _follow_run(proc: subprocess.Popen, log_path: Path, stop: StopFlag, view: BenchView,
+                cpu, profiler=None) -> tuple[int, bool, float | None]:
     """Follow a ``swarm-up`` process to its end: its progress to ``view``, the CPU time of its
-    process tree from every robot ready to the stop (sampled every ``CPU_PERIOD_S``), SIGINT
-    when ``stop`` is set (SIGKILL ``STOP_GRACE_S`` later).
+    process tree from every robot ready to the stop (sampled every ``CPU_PERIOD_S`` into
+    ``cpu``, a :class:`~swarm_bench.proc_cpu.TreeCpu` of it), the profiler (a
+    :class:`~swarm_bench.ledger.Profiler`) over the same window, SIGINT when ``stop`` is set
+    (SIGKILL ``STOP_GRACE_S`` later).
 
     Returns:
         ``(exit code, interrupted, CPU seconds from ready to stopping or None)``.
     """
-    from swarm_bench.proc_cpu import TreeCpu
-
-    tail, cpu = LogTail(log_path), TreeCpu([proc.pid])
+    tail = LogTail(log_path)
     stopping = interrupted = False
     signalled_at: float | None = None
     last_cpu = 0.0
@@ -412,10 +428,14 @@ def _follow_run(proc: subprocess.Popen, log_path: Path, stop: StopFlag,
         for line in tail.lines():
             if READY_RE.search(line) and not cpu.marked:
                 cpu.mark()
+                if profiler is not None:
+                    profiler.start(proc.pid)
             elif STOPPING_RE.search(line) and not stopping:
                 stopping = True
                 if cpu.marked:
                     cpu.sample()
+                if profiler is not None:
+                    profiler.stop()
             m = PROGRESS_RE.search(line)
             if m:
                 view.update(float(m.group(1)), float(m.group(2)))
@@ -456,7 +476,14 @@ def run_swarm_up(cfg: BenchConfig, n: int, r: int, stop: StopFlag, view: BenchVi
                                     start_new_session=True)
         except OSError as exc:
             raise InputError(f"--swarm-up: cannot run '{argv[0]}': {exc.strerror}") from None
-    code, interrupted, cpu_s = _follow_run(proc, log_path, stop, view)
+    from swarm_bench.proc_cpu import TreeCpu
+
+    cpu, profiler = TreeCpu([proc.pid]), None
+    if cfg.py_spy is not None:
+        from swarm_bench.ledger import Profiler
+
+        profiler = Profiler(cfg.py_spy, cfg.run_dir / f"{name}.pyspy.raw")
+    code, interrupted, cpu_s = _follow_run(proc, log_path, stop, view, cpu, profiler)
     try:
         metrics = json.loads(metrics_path.read_text())
     except (OSError, ValueError):
@@ -484,6 +511,8 @@ def run_swarm_up(cfg: BenchConfig, n: int, r: int, stop: StopFlag, view: BenchVi
         "rss_mb_per_robot": _num(metrics, "peak_rss_mb_per_robot"),
         "metrics": metrics,
     }
+    if profiler is not None:
+        record["ledger"] = _ledger(profiler, cpu, n, sim_s, cpu_source)
     if code == EXIT_OK and metrics is not None:
         view.finish(f"size {n}, run {r + 1}/{cfg.runs}: RTF {_fmt(metrics.get('rtf'))}, "
                     f"{_fmt(metrics.get('robot_ticks_per_s'), 0)} robot-ticks/s, "
@@ -493,6 +522,18 @@ def run_swarm_up(cfg: BenchConfig, n: int, r: int, stop: StopFlag, view: BenchVi
         view.finish(f"size {n}, run {r + 1}/{cfg.runs}: swarm-up exited with code {code}{why}; "
                     f"log: {log_path}")
     return record
+
+
+def _ledger(profiler, cpu, n: int, sim_s: float | None, cpu_source: str | None) -> dict | None:
+    """A run's cost ledger (:func:`swarm_bench.ledger.build_ledger`), None when the window was
+    not measured (the run failed, or ended before a CPU sample) or py-spy wrote no sample."""
+    from swarm_bench.ledger import build_ledger, role_of
+
+    samples = profiler.stop()
+    if not samples or not sim_s or cpu_source != "bench":
+        return None
+    roles = {pid: role_of(line) for pid, line in cpu.cmdlines.items()}
+    return build_ledger(samples, cpu.by_pid_since_mark(), roles, n, sim_s)
 
 
 def run_baseline_size(cfg: BenchConfig, base, n: int, processes: str | int, stop: StopFlag,
@@ -585,6 +626,11 @@ def summarize(sizes: tuple[int, ...], records: list[dict]) -> list[dict]:
             "rtf_pct_of_baseline": (100.0 * _mean(rtf) / baseline_rtf
                                  if rtf and baseline_rtf else None),
         }
+        ledgers = [r["ledger"] for r in ok if r.get("ledger")]
+        if ledgers:
+            from swarm_bench.ledger import mean_ledger
+
+            entry["ledger"] = mean_ledger(ledgers)
         out.append(entry)
     return out
 
@@ -775,6 +821,13 @@ def bench(cfg: BenchConfig, argv: list[str]) -> int:
     write_plot(cfg.plot, doc["summary"], title)
     print(f"{PROG}: results: {cfg.output}", flush=True)
     print(f"{PROG}: plot: {cfg.plot}", flush=True)
+    if cfg.py_spy is not None:
+        from swarm_bench.ledger import print_ledger, write_ledger_plot
+
+        ledger_title = f"cost ledger: {cfg.world}, {cfg.duration_s:g} simulated s, commanders"
+        print_ledger(doc["summary"], ledger_title)
+        write_ledger_plot(cfg.ledger_plot, doc["summary"], ledger_title)
+        print(f"{PROG}: ledger plot: {cfg.ledger_plot}", flush=True)
     say_outcome(PROG, stop, failed, f"{len(doc['records'])} finished records", cfg.output)
     return code
 

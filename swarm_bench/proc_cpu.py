@@ -25,6 +25,9 @@ class TreeCpu:
         self._procs: dict[int, psutil.Process] = {}
         self._cpu_s: dict[int, float] = {}  # [s] per PID, the largest seen
         self._mark_s: float | None = None
+        self._mark_by_pid: dict[int, float] = {}
+        self.cmdlines: dict[int, str] = {}
+        """Each sampled PID's command line, read when it was first seen."""
 
     def add_root(self, pid: int) -> None:
         """Sample the tree of ``pid`` too."""
@@ -52,6 +55,11 @@ class TreeCpu:
                 continue
             used = cpu.user + cpu.system
             self._cpu_s[proc.pid] = max(self._cpu_s.get(proc.pid, 0.0), used)
+            if proc.pid not in self.cmdlines:
+                try:
+                    self.cmdlines[proc.pid] = " ".join(proc.cmdline())
+                except psutil.Error:
+                    self.cmdlines[proc.pid] = ""
         return self.total()
 
     def total(self) -> float:
@@ -61,6 +69,7 @@ class TreeCpu:
     def mark(self) -> None:
         """Sample now and remember the total: :meth:`since_mark` counts from here."""
         self._mark_s = self.sample()
+        self._mark_by_pid = dict(self._cpu_s)
 
     @property
     def marked(self) -> bool:
@@ -72,3 +81,10 @@ class TreeCpu:
         if self._mark_s is None:
             return None
         return self.total() - self._mark_s
+
+    def by_pid_since_mark(self) -> dict[int, float]:
+        """CPU seconds of each PID between :meth:`mark` and the last :meth:`sample` (a process
+        started after the mark counts from 0); empty without a mark."""
+        if self._mark_s is None:
+            return {}
+        return {pid: used - self._mark_by_pid.get(pid, 0.0) for pid, used in self._cpu_s.items()}

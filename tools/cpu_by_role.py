@@ -26,19 +26,7 @@ from pathlib import Path
 
 import psutil
 
-ROLES = (("sim", re.compile(r"swarm[-_]sim")), ("group", re.compile(r"swarm_up\.group")),
-         ("navigator", re.compile(r"swarm[-_]nav")),
-         ("commander", re.compile(r"swarm[-_]commander")),
-         ("coordinator", re.compile(r"swarm[-_]coordinator")),
-         ("recorder", re.compile(r"swarm_record")), ("discovery", re.compile(r"discovery")))
-
-
-def role(cmdline: list[str]) -> str:
-    text = " ".join(cmdline)
-    for name, pattern in ROLES:
-        if pattern.search(text):
-            return name
-    return "swarm-up" if "swarm-up" in text or "swarm_up" in text else "other"
+from swarm_bench.ledger import role_of as role
 
 
 def sample(root: psutil.Process, cpu: dict[int, tuple[str, float]]) -> None:
