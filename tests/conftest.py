@@ -36,7 +36,8 @@ def _claim_domain_id() -> int:
 
 
 def pytest_configure(config):
-    if "SWARM_WB_TEST_DOMAIN" not in os.environ:
+    # an xdist worker (pytest -n) claims a domain of its own, not its controller's
+    if "SWARM_WB_TEST_DOMAIN" not in os.environ or "PYTEST_XDIST_WORKER" in os.environ:
         os.environ["SWARM_WB_TEST_DOMAIN"] = str(_claim_domain_id())
     os.environ["ROS_DOMAIN_ID"] = os.environ["SWARM_WB_TEST_DOMAIN"]
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
@@ -56,12 +57,20 @@ def pytest_configure(config):
 SLOW_TIERS = ("node", "e2e", "slow")
 
 
+ROS_TIERS = ("node", "e2e")
+
+
 def pytest_collection_modifyitems(config, items):
     """Mark ``quick`` every test that is neither ``node``, ``e2e`` nor ``slow``: the inner loop's
-    tier (``pytest -m quick``, a few minutes; the README's developer section)."""
+    tier (``pytest -m quick``, a few minutes; the README's developer section). Every ``node``
+    and ``e2e`` test goes to one xdist group, so that with ``-n 2 --dist loadgroup`` (the
+    suite's default, pyproject.toml) they run one after the other in one worker, as without
+    xdist, while the other worker takes the tests that start no process."""
     for item in items:
         if not any(item.get_closest_marker(m) for m in SLOW_TIERS):
             item.add_marker(pytest.mark.quick)
+        if any(item.get_closest_marker(m) for m in ROS_TIERS):
+            item.add_marker(pytest.mark.xdist_group("ros"))
 
 
 @pytest.fixture(scope="session")
