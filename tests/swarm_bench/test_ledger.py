@@ -39,7 +39,8 @@ RAW = "\n".join([
     # and the executor's own work
     f"{SWARM_UP};{GROUP};{SPIN};{TICK};{STEP};"
     f"{frame('cell_path', f'{ROOT}/swarm_nav/planner.py')} 30",
-    f"{SWARM_UP};{GROUP};{SPIN};{TICK};{frame('Publisher.publish', f'{SITE}/rclpy/publisher.py')} 10",
+    f"{SWARM_UP};{GROUP};{SPIN};{TICK};"
+    f"{frame('Publisher.publish', f'{SITE}/rclpy/publisher.py')} 10",
     f"{SWARM_UP};{GROUP};{SPIN};{TICK};{STEP} 10",
     f"{SWARM_UP};{GROUP};{SPIN} 50",
     # the simulator: physics and its lidar, called from the loop
