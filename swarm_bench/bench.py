@@ -41,6 +41,9 @@ Figures the bench adds to swarm-up's:
 - ``summary[i]`` per size: mean/min/max RTF over the runs that ended with exit 0, mean
   robot-ticks/s and throughput, mean goals and collisions per run, the smallest separation, and
   ``rtf_pct_of_baseline`` = 100 x mean RTF / baseline RTF.
+- with ``--ledger``: ``ledger`` in each swarm record, the run's cost ledger over the same window
+  as ``cpu_per_robot`` (:func:`swarm_bench.ledger.build_ledger`; None when py-spy took no
+  sample), and in ``summary[i]`` the mean of the size's ledgers (:mod:`swarm_bench.ledger`).
 
 Exit codes: 0 every run ended well, 1 a swarm-up or baseline run failed (recorded with its exit
 code; the bench goes on), 2 bad flags (one line naming the flag), 130 interrupted (Ctrl-C or
