@@ -68,7 +68,8 @@ Definitions (``docs/ARCHITECTURE.md``, ``/<ns>/nav_status``):
   ``(other)``, listed only when there are any.
 - *spawn* (``spawn``): where the simulator put the robots, its ``spawned N robots in ...`` line's
   text (:func:`swarm_scene.spawn.describe_spawn`): the rule (the spawn area of the world's points
-  of interest, else the largest free area, and why), the block x, y [m] in ``map`` they stand in
+  of interest, else the largest enclosed free region or the largest free region, its area, and
+  why), the block x, y [m] in ``map`` they stand in
   and the first robot's place; None without the simulator's summary.
 - *world elements skipped* (``world_skipped``): the world's skip report
   (:attr:`swarm_scene.world.World.skipped`, one text per element the simulator leaves out, e.g.
