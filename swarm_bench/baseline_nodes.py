@@ -353,12 +353,11 @@ class BaselineNavigatorNode(Node):
         self._ranges = None
         self._pending: Odometry | None = None
         self._goals: list[tuple[int, str]] = []  # (stamp, id) awaiting a tick
-        self._goal_topic = f"/{ns}/goal_pose"
         self._last_status: tuple | None = None
         self._last_status_ns = -STATUS_PERIOD_NS
         self._now_ns = 0
         # Publishers, subscribers, service (swarm_nav.node's).
-        self.cmd_pub, self.plan_pub, self.status_pub = navigator_interface(
+        self.cmd_pub, self.plan_pub, self.status_pub, self._goal_sub = navigator_interface(
             self, self._on_map, self._on_scan, self._on_odom, self._on_goal_pose, self._on_cancel,
             self._on_goal_coming)
 
@@ -419,7 +418,7 @@ class BaselineNavigatorNode(Node):
         return self.handshake.awaits_goal(t, bool(self._goals), self._commander_connected)
 
     def _commander_connected(self) -> bool:
-        return self.count_publishers(self._goal_topic) > 0
+        return self._goal_sub.get_publisher_count() > 0
 
     def _on_wait_poll(self, t: int) -> None:
         self.handshake.poll(t, time.monotonic(), self._commander_connected())

@@ -174,7 +174,7 @@ class NavigatorNode(Node):
         self._now_ns = 0
         self._warned: dict[str, float] = {}
         # Publishers, subscribers, service.
-        self.cmd_pub, self.plan_pub, self.status_pub = navigator_interface(
+        self.cmd_pub, self.plan_pub, self.status_pub, self._goal_sub = navigator_interface(
             self, self._on_map, self._on_scan, self._on_odom, self._on_goal_pose, self._on_cancel,
             self._on_goal_coming)
         map_yaml = self.get_parameter("map_yaml_path").value
@@ -323,7 +323,7 @@ class NavigatorNode(Node):
         self._tick(odom)
 
     def _commander_connected(self) -> bool:
-        return self.count_publishers(self._goal_topic) > 0
+        return self._goal_sub.get_publisher_count() > 0
 
     def _start_gate(self, t: int) -> str:
         """What the first answer still waits for (``""``: nothing): the map; a commander
@@ -340,7 +340,7 @@ class NavigatorNode(Node):
         """
         waiting = [] if self.has_map else ["/map"]
         if (self.get_parameter("wait_for_commander").value
-                and self.count_publishers(self._goal_topic) == 0):
+                and self._goal_sub.get_publisher_count() == 0):
             waiting.append(f"a commander on {self._goal_topic}")
         readers = int(self.get_parameter("wait_for_status_readers").value)
         if self.status_pub.get_subscription_count() < readers:
