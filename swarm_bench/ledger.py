@@ -200,12 +200,11 @@ def build_ledger(samples: Iterable[Sample], cpu_s: Mapping[int, float],
     for pid, used in cpu_s.items():
         if used <= 0:
             continue
-        counts = per_pid.get(pid)
-        shares = ({k: v / sum(counts.values()) for k, v in counts.items()} if counts
-                  else {"unsampled": 1.0})
+        counts = per_pid.get(pid) or Counter(unsampled=1)
+        taken = sum(counts.values())
         acc = by_role.setdefault(roles.get(pid, "other"), Counter())
-        for stage, share in shares.items():
-            acc[stage] += used * share * scale
+        for stage, count in counts.items():
+            acc[stage] += used * count / taken * scale
     stages: Counter = Counter()
     for acc in by_role.values():
         stages.update(acc)
@@ -231,27 +230,25 @@ def mean_ledger(ledgers: list[dict]) -> dict | None:
     if not ledgers:
         return None
     n = len(ledgers)
+    stages: Counter = Counter()
+    roles: Counter = Counter()
+    role_stages: dict[str, Counter] = {}
+    for led in ledgers:
+        stages.update(led["stages"])
+        for role, part in led["roles"].items():
+            roles[role] += part["total"]
+            role_stages.setdefault(role, Counter()).update(part["stages"])
 
-    def avg(getter) -> float:
-        return sum(getter(led) for led in ledgers) / n
+    def ordered(counter: Counter) -> dict[str, float]:
+        return {k: counter[k] / n for k in STAGE_NAMES if k in counter}
 
-    roles = {r for led in ledgers for r in led["roles"]}
-    out = {"unit": ledgers[0]["unit"], "robots": ledgers[0]["robots"], "runs": n,
-           "sim_s": avg(lambda led: led["sim_s"]),
-           "samples": sum(led["samples"] for led in ledgers),
-           "total": avg(lambda led: led["total"])}
-    out["stages"] = {k: avg(lambda led, k=k: led["stages"].get(k, 0.0)) for k in STAGE_NAMES
-                     if any(k in led["stages"] for led in ledgers)}
-    out["roles"] = {}
-    for role in sorted(roles, key=lambda r: -avg(lambda led, r=r: led["roles"].get(
-            r, {"total": 0.0})["total"])):
-        def part(led, role=role):
-            return led["roles"].get(role, {"total": 0.0, "stages": {}})
-        out["roles"][role] = {
-            "total": avg(lambda led: part(led)["total"]),
-            "stages": {k: avg(lambda led, k=k: part(led)["stages"].get(k, 0.0))
-                       for k in STAGE_NAMES if any(k in part(led)["stages"] for led in ledgers)}}
-    return out
+    return {"unit": ledgers[0]["unit"], "robots": ledgers[0]["robots"], "runs": n,
+            "sim_s": sum(led["sim_s"] for led in ledgers) / n,
+            "samples": sum(led["samples"] for led in ledgers),
+            "total": sum(led["total"] for led in ledgers) / n,
+            "stages": ordered(stages),
+            "roles": {role: {"total": total / n, "stages": ordered(role_stages[role])}
+                      for role, total in roles.most_common()}}
 
 
 # ------------------------------------------------------------------------------------ profiling
@@ -303,10 +300,6 @@ class Profiler:
             self._proc = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT,
                                           stdin=subprocess.DEVNULL)
 
-    @property
-    def started(self) -> bool:
-        return self._proc is not None
-
     def stop(self) -> list[Sample]:
         """Stop recording (SIGINT: py-spy writes its file) and return the samples ([] when it
         wrote none; its log says why). Idempotent."""
@@ -328,6 +321,11 @@ class Profiler:
 
 
 # -------------------------------------------------------------------------------------- display
+ROLE_ORDER = ("group", "navigator", "commander", "sim", "coordinator", "swarm-up", "recorder",
+              "discovery", "other")
+"""Roles in the order the table and the chart show them."""
+
+
 def print_ledger(summary: list[dict], title: str) -> None:
     """The ledger table of every size: a row per stage, a column per size (all roles), then the
     same per role (rich; plain text off a terminal)."""
@@ -351,11 +349,6 @@ def print_ledger(summary: list[dict], title: str) -> None:
         table.add_row(f"  of it {role}", *(
             f"{s['ledger']['roles'].get(role, {'total': 0.0})['total']:.2f}" for s in rows))
     Console(width=None if sys.stdout.isatty() else 160).print(table)
-
-
-ROLE_ORDER = ("group", "navigator", "commander", "sim", "coordinator", "swarm-up", "recorder",
-              "discovery", "other")
-"""Roles in the order the table and the chart show them."""
 
 
 def write_ledger_plot(path: Path, summary: list[dict], title: str) -> None:

@@ -19,7 +19,7 @@ from swarm_common import cli, paths
 from swarm_common.errors import InputError
 from swarm_scene import world as world_io
 from swarm_scene.map_io import load_map
-from swarm_scene.poi import load_poi, poi_for_world
+from swarm_scene.poi import poi_for_world
 from swarm_scene.robot_model import load_robot
 from swarm_scene.spawn import spawn_poses
 from swarm_up import PROG
@@ -278,7 +278,7 @@ def resolve_fleet(value: str, swarm_size: int | None) -> tuple[str, tuple[str, .
     return robot, models, n
 
 
-def _check_world_and_fit(world_path: Path, robot: str, n: int,
+def _check_world_and_fit(world_path: Path, poi, robot: str, n: int,
                          models: tuple[str, ...] = ()) -> None:
     """Load the world and, when it has a spawn area, check that ``n`` robots fit in it (spaced
     for the largest of ``models``, else for ``robot``).
@@ -291,7 +291,6 @@ def _check_world_and_fit(world_path: Path, robot: str, n: int,
         world = world_io.load_world(world_path)
     except InputError as exc:
         raise _prefix("--world", exc) from None
-    poi = poi_for_world(world_path)
     if poi is not None and poi.spawn is not None:
         radius = max(load_robot(m).radius for m in (models or (robot,)))
         spawn_poses(poi.spawn, n, radius, world_io.world_polygons(world),
@@ -308,12 +307,6 @@ def _check_map(map_path: Path) -> Path:
     return map_path.resolve()
 
 
-def _check_poi(world_path: Path) -> Path | None:
-    poi = world_path.with_suffix(".yaml")
-    if not poi.is_file():
-        return None
-    load_poi(poi)  # InputError names the file
-    return poi
 
 
 def _check_nav_template(path: Path) -> None:
@@ -412,12 +405,12 @@ def validate(args: argparse.Namespace) -> RunConfig:
     world_path = resolve_world(args.world)
     if map_path is None:
         map_path = paths.default_map_for(world_path)
-    poi_path = _check_poi(world_path)
-    _check_workstations(args, world_path)
+    poi = poi_for_world(world_path)  # a bad file: InputError names it
+    _check_workstations(args, world_path, poi)
     robot, fleet, n = resolve_fleet(args.robot, args.swarm_size)
     if nav_template.is_file():
         _check_fitted_params(nav_template, fleet or (robot,))
-    _check_world_and_fit(world_path, robot, n, fleet)
+    _check_world_and_fit(world_path, poi, robot, n, fleet)
     robots = tuple(f"{args.name_prefix}{i}" for i in range(1, n + 1))
     host_robots, weights = _check_hosts(args, robots)
     local = host_robots[args.host_rank] if host_robots else robots
@@ -441,7 +434,7 @@ def validate(args: argparse.Namespace) -> RunConfig:
         world_name=world_path.stem,
         robot=robot,
         map_path=map_path,
-        poi_path=poi_path,
+        poi_path=None if poi is None else poi.source,
         seed=args.seed,
         rtf=args.rtf,
         duration=args.duration,
@@ -490,7 +483,7 @@ def _check_modes(args: argparse.Namespace) -> list[str]:
     return policy
 
 
-def _check_workstations(args: argparse.Namespace, world_path: Path) -> None:
+def _check_workstations(args: argparse.Namespace, world_path: Path, poi) -> None:
     """Commanders have workstations to visit (each takes a random route over the world's
     workstations: :func:`swarm_commander.route.make_route`).
 
@@ -500,7 +493,6 @@ def _check_workstations(args: argparse.Namespace, world_path: Path) -> None:
     """
     if not args.commanders:
         return
-    poi = poi_for_world(world_path)
     if poi is None or not poi.workstations:
         where = (f"none in {poi.source.name}" if poi is not None and poi.source is not None
                  else f"no {world_path.with_suffix('.yaml').name} beside it")
