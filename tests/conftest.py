@@ -52,6 +52,11 @@ def pytest_configure(config):
     from swarm_nav import jit
 
     jit.warm_up()
+    # Build tf2_msgs and simulation_interfaces (about 80 s once; swarm_ros/built_interfaces.py)
+    # now, for the same reason; a worker finds them built (or waits on the build's lock).
+    from swarm_ros.built_interfaces import ensure
+
+    ensure()
 
 
 SLOW_TIERS = ("node", "e2e", "slow")
