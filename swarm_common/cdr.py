@@ -451,6 +451,59 @@ class PoseArrayWriter:
         return b"".join(parts)
 
 
+class TFMessageWriter:
+    """Serialized ``tf2_msgs/TFMessage`` of planar transforms between fixed frame pairs (``/tf``).
+
+    The frame names are fixed, so the bytes are laid out once; each :meth:`write` fills in the
+    stamps and the transforms.
+
+    Args:
+        frames: (K) ``(frame_id, child_frame_id)`` of each transform, in order.
+    """
+
+    def __init__(self, frames):
+        frames = list(frames)
+        parts, pos = [_U32.pack(len(frames))], 4
+        self._stamp_at: list[int] = []  # byte offset of each stamp (after the encapsulation)
+        self._body_at: list[int] = []  # byte offset of each transform's 7 doubles
+        for parent, child in frames:
+            parts.append(_pad(pos, 4))
+            pos = _align(pos, 4)
+            self._stamp_at.append(pos)
+            parts.append(bytes(_STAMP.size))
+            pos += _STAMP.size
+            for name in (parent, child):
+                text = _string(pos, name)
+                parts.append(text)
+                pos += len(text)
+            parts.append(_pad(pos, 8))
+            pos = _align(pos, 8)
+            self._body_at.append(pos)
+            parts.append(bytes(_POSE.size))
+            pos += _POSE.size
+        self._template = bytes(b"".join(parts))
+
+    def write(self, stamp_ns: int, transforms: np.ndarray) -> bytes:
+        """The message's bytes.
+
+        Args:
+            stamp_ns: every transform's header stamp [ns] (>= 0).
+            transforms: (K, 3) x [m], y [m], yaw [rad] of each child frame in its parent; each
+                written as a translation with z = 0 and a rotation about z.
+        """
+        transforms = np.asarray(transforms, dtype=float).reshape(-1, 3)
+        buf = bytearray(self._template)
+        stamp = _stamp(stamp_ns)
+        half = transforms[:, 2] / 2.0
+        rows = np.zeros((len(transforms), 7))
+        rows[:, 0], rows[:, 1] = transforms[:, 0], transforms[:, 1]
+        rows[:, 5], rows[:, 6] = np.sin(half), np.cos(half)
+        for k, (s_at, b_at) in enumerate(zip(self._stamp_at, self._body_at, strict=True)):
+            buf[s_at:s_at + _STAMP.size] = stamp
+            _POSE.pack_into(buf, b_at, *rows[k])
+        return _ENCAPSULATION + bytes(buf)
+
+
 class TwistStampedWriter:
     """Serialized ``geometry_msgs/TwistStamped`` of a planar command.
 

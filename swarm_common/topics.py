@@ -200,6 +200,17 @@ COMM_METRICS_READER_QOS = Qos(100, durability=TRANSIENT_LOCAL)
 transient local, so requests and answers published before it matched are delivered from the
 writers' history when it matches."""
 
+TF = Topic("/tf", "tf2_msgs/msg/TFMessage", Qos(100),
+           ("swarm_sim (every tick, while it has a reader; --no-tf: never)",),
+           ("RViz2, tf2_echo, anyone",))
+"""Every robot's ``<ns>/odom`` -> ``<ns>/base_footprint`` of the tick, one message a tick, stamped
+with simulated time; tf2's dynamic broadcaster QoS (reliable, volatile, depth 100).  Frames are
+prefixed with the robot's namespace, so one ``/tf`` holds the whole swarm."""
+TF_STATIC = Topic("/tf_static", "tf2_msgs/msg/TFMessage", Qos(1, durability=TRANSIENT_LOCAL),
+                  ("swarm_sim (once, at start)",), ("RViz2, tf2_echo, anyone",))
+"""Every robot's ``map`` -> ``<ns>/odom`` (identity: odometry is exact) and its URDF's joints
+(``<ns>/base_footprint`` -> ``<ns>/base_link`` -> ``<ns>/base_scan``...; movable joints at
+zero), one latched message; tf2's static broadcaster QoS."""
 # --------------------------------------------------------------------------- a robot's topics
 ODOM = Topic("odom", "nav_msgs/msg/Odometry", DEFAULT, ("swarm_sim (every tick)",),
              ("the robot's navigator", "recorder"))
@@ -246,6 +257,12 @@ GOAL_POSE = Topic("goal_pose", "geometry_msgs/msg/PoseStamped", DEFAULT,
                   ("the robot's commander", "anyone (ros2 topic pub, RViz's goal tool)"),
                   ("the robot's navigator",))
 """A new goal replaces the current one."""
+
+ROBOT_DESCRIPTION = Topic("robot_description", "std_msgs/msg/String", LATCHED,
+                          ("swarm_sim (once, at start; --no-tf: never)",),
+                          ("RViz2's RobotModel (TF Prefix: the namespace)",))
+"""The robot's URDF after xacro, unprefixed link names, as ``robot_state_publisher`` latches
+it; RViz2's RobotModel display draws it with TF Prefix ``<ns>``."""
 
 # ------------------------------------------------------------------------- a robot's services
 CANCEL = Service("navigator/cancel", "std_srvs/srv/Trigger", ("the robot's navigator",),

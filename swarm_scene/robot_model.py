@@ -254,6 +254,19 @@ def load_robot(
     return model
 
 
+def urdf_text(name_or_path: str | Path, xacro_args: Mapping[str, str] | None = None) -> str:
+    """The URDF text of a robot (after xacro), as ``robot_state_publisher`` would be given it.
+
+    Args:
+        name_or_path: as :func:`load_robot`'s.
+        xacro_args: as :func:`load_robot`'s.
+
+    Raises:
+        InputError: unknown robot, missing or unreadable file, xacro error.
+    """
+    return _process(resolve_robot(name_or_path), dict(xacro_args or {}))
+
+
 def clear_robot_cache() -> None:
     """Forget the robots :func:`load_robot` has cached (e.g. after editing a file in a test)."""
     _load_cached.cache_clear()

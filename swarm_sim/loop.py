@@ -23,6 +23,7 @@ from swarm_common.faults import END, KILL_COORDINATOR, KILL_NAV, KILL_ROBOT, STA
 from swarm_common.stall import wait_until
 from swarm_common.stamps import NS_PER_S
 from swarm_sim.faults import TickDrops
+from swarm_sim.sim_control import SimControl
 from swarm_sim.standstill import StandstillTracker
 from swarm_sim.summary import RunLog
 from swarm_sim.tick import RecordWindow, TickCommands, TickGate
@@ -86,6 +87,7 @@ class SimLoop:
 
     Attributes:
         gate: the :class:`swarm_sim.tick.TickGate`.
+        control: playing, paused, stepping (:class:`swarm_sim.sim_control.SimControl`).
         window: the :class:`swarm_sim.tick.RecordWindow`.
         log: what the summary reads besides the engine and the gate.
         drops: the messages the faults lose at this tick.
@@ -107,6 +109,7 @@ class SimLoop:
         self.wait_for = int(wait_for)
         self.faults = faults
         self.gate = TickGate(len(engine.poses))
+        self.control = SimControl()
         self.window = RecordWindow(record_window, self.period_ns)
         self.log = RunLog(StandstillTracker(engine.poses))
         self.drops = TickDrops()
@@ -234,6 +237,18 @@ class SimLoop:
             self.ports.log("warning", f"{self.names[i]}: navigator gone ({reason}); not "
                            "waited for until it answers again")
 
+    def hold(self) -> None:
+        """Hold between two ticks while paused (and no step is asked for): the shell answers
+        the requests waiting for this boundary meanwhile (:mod:`swarm_sim.sim_control`)."""
+        control = self.control
+        control.at_boundary = True
+        t0 = time.monotonic()
+        try:
+            self._wait(control.may_tick, lambda: "play or a step (paused)", report=False)
+        finally:
+            control.paused_wall_s += time.monotonic() - t0
+            control.at_boundary = False
+
     # -- the tick ------------------------------------------------------------------------------
     def apply_faults(self) -> None:
         """Start and end the faults due at this tick, before it is published: announce each;
@@ -287,6 +302,10 @@ class SimLoop:
         end_ns = None if duration_s is None else round(duration_s * NS_PER_S)
         timeline = self.log.wall_timeline
         while not self.ports.stopped() and (end_ns is None or self.gate.t_ns < end_ns):
+            if not self.control.may_tick():
+                self.hold()
+                if self.ports.stopped():
+                    break
             if self.faults is not None:
                 self.apply_faults()
             self.wait_for_recorder()
@@ -297,10 +316,12 @@ class SimLoop:
             if cmds is None:
                 break
             self.step(cmds.v, cmds.w)
+            self.control.ticked()
             if self.gate.t_ns >= (len(timeline) + 1) * NS_PER_S:
                 timeline.append(round(time.monotonic() - wall0, 3))
             if rtf > 0.0:
-                due = wall0 + (self.gate.t_ns - sim0_ns) / NS_PER_S / rtf
+                due = (wall0 + self.control.paused_wall_s  # a pause does not pace
+                       + (self.gate.t_ns - sim0_ns) / NS_PER_S / rtf)
                 while (left := due - time.monotonic()) > 0.0 and not self.ports.stopped():
                     self.ports.spin(min(left, 0.1))
             else:

@@ -54,6 +54,7 @@ from swarm_sim.settings import (
     parse_settings,
     prepare,
 )
+from swarm_sim.sim_control import STOPPED
 from swarm_sim.summary import summarize
 
 ACK_WAIT_S = 1.0  # [s] wall: how long the simulator waits at exit for its last ticks' acks
@@ -69,10 +70,14 @@ class SimulatorNode(Node):
         occ: the map published once on ``/map`` (transient local).
         namespaces: robot namespaces without the leading slash, index-aligned with the engine.
         faults: the fault schedule (:func:`swarm_common.faults.parse_faults`); empty: none.
+        interfaces: the built interface packages available
+            (:func:`swarm_ros.built_interfaces.ensure`): ``tf2_msgs`` gives ``/tf`` (unless
+            ``settings.tf`` is off), ``simulation_interfaces`` the standard's services; None:
+            neither.
     """
 
     def __init__(self, settings: SimSettings, engine, occ, namespaces: list[str],
-                 faults=()):
+                 faults=(), interfaces=None):
         super().__init__("swarm_sim")
         # Parameters: read-only mirrors of the flags, so `ros2 param get /swarm_sim rtf` works.
         for name, value in (
@@ -117,6 +122,22 @@ class SimulatorNode(Node):
             subscription(self, DiagnosticStatus, topics.FAULT_ACKS, self._on_fault_ack)
         self._poses_writer = PoseArrayWriter("map")
         self.map_pub.publish(occupancy_grid_msg(occ, time_msg(0)))
+        self.tf = None
+        """/tf, /tf_static and robot_description (:mod:`swarm_sim.tf_publisher`), or None."""
+        if settings.tf and interfaces is not None and interfaces.has("tf2_msgs"):
+            from swarm_scene.robot_frames import robot_frames
+            from swarm_sim.tf_publisher import SwarmTf
+
+            by_source = {m.source: None for m in engine.models}
+            for source in by_source:
+                by_source[source] = robot_frames(source)
+            self.tf = SwarmTf(self, namespaces, [by_source[m.source] for m in engine.models])
+        self.sim_services = None
+        """The simulation_interfaces services (:mod:`swarm_sim.sim_services`), or None."""
+        if interfaces is not None and interfaces.has("simulation_interfaces"):
+            from swarm_sim.sim_services import SimServices
+
+            self.sim_services = SimServices(self, [m.name for m in engine.models])
 
     def _scan_writer(self, i: int, ns: str) -> LaserScanWriter:
         """Robot ``i``'s ``LaserScan`` writer: its own model's lidar (frame, beams, rate)."""
@@ -240,9 +261,11 @@ class SimulatorNode(Node):
 
     def spin(self, timeout_s: float) -> None:
         self.executor_.spin_once(timeout_sec=timeout_s)
+        if self.sim_services is not None:
+            self.sim_services.poll()
 
     def stopped(self) -> bool:
-        return self.stop_requested or not rclpy.ok()
+        return self.stop_requested or not rclpy.ok() or self.loop.control.state == STOPPED
 
     def log(self, level: str, text: str) -> None:
         if level == "warning":  # one call site per severity (rclpy's logger requires it)
@@ -273,6 +296,8 @@ class SimulatorNode(Node):
         silenced, drops = self.gate.silenced, self.loop.drops
         publish_sensors(self.robots, t_ns, eng.poses, eng.v, eng.w, self._tick_scans(),
                         mute_odom=silenced | drops.odom, mute_scan=silenced | drops.scan)
+        if self.tf is not None:
+            self.tf.publish(t_ns, eng.poses)
         if self.poses_pub.get_subscription_count():
             # written as CDR bytes: 100 rclpy Pose objects a tick were a millisecond of the
             # simulator's tick, on the lockstep's critical path, while a dashboard watched
@@ -351,6 +376,10 @@ def main(args=None) -> int:
             holder["engine"], occ, namespaces, spawned, world = prepare(settings)
         engine = holder["engine"]
         faults = fault_schedule(settings, namespaces)
+        from swarm_ros.built_interfaces import ensure
+
+        interfaces = ensure(packages=("tf2_msgs", "simulation_interfaces") if settings.tf
+                            else ("simulation_interfaces",))
         if (skipped := describe_skipped(world)) is not None:  # what of it is not simulated
             print(f"swarm-sim: warning: {skipped}", file=sys.stderr, flush=True)
         print(f"spawned {len(namespaces)} robots in {settings.world} "
@@ -362,7 +391,7 @@ def main(args=None) -> int:
         signal.signal(signal.SIGTERM, _raise_interrupt)
         signal.signal(signal.SIGINT, signal.default_int_handler)  # even if started ignoring it
         with node_session(argv, signal_handler_options=SignalHandlerOptions.NO) as nodes:
-            node = SimulatorNode(settings, engine, occ, namespaces, faults)
+            node = SimulatorNode(settings, engine, occ, namespaces, faults, interfaces)
             nodes.append(node)
             for sig in (signal.SIGINT, signal.SIGTERM):
                 signal.signal(sig, node.request_stop)
@@ -375,6 +404,8 @@ def main(args=None) -> int:
                 node.run(executor)
             finally:  # also on Ctrl-C (then the session ends it quietly)
                 wall_s = time.monotonic() - wall0
+                if node.sim_services is not None:
+                    node.sim_services.finish()  # requests still waiting (a stepping the end cut)
                 node.wait_for_acks()
                 summary = summarize(engine, node.gate, namespaces, node.loop.log,
                                     node.loop.faults, wall_s, spawned, world.skipped)

@@ -50,6 +50,8 @@ class SimSettings:
             :data:`swarm_common.topics.RECORD_WINDOW_TICKS`), or 0 for never; not waited for
             once the progress has no writer (the recorder is gone) [ticks].
         gui: open PyBullet's window.
+        tf: publish ``/tf``, ``/tf_static`` and every robot's ``robot_description``
+            (:mod:`swarm_sim.tf_publisher`).
         faults: the ``--faults`` SPEC (inline syntax or YAML path, :mod:`swarm_common.faults`),
             or None.
     """
@@ -71,6 +73,7 @@ class SimSettings:
     record_window: int = 0  # [ticks]
     gui: bool = False
     faults: str | None = None
+    tf: bool = True
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -127,6 +130,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--gui", action="store_true",
                    help="open the PyBullet window (default headless)")
     p.add_argument("--headless", action="store_true", help="run without a window (the default)")
+    p.add_argument("--no-tf", dest="tf", action="store_false",
+                   help="do not publish /tf, /tf_static and each robot's robot_description "
+                   "(default: published; /tf only while it has a subscriber)")
     return p
 
 
@@ -142,7 +148,7 @@ def parse_settings(argv: list[str]) -> SimSettings:
         seed=a.seed, rtf=a.rtf, duration=a.duration, map_path=a.map, summary=a.summary,
         control_rate=a.control_rate, stall_report=a.stall_report, wait_for=a.wait_for,
         wait_for_reader=a.wait_for_reader, reader_subscriptions=a.reader_subscriptions,
-        record_window=a.record_window, gui=a.gui, faults=a.faults,
+        record_window=a.record_window, gui=a.gui, faults=a.faults, tf=a.tf,
     )
 
 

@@ -148,6 +148,9 @@ def _add_output_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--markers", action="store_true",
                    help="publish /swarm/markers (visualization_msgs/MarkerArray in map) for "
                    "RViz2 or Foxglove")
+    p.add_argument("--no-tf", dest="tf", action="store_false",
+                   help="do not publish /tf, /tf_static and each robot's robot_description "
+                   "(default: published; /tf only while it has a subscriber)")
 
 
 def _add_process_flags(p: argparse.ArgumentParser) -> None:
@@ -453,6 +456,7 @@ def validate(args: argparse.Namespace) -> RunConfig:
         dashboard_port=args.dashboard,
         foxglove_port=args.foxglove,
         markers=args.markers or args.dashboard is not None,
+        tf=args.tf,
         fleet=fleet,
         hosts=args.hosts,
         rank=args.host_rank,

@@ -150,6 +150,8 @@ def sim_argv(cfg: RunConfig) -> list[str]:
         sim += ["--faults", str(faults_file(cfg))]
     if cfg.gui:
         sim.append("--gui")
+    if not cfg.tf:
+        sim.append("--no-tf")
     readers = 0 if cfg.record_path is None else simulator_readers(cfg.robots, cfg.record_topics)
     if readers:  # the recorder gets the first tick on (docs/ARCHITECTURE.md)
         sim += ["--wait-for-reader", RECORDER_NODE, "--reader-subscriptions", str(readers)]

@@ -32,6 +32,12 @@ def main(argv: list[str] | None = None) -> int:
         cfg, warnings = validate_quietly(args)
         for line in dict.fromkeys(warnings):
             warn(line)
+        if cfg.rank == 0:  # the simulator's host: build its message types before it starts
+            from swarm_ros.built_interfaces import ensure
+
+            ensure(say=lambda line: print(f"{PROG}: {line}", file=sys.stderr, flush=True),
+                   packages=("tf2_msgs", "simulation_interfaces") if cfg.tf
+                   else ("simulation_interfaces",))
         try:
             return run(cfg)
         except RunError as exc:

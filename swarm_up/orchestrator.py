@@ -540,6 +540,10 @@ def run(cfg: RunConfig) -> int:
     (cfg.run_dir / "params").mkdir(parents=True, exist_ok=True)
     cfg = prepare_map(cfg)
     write_params_files(cfg, template)
+    if cfg.tf:  # rviz2 -d RUN/swarm.rviz: the map, every robot's model, scan and plan
+        from swarm_viz.rviz_config import rviz_config
+
+        (cfg.run_dir / "swarm.rviz").write_text(rviz_config(cfg.robots))
     if cfg.faults:
         from swarm_common.faults import dump_faults
         from swarm_up.children import faults_file

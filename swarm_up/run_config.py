@@ -47,6 +47,8 @@ class RunConfig:
         foxglove_port: serve the Foxglove WebSocket protocol on this port of 127.0.0.1
             (None: no Foxglove server; :mod:`swarm_viz.foxglove_view`).
         markers: publish ``/swarm/markers`` (also on with the dashboard).
+        tf: the simulator publishes ``/tf``, ``/tf_static`` and ``robot_description``
+            (:mod:`swarm_sim.tf_publisher`).
         fleet: the model of every robot (name or absolute path), index-aligned with
             ``robots`` (:func:`swarm_scene.fleet.fleet_models`); empty: every robot is
             ``robot``.
@@ -87,6 +89,7 @@ class RunConfig:
     dashboard_port: int | None = None
     foxglove_port: int | None = None
     markers: bool = False
+    tf: bool = True
     fleet: tuple[str, ...] = ()
     hosts: int = 1
     rank: int = 0

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-ROS_SHELLS = {"node.py"}
+ROS_SHELLS = {"node.py", "sim_services.py", "tf_publisher.py"}  # the simulator's ROS side
 
 
 def _pure_modules():

@@ -404,6 +404,13 @@ def topics_page() -> str:
     return "\n".join(lines)
 
 
+def rviz_page() -> str:
+    """``docs/swarm.rviz``: the RViz2 configuration of the README's 20-robot run."""
+    from swarm_viz.rviz_config import rviz_config
+
+    return rviz_config([f"Srobot{i}" for i in range(1, 21)])
+
+
 # --------------------------------------------------------------------------- main
 def pages() -> dict[Path, Callable[[], str]]:
     """Every generated page: its path -> the function that writes its text."""
@@ -411,6 +418,7 @@ def pages() -> dict[Path, Callable[[], str]]:
         DOCS / "reference" / "parameters.md": parameters_page,
         DOCS / "reference" / "commands.md": commands_page,
         DOCS / "reference" / "topics.md": topics_page,
+        DOCS / "swarm.rviz": rviz_page,
     }
 
 

@@ -65,6 +65,31 @@ def test_commands_page_lists_every_console_script():
         assert f"\n## {name}\n" in page, f"{name} missing from commands.md: {HINT}"
 
 
+def test_rviz_config_is_up_to_date_and_names_only_topics_the_swarm_has():
+    import yaml
+
+    from swarm_common import topics
+
+    page = ROOT / "docs" / "swarm.rviz"
+    assert page.read_text() == gen_docs.rviz_page(), f"{page.name} {HINT}"
+    config = yaml.safe_load(page.read_text())["Visualization Manager"]
+    assert config["Global Options"]["Fixed Frame"] == "map"
+    groups = [d for d in config["Displays"] if d["Class"] == "rviz_common/Group"]
+    assert [g["Name"] for g in groups] == [f"Srobot{i}" for i in range(1, 21)]
+    known = {t.name: t for t in vars(topics).values() if isinstance(t, topics.Topic)}
+    for group in groups:
+        model, scan, plan = group["Displays"]
+        assert model["TF Prefix"] == group["Name"]
+        for display, topic in ((model["Description Topic"], topics.ROBOT_DESCRIPTION),
+                               (scan["Topic"], topics.SCAN), (plan["Topic"], topics.PLAN)):
+            assert display["Value"] == f"/{group['Name']}/{topic.name}"
+            assert topic.name in known  # a topic of swarm_common.topics, with its writer's QoS
+            durable = topic.qos.durability == topics.TRANSIENT_LOCAL
+            assert (display["Durability Policy"] == "Transient Local") == durable
+            best_effort = topic.qos.reliability == topics.BEST_EFFORT
+            assert (display["Reliability Policy"] == "Best Effort") == best_effort
+
+
 def test_topics_page_is_up_to_date():
     page = ROOT / "docs" / "reference" / "topics.md"
     assert page.read_text() == gen_docs.topics_page(), f"{page.name} {HINT}"
