@@ -280,6 +280,25 @@ the goal ended may be answered (``hold_goal_end``, :mod:`swarm_common.lockstep`)
 GOAL_COMING_SERVICE = GOAL_COMING.name
 """The name of :data:`GOAL_COMING`."""
 
+# ------------------------------------------------------------------ the simulator's services
+SIMULATION_SERVICES = {
+    name: Service(f"/swarm_sim/{name}", f"simulation_interfaces/srv/{kind}", ("swarm_sim",),
+                  ("test harnesses, anyone",))
+    for name, kind in (
+        ("get_simulator_features", "GetSimulatorFeatures"),
+        ("get_simulation_state", "GetSimulationState"),
+        ("set_simulation_state", "SetSimulationState"),
+        ("step_simulation", "StepSimulation"),
+        ("get_entities", "GetEntities"),
+        ("get_entity_state", "GetEntityState"),
+        ("get_entities_states", "GetEntitiesStates"),
+        ("get_entity_info", "GetEntityInfo"),
+    )
+}
+"""The ROS simulation standard's services the simulator serves (``simulation_interfaces`` 1.x,
+names relative to the node as Gazebo's ``ros_gz_sim`` has them under ``/gzserver``), by their
+name in the node: :mod:`swarm_sim.sim_services` says what each does here."""
+
 ROBOT_TOPICS = (SCAN, ODOM, GROUND_TRUTH, CMD_VEL, PLAN, NAV_STATUS)
 """A robot's topics that a recording holds, in its order."""
 

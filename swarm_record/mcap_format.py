@@ -15,11 +15,12 @@ parts of the recorder (:class:`McapRecording`, :class:`TfBuilder`; the CDR bytes
 :mod:`swarm_common.cdr`).
 :mod:`swarm_record.recorder` is its ROS shell; ``swarm-plot`` (:mod:`swarm_record.plot`) reads it.
 
-``/tf`` is not published by the swarm (docs/reference/contract.md#s3: ``ground_truth`` is
-"tf-like"): the recorder builds ``tf2_msgs/msg/TFMessage`` from each robot's ``ground_truth`` and
-``odom`` of one tick (``map`` -> ``<ns>/odom`` -> ``<ns>/base_footprint`` -> ``<ns>/base_scan``)
-and writes its CDR bytes itself (:func:`swarm_common.cdr.tf_message`), since no ``tf2_msgs``
-wheel exists.
+The recorder does not subscribe to the simulator's live ``/tf`` (which goes out only while it
+has a reader, and is off with ``--no-tf`` or without the built ``tf2_msgs``): it builds the
+recording's ``tf2_msgs/msg/TFMessage`` from each robot's ``ground_truth`` and ``odom`` of one
+tick (``map`` -> ``<ns>/odom`` -> ``<ns>/base_footprint`` -> ``<ns>/base_scan``, the live tree's
+frames) and writes its CDR bytes itself (:func:`swarm_common.cdr.tf_message`), so a recording
+has ``/tf`` whatever the run published.
 """
 
 from __future__ import annotations

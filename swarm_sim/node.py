@@ -6,6 +6,11 @@ and ``ground_truth`` and, on lidar ticks, ``scan``; then waits for the ``cmd_vel
 navigator computed from that tick's data (stamped with the tick), applies the commands and steps
 the world.  ``--rtf 1`` paces simulated time to the wall clock, ``--rtf 0`` runs unpaced.
 
+With the built ``tf2_msgs`` it also publishes ``/tf``, ``/tf_static`` and every robot's
+``robot_description`` (:mod:`swarm_sim.tf_publisher`; ``--no-tf``: not), and with the built
+``simulation_interfaces`` it serves the standard's services (:mod:`swarm_sim.sim_services`:
+pause, step, entities).
+
 This node is the ROS shell (:class:`swarm_sim.loop.Ports`) of the pure loop
 :class:`swarm_sim.loop.SimLoop`, whose tick gate (:mod:`swarm_sim.tick`) decides who is
 awaited and what is applied; the flags and the loading of the world are

@@ -82,8 +82,11 @@ def build_parser() -> argparse.ArgumentParser:
         prog="swarm-sim",
         description="The swarm simulator node (/swarm_sim): loads a Gazebo world and a URDF "
         "robot, spawns N robots and publishes /clock, /map, /<ns>/scan, /<ns>/odom, "
-        "/<ns>/ground_truth and /swarm/events; drives robots from /<ns>/cmd_vel "
-        "(geometry_msgs/TwistStamped).",
+        "/<ns>/ground_truth, /swarm/events, /tf, /tf_static and /<ns>/robot_description; "
+        "drives robots from /<ns>/cmd_vel (geometry_msgs/TwistStamped); serves the "
+        "simulation_interfaces services /swarm_sim/get_simulation_state, "
+        "set_simulation_state, step_simulation, get_entities, get_entity_state... "
+        "(docs/guides/ros2_tools.md).",
         epilog="ROS arguments may follow --ros-args. Exit codes: 0 success, 2 bad input, "
         "1 runtime failure.")
     cli.add_shared(p, "--world",

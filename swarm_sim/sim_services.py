@@ -33,6 +33,7 @@ import math
 import time
 from collections.abc import Callable
 
+from swarm_common import topics
 from swarm_sim.sim_control import (
     PAUSED,
     PLAYING,
@@ -46,19 +47,24 @@ from swarm_sim.sim_control import (
 )
 
 POLL_S = 0.02  # [s] wall: the services' requests are taken at most this often
-SERVICES = ("get_simulator_features", "get_simulation_state", "set_simulation_state",
-            "step_simulation", "get_entities", "get_entity_state", "get_entities_states",
-            "get_entity_info")
 
 
 class SimServices:
     """The services of the node (the module docstring).
+
+    ``HANDLERS`` names the method that answers each of
+    :data:`swarm_common.topics.SIMULATION_SERVICES`.
 
     Args:
         node: the simulator node (:class:`swarm_sim.node.SimulatorNode`): its ``engine``,
             ``names``, ``gate`` (simulated time) and ``loop.control`` are read.
         models: (N) each robot's model name (``GetEntityInfo``'s description).
     """
+
+    HANDLERS = {"get_simulator_features": "_features", "get_simulation_state": "_get_state",
+                "set_simulation_state": "_set_state", "step_simulation": "_step",
+                "get_entities": "_entities", "get_entity_state": "_entity_state",
+                "get_entities_states": "_entities_states", "get_entity_info": "_entity_info"}
 
     def __init__(self, node, models):
         from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
@@ -69,25 +75,12 @@ class SimServices:
         self.node, self.models, self.srv = node, list(models), srv
         self.control: SimControl = node.loop.control
         self._handlers: dict[str, Callable] = {
-            "get_simulator_features": self._features,
-            "get_simulation_state": self._get_state,
-            "set_simulation_state": self._set_state,
-            "step_simulation": self._step,
-            "get_entities": self._entities,
-            "get_entity_state": self._entity_state,
-            "get_entities_states": self._entities_states,
-            "get_entity_info": self._entity_info,
-        }
-        types = {"get_simulator_features": srv.GetSimulatorFeatures,
-                 "get_simulation_state": srv.GetSimulationState,
-                 "set_simulation_state": srv.SetSimulationState,
-                 "step_simulation": srv.StepSimulation, "get_entities": srv.GetEntities,
-                 "get_entity_state": srv.GetEntityState,
-                 "get_entities_states": srv.GetEntitiesStates,
-                 "get_entity_info": srv.GetEntityInfo}
+            name: getattr(self, method) for name, method in self.HANDLERS.items()}
+        types = {name: getattr(srv, service.type.rsplit("/", 1)[1])
+                 for name, service in topics.SIMULATION_SERVICES.items()}
         qos = qos_profile_services_default.get_c_qos_profile()
         self._services = []
-        for name in SERVICES:
+        for name in topics.SIMULATION_SERVICES:
             check_is_valid_srv_type(types[name])  # loads its type support
             with node.handle:
                 impl = _rclpy.Service(node.handle, types[name], f"~/{name}", qos)

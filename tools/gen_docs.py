@@ -395,6 +395,14 @@ def topics_page() -> str:
                       f"`values` {keys_text}, all strings "
                       "(`swarm_common.nav_status.encode`); the contract is "
                       "`swarm_common/nav_status.py`.", ""]
+    lines += ["## The simulator's services", "",
+              "The ROS simulation standard (`simulation_interfaces`; "
+              "[the ROS 2 tools](../guides/ros2_tools.md#the-simulation_interfaces-services) "
+              "says what each does here).", "",
+              "| service | type | servers | clients |", "|---|---|---|---|"]
+    for v in topics.SIMULATION_SERVICES.values():
+        lines.append(f"| `{v.name}` | `{v.type}` | {_who(v.servers)} | {_who(v.clients)} |")
+    lines.append("")
     lines += ["## Named QoS profiles", "",
               "| name | reliability | durability | depth | what |", "|---|---|---|---|---|"]
     for key, q in profiles.items():

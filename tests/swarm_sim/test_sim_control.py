@@ -151,3 +151,11 @@ def test_filters_the_simulator_cannot_apply_say_so(kw, code):
     with pytest.raises(FilterError) as err:
         matching_entities(NAMES, POSES, RADII, **kw)
     assert err.value.code == code
+
+
+def test_every_standard_service_listed_has_its_handler():
+    from swarm_common import topics
+    from swarm_sim.sim_services import SimServices
+
+    assert set(SimServices.HANDLERS) == set(topics.SIMULATION_SERVICES)
+    assert all(callable(getattr(SimServices, m)) for m in SimServices.HANDLERS.values())
