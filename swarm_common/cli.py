@@ -189,6 +189,15 @@ def host_port(text: str) -> str:
     return f"{host}:{int(port_text)}"
 
 
+def hosts(text: str) -> tuple[str, ...]:
+    """argparse type: ``HOST,HOST,...``, each a host name or IPv4 address (no port)."""
+    items = tuple(h.strip() for h in text.split(","))
+    if not all(h and all(c.isalnum() or c in ".-" for c in h) for h in items):
+        raise argparse.ArgumentTypeError(f"must be HOST,HOST,... (host names or IPv4 addresses, "
+                                         f"e.g. 10.0.0.2,10.0.0.3), got {text!r}")
+    return items
+
+
 # ------------------------------------------------------------------------------ shared flags
 SHARED_FLAGS = {
     "--world": {"default": "slim_blockage", "metavar": "NAME|PATH"},

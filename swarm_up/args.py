@@ -198,6 +198,12 @@ def _add_host_flags(p: argparse.ArgumentParser) -> None:
                        metavar="HOST:PORT",
                        help="use Fast DDS's Discovery Server at HOST:PORT (rank 0 starts it; "
                        "HOST must be rank 0's address) instead of multicast discovery")
+    hosts.add_argument("--peers", type=cli.hosts, default=None, metavar="HOST,HOST,...",
+                       help="the run's other hosts: discover only this host and these "
+                       "(no multicast), so a ROS process elsewhere on the network, even on the "
+                       "same ROS_DOMAIN_ID, neither sees the run nor is seen by it "
+                       "(ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, ROS_STATIC_PEERS; "
+                       "docs/guides/multi_host.md)")
     hosts.add_argument("--rank-timeout", type=cli.positive_float, default=10.0, metavar="SEC",
                        help="wall seconds a rank may be silent before it counts as lost "
                        "(default: %(default)s)")
@@ -427,6 +433,7 @@ def validate(args: argparse.Namespace) -> RunConfig:
                             args.discovery_server is not None)
 
     faults = check_faults(args.faults, robots, args.name_prefix, args.duration)
+    _check_peers(args, faults)
     run_dir = args.run_dir if args.run_dir is not None else default_run_dir()
     record_path = check_record(args.record, args.record_topics, robots,
                                run_dir.expanduser().resolve())
@@ -463,6 +470,7 @@ def validate(args: argparse.Namespace) -> RunConfig:
         host_robots=host_robots,
         host_weights=weights,
         discovery_server=args.discovery_server,
+        peers=tuple(args.peers or ()),
         rank_timeout=args.rank_timeout,
         on_rank_loss=args.on_rank_loss,
     )
@@ -575,6 +583,33 @@ def _check_hosts(args: argparse.Namespace, robots: tuple[str, ...]
         raise InputError(f"--hosts: rank {empty[0]} would run no robot ({len(robots)} robots "
                          f"over {n_hosts} hosts{' with these weights' if weights else ''})")
     return host_robots, weights
+
+
+def _check_peers(args: argparse.Namespace, faults) -> None:
+    """``--peers`` only between several hosts, without the Discovery Server, and without faults
+    that kill processes.
+
+    A process a fault may SIGKILL runs without Fast DDS's shared memory, which under the range
+    LOCALHOST rmw_fastrtps does not allow (:func:`swarm_up.children.shm_free_env`): such a process
+    could not reach the peers.
+
+    Raises:
+        InputError: one of those combinations.
+    """
+    if args.peers is None:
+        return
+    if args.hosts < 2:
+        raise InputError("--peers: only with --hosts N > 1 (the other hosts' addresses)")
+    if args.discovery_server is not None:
+        raise InputError("--peers: not with --discovery-server (the server already decides "
+                         "who is discovered)")
+    from swarm_common.faults import KILL_COORDINATOR, KILL_NAV, KILL_ROBOT
+
+    killing = [f.label() for f in faults if f.kind in (KILL_NAV, KILL_ROBOT, KILL_COORDINATOR)]
+    if killing:
+        raise InputError(f"--peers: not with faults that kill a process ({killing[0]}): such a "
+                         "process runs without shared memory, which the discovery range "
+                         "LOCALHOST does not allow")
 
 
 def check_faults(spec: str | None, robots: tuple[str, ...], prefix: str,

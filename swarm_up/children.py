@@ -30,6 +30,26 @@ RANGE_ENV = "ROS_AUTOMATIC_DISCOVERY_RANGE"
 LOCALHOST_ONLY_ENV = "ROS_LOCALHOST_ONLY"  # deprecated in Jazzy; "1" overrides the range
 
 
+STATIC_PEERS_ENV = "ROS_STATIC_PEERS"
+
+
+def limit_discovery(environ, peers) -> None:
+    """Make ``environ`` discover only this host and ``peers`` (``swarm-up --peers``).
+
+    ROS 2 Jazzy's own variables: the range ``LOCALHOST`` (no multicast, unicast discovery of this
+    host's participants) and ``ROS_STATIC_PEERS`` (unicast discovery of those addresses, whatever
+    the range).  A participant with the default range on another host of the network sends its
+    announcements by multicast, which no process of the run listens to, and is sent none.
+
+    Args:
+        environ: ``os.environ`` (swarm-up's own participants and, through it, its children's).
+        peers: host names or IPv4 addresses.
+    """
+    environ[RANGE_ENV] = "LOCALHOST"
+    environ[STATIC_PEERS_ENV] = ";".join(peers)
+    environ.pop(LOCALHOST_ONLY_ENV, None)  # rcl lets it override the range
+
+
 def shm_free_env(env: dict[str, str]) -> dict[str, str]:
     """``env`` for a process that fault injection may SIGKILL: Fast DDS without shared memory.
 

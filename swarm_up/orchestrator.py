@@ -530,6 +530,10 @@ def run(cfg: RunConfig) -> int:
         from swarm_up.children import DISCOVERY_ENV
 
         os.environ[DISCOVERY_ENV] = cfg.discovery_server
+    if cfg.peers:  # before swarm-up's own participants; its children inherit it
+        from swarm_up.children import limit_discovery
+
+        limit_discovery(os.environ, cfg.peers)
     if not cfg.leader:
         from swarm_up.remote import run_remote
 

@@ -60,6 +60,9 @@ class RunConfig:
         host_weights: ``--host-weights``, one per host (empty: equal).
         discovery_server: ``HOST:PORT`` of Fast DDS's Discovery Server (rank 0 starts it), or
             None for ROS 2's simple discovery.
+        peers: ``--peers``, the other hosts' addresses: every process of this host discovers
+            only this host and them (:func:`swarm_up.children.limit_discovery`); empty: the
+            discovery range as it is.
         rank_timeout: [s] wall a rank may be silent before it counts as lost.
         on_rank_loss: ``end`` (rank 0 ends the run, exit 1) or ``continue`` (its robots are
             gone: not waited for).
@@ -96,6 +99,7 @@ class RunConfig:
     host_robots: tuple[tuple[str, ...], ...] = ()
     host_weights: tuple[float, ...] = ()
     discovery_server: str | None = None
+    peers: tuple[str, ...] = ()
     rank_timeout: float = 10.0
     on_rank_loss: str = "end"
     coordinator_args: tuple[str, ...] = ()

@@ -180,3 +180,76 @@ def test_ctrl_c_on_rank_0_ends_every_rank(hosts3, tmp_path):
     # The contract's 5 s holds on a quiet machine (docs/results/scaling.md, "Rank loss and
     # Ctrl-C"); stopping every process takes longer on a loaded CI machine, hence 30 s here.
     assert took < 30, f"every rank ended only after {took:.1f} s"
+
+
+PROBE = r"""
+import json, sys, time, rclpy
+from std_msgs.msg import String
+rclpy.init()
+node = rclpy.create_node(sys.argv[1])
+pub = node.create_publisher(String, "/" + sys.argv[1], 10)
+topics, nodes, end = set(), set(), time.monotonic() + float(sys.argv[2])
+while time.monotonic() < end:
+    pub.publish(String(data="here"))
+    rclpy.spin_once(node, timeout_sec=0.2)
+    topics |= {t for t, _ in node.get_topic_names_and_types()}
+    nodes |= {f"{ns.rstrip('/')}/{n}" for n, ns in node.get_node_names_and_namespaces()}
+print(json.dumps({"topics": sorted(topics), "nodes": sorted(nodes)}), flush=True)
+"""
+
+
+def _probe(hosts: Hosts, i: int, name: str, seconds: float, env: dict):
+    import subprocess
+    import sys
+
+    return subprocess.Popen(hosts.argv(i, [sys.executable, "-c", PROBE, name, str(seconds)]),
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                            text=True)
+
+
+def test_with_peers_a_third_host_neither_sees_the_run_nor_is_seen(one_host, hosts3, tmp_path):
+    import json
+
+    from swarm_up.children import limit_discovery
+
+    one = one_host
+    a, b = hosts3.addr[0], hosts3.addr[1]
+    two = RUN + ["--hosts", "2", "--rtf", "2"]
+    with _rank(hosts3, 1, two + ["--host-rank", "1", "--peers", a], tmp_path, "r1") as r1, \
+            _rank(hosts3, 0, two + ["--host-rank", "0", "--peers", b], tmp_path, "r0") as r0:
+        r0.wait_for_stdout(r"all 4 navigators ready", READY_TIMEOUT_S)
+        # a ROS process with the default discovery on a third host of the same network and
+        # domain, and one that discovers as the run's processes on host 0 do
+        member_env = Hosts.env()
+        limit_discovery(member_env, [b])
+        outsider = _probe(hosts3, 2, "outsider", 15.0, Hosts.env())
+        member = _probe(hosts3, 0, "member", 15.0, member_env)
+        seen_out, seen_in = (json.loads(p.communicate(timeout=60)[0]) for p in (outsider, member))
+        codes = _wait_all([r0, r1], READY_TIMEOUT_S + DURATION_S + EXIT_SLACK_S)
+        assert codes == [0, 0], f"{codes}\n{r0.diagnostics()}\n{r1.diagnostics()}"
+        many = r0.metrics()
+    diffs = _same(one, many)
+    assert not diffs, "one host and two with --peers differ:\n  " + "\n  ".join(diffs)
+    assert "/swarm_sim" in seen_in["nodes"] and "/clock" in seen_in["topics"], seen_in
+    assert "/Srobot2/navigator" in seen_in["nodes"], seen_in  # on rank 1, through the peer
+    assert "/outsider" not in seen_in["nodes"] and "/outsider" not in seen_in["topics"], seen_in
+    assert seen_out["nodes"] == ["/outsider"], seen_out
+    assert not [t for t in seen_out["topics"] if t.startswith(("/clock", "/swarm", "/Srobot"))]
+
+
+def test_peers_are_refused_where_they_cannot_work(tmp_path):
+    import subprocess
+
+    from tests.support.ros import BIN
+
+    for extra, words in (
+            ([], "--peers: only with --hosts N > 1"),
+            (["--hosts", "2", "--discovery-server", "10.0.0.1:11811"], "not with --discovery"),
+            (["--hosts", "2", "--faults", "kill-nav:1@10"], "not with faults that kill"),
+            (["--hosts", "2", "--peers", "10.0.0.1;x"], "must be HOST,HOST")):
+        peers = [] if "--peers" in extra else ["--peers", "10.0.0.2"]
+        done = subprocess.run([str(BIN / "swarm-up"), *RUN, *extra, *peers,
+                               "--run-dir", str(tmp_path / "r")], capture_output=True,
+                              text=True, timeout=120)
+        assert done.returncode == 2, done.stderr
+        assert words in done.stderr.strip().splitlines()[-1], done.stderr
