@@ -41,6 +41,7 @@ from rosgraph_msgs.msg import Clock
 from std_srvs.srv import Trigger
 
 from swarm_bench.baseline import BaselineConfig
+from swarm_commander.robot_navigator import STATUS_REMATCH_S
 from swarm_common import cli, topics
 from swarm_common.cdr import (
     LaserScanWriter,
@@ -475,26 +476,53 @@ class BaselineNavigatorNode(Node):
 class BaselineCommanderNode(Node):
     """A commander's traffic: a next goal in answer to each ended goal, stamped as the real one.
 
+    As the real commander (:data:`swarm_commander.robot_navigator.STATUS_REMATCH_S`), its
+    ``nav_status`` reader is made again every ``STATUS_REMATCH_S`` wall seconds until the first
+    status arrives: Fast DDS can leave a late-joining transient-local reader without the
+    writer's history (eProsima/Fast-DDS#3822), and the navigator, waiting for this commander's
+    first goal in the lockstep, publishes nothing new (a CI run's baseline held its second tick
+    for 10 minutes so).
+
     Args:
         ns: the robot's namespace without ``/``.
+        status_rematch_s: [s] wall, the reader's remaking period until the first status.
+        context: the rclpy context (None: the default one).
     """
 
-    def __init__(self, ns: str):
-        super().__init__("commander", namespace=f"/{ns}", parameter_overrides=_sim_time())
+    def __init__(self, ns: str, status_rematch_s: float = STATUS_REMATCH_S, context=None):
+        super().__init__("commander", namespace=f"/{ns}", parameter_overrides=_sim_time(),
+                         context=context)
         self._sent: str | None = None
         self._goals = 0
         # Publishers, subscribers, client and the runner's poll timer (swarm_commander's).
         self._goal_pub = publisher(self, PoseStamped, topics.GOAL_POSE)
-        subscription(self, DiagnosticStatus, topics.NAV_STATUS, self._on_nav_status,
-                     qos=topics.NAV_STATUS_COMMANDER_READER_QOS)
+        self._heard = False
+        self._status_sub = self._status_reader()
+        self.status_rematches = 0
+        self._rematch_timer = self.create_timer(
+            status_rematch_s, self._rematch_status,
+            clock=RclpyClock(clock_type=ClockType.STEADY_TIME))
         self._cancel_client = self.create_client(Trigger, topics.CANCEL_SERVICE)
         self.create_timer(0.1, self._on_timer, clock=RclpyClock(clock_type=ClockType.STEADY_TIME))
+
+    def _status_reader(self):
+        return subscription(self, DiagnosticStatus, topics.NAV_STATUS, self._on_nav_status,
+                            qos=topics.NAV_STATUS_COMMANDER_READER_QOS)
+
+    def _rematch_status(self) -> None:
+        if self._heard:
+            self.destroy_timer(self._rematch_timer)
+            return
+        self.destroy_subscription(self._status_sub)
+        self._status_sub = self._status_reader()
+        self.status_rematches += 1
 
     def _on_timer(self) -> None:
         pass  # the runner's poll: nothing to retry here
 
     def _on_nav_status(self, msg: DiagnosticStatus) -> None:
         _Cpu.begin()
+        self._heard = True
         values = {kv.key: kv.value for kv in msg.values}
         state = values.get("state") or msg.message
         if self._sent is not None and values.get("goal_id") != self._sent:

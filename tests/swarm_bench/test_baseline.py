@@ -105,3 +105,43 @@ def test_baseline_of_three_robots_delivers_every_tick(tmp_path):
     # Every process stopped.
     after = {p.pid for p in psutil.Process().children(recursive=True)}
     assert after <= before
+
+
+@pytest.mark.node
+def test_the_baseline_commander_remakes_its_status_reader_until_it_hears_the_navigator():
+    """As the real commander (eProsima/Fast-DDS#3822): a CI run's baseline held its second tick
+    for 10 minutes when a commander's late reader got none of the navigator's latched status."""
+    import time
+
+    import rclpy
+    from diagnostic_msgs.msg import DiagnosticStatus
+    from geometry_msgs.msg import PoseStamped
+
+    from swarm_bench.baseline_nodes import BaselineCommanderNode
+    from swarm_common import topics
+    from swarm_common.cdr import diagnostic_status
+    from swarm_ros.qos import publisher, subscription
+    from tests.support.ros import ros_context, spin_until
+
+    ns = f"Sbase{os.getpid()}"
+    with ros_context() as (ctx, ex):
+        cmd = BaselineCommanderNode(ns, status_rematch_s=0.2, context=ctx)
+        probe = rclpy.create_node("probe", namespace=f"/{ns}", context=ctx)
+        ex.add_node(cmd)
+        ex.add_node(probe)
+        goals = []
+        subscription(probe, PoseStamped, topics.GOAL_POSE, goals.append)
+        end = time.monotonic() + 1.0
+        while time.monotonic() < end:
+            ex.spin_once(timeout_sec=0.05)
+        assert cmd.status_rematches >= 2  # nothing heard: the reader was made again
+        status = publisher(probe, DiagnosticStatus, topics.NAV_STATUS)
+        status.publish(diagnostic_status(0, f"{ns}/navigator", "IDLE", ns, {
+            "state": "IDLE", "goal_id": "", "stamp": "0.100000000"}))
+        spin_until(ex, lambda: goals, 10.0, "the commander's first goal")
+        made = cmd.status_rematches
+        end = time.monotonic() + 0.7
+        while time.monotonic() < end:
+            ex.spin_once(timeout_sec=0.05)
+        assert cmd.status_rematches == made  # heard: no more readers
+        assert probe.count_subscribers(f"/{ns}/nav_status") == 1  # the old readers are gone
