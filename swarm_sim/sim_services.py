@@ -110,16 +110,29 @@ class SimServices:
                 def send(resp, impl=impl, header=header):
                     impl.service_send_response(resp, header.request_id
                                                if hasattr(header, "request_id") else header)
-                if self._handlers[name](request, response):
+                try:
+                    defer = self._handlers[name](request, response)
+                except Exception as exc:  # noqa: BLE001 - a request we cannot read: say so
+                    self._result(response, "RESULT_OPERATION_FAILED",
+                                 f"{type(exc).__name__}: {exc}")
+                    self.node.get_logger().warning(
+                        f"simulation_interfaces: a {name} request failed: {exc}",
+                        throttle_duration_sec=5.0)
+                    defer = False
+                if defer:
                     control.waiting.append((send, response))
                 else:
                     send(response)
 
     def finish(self) -> None:
-        """The run ends: answer every request still waiting (as filled in: OK)."""
+        """The run ends: answer every request still waiting (as filled in: OK), then take the
+        services down."""
         for send, response in self.control.waiting:
             send(response)
         self.control.waiting.clear()
+        for _, _, impl in self._services:
+            impl.destroy_when_not_in_use()
+        self._services.clear()
 
     # -- the handlers: fill ``response``; True defers the answer to the next boundary ----------
     def _result(self, response, code: str, message: str = "") -> None:
