@@ -133,9 +133,9 @@ class SimulatorNode(Node):
             from swarm_scene.robot_frames import robot_frames
             from swarm_sim.tf_publisher import SwarmTf
 
-            by_source = {m.source: None for m in engine.models}
-            for source in by_source:
-                by_source[source] = robot_frames(source)
+            # one parse per robot model, not per robot
+            sources = dict.fromkeys(m.source for m in engine.models)
+            by_source = {source: robot_frames(source) for source in sources}
             self.tf = SwarmTf(self, namespaces, [by_source[m.source] for m in engine.models])
         self.sim_services = None
         """The simulation_interfaces services (:mod:`swarm_sim.sim_services`), or None."""

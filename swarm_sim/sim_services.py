@@ -72,7 +72,7 @@ class SimServices:
         from rclpy.type_support import check_is_valid_srv_type
         from simulation_interfaces import srv
 
-        self.node, self.models, self.srv = node, list(models), srv
+        self.node, self.models = node, list(models)
         self.control: SimControl = node.loop.control
         self._handlers: dict[str, Callable] = {
             name: getattr(self, method) for name, method in self.HANDLERS.items()}
