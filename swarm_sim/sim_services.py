@@ -125,14 +125,12 @@ class SimServices:
                     send(response)
 
     def finish(self) -> None:
-        """The run ends: answer every request still waiting (as filled in: OK), then take the
-        services down."""
+        """The run ends: answer every request still waiting (as filled in: OK).  The services
+        stay up until the process ends: taking them down at once lost the answer to the
+        "stopped" that ended the run (a test on a loaded machine)."""
         for send, response in self.control.waiting:
             send(response)
         self.control.waiting.clear()
-        for _, _, impl in self._services:
-            impl.destroy_when_not_in_use()
-        self._services.clear()
 
     # -- the handlers: fill ``response``; True defers the answer to the next boundary ----------
     def _result(self, response, code: str, message: str = "") -> None:
