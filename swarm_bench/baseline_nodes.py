@@ -41,6 +41,7 @@ from rosgraph_msgs.msg import Clock
 from std_srvs.srv import Trigger
 
 from swarm_bench.baseline import BaselineConfig
+from swarm_commander.cli import CommanderConfig
 from swarm_commander.robot_navigator import STATUS_REMATCH_S
 from swarm_common import cli, topics
 from swarm_common.cdr import (
@@ -55,7 +56,7 @@ from swarm_common.cdr import (
 )
 from swarm_common.errors import InputError, run_cli
 from swarm_common.events import SPAWN, SpawnEvent
-from swarm_common.lockstep import COMING, POLL_S, GoalHandshake
+from swarm_common.lockstep import COMING, GoalHandshake, poll_period
 from swarm_common.nav_status import TERMINAL
 from swarm_common.stamps import NS_PER_S
 from swarm_common.supervision import LOST, RobotsLost
@@ -349,6 +350,7 @@ class BaselineNavigatorNode(Node):
         self.handshake = GoalHandshake(  # the real navigator's handshake
             lockstep=cfg.commanders, timeout_s=cfg.goal_wait_timeout_s)
         self._wait_timer = None
+        self._wait_period = 0.0  # [s] wall, the period of _wait_timer
         self._published_path = 0
         self._scan_stamp = -1
         self._ranges = None
@@ -398,15 +400,23 @@ class BaselineNavigatorNode(Node):
         t = odom[0]
         if round(t / self.tick_ns) % self.cfg.lidar_every == 0 and self._scan_stamp != t:
             return
-        if self._awaits_goal(t):
-            if self._wait_timer is None:  # polls the wait, as the real navigator
+        if self._awaits_goal(t):  # polls the wait, as the real navigator
+            now = time.monotonic()
+            self.handshake.waiting(now)
+            period = poll_period(self.handshake.waited(now))
+            if self._wait_timer is not None and self._wait_period != period:
+                self.destroy_timer(self._wait_timer)
+                self._wait_timer = None
+            if self._wait_timer is None:
+                self._wait_period = period
                 self._wait_timer = self.create_timer(
-                    POLL_S, lambda: self._on_wait_poll(t),
+                    period, lambda: self._on_wait_poll(t),
                     clock=RclpyClock(clock_type=ClockType.STEADY_TIME))
             return
         if self._wait_timer is not None:
             self.destroy_timer(self._wait_timer)
             self._wait_timer = None
+        self.handshake.released()
         self._pending = None
         self._tick(odom)
 
@@ -503,7 +513,8 @@ class BaselineCommanderNode(Node):
             status_rematch_s, self._rematch_status,
             clock=RclpyClock(clock_type=ClockType.STEADY_TIME))
         self._cancel_client = self.create_client(Trigger, topics.CANCEL_SERVICE)
-        self.create_timer(0.1, self._on_timer, clock=RclpyClock(clock_type=ClockType.STEADY_TIME))
+        self.create_timer(CommanderConfig.idle_period, self._on_timer,
+                          clock=RclpyClock(clock_type=ClockType.STEADY_TIME))
 
     def _status_reader(self):
         return subscription(self, DiagnosticStatus, topics.NAV_STATUS, self._on_nav_status,
@@ -518,7 +529,7 @@ class BaselineCommanderNode(Node):
         self.status_rematches += 1
 
     def _on_timer(self) -> None:
-        pass  # the runner's poll: nothing to retry here
+        pass  # the runner's poll while nothing is due: nothing to retry here
 
     def _on_nav_status(self, msg: DiagnosticStatus) -> None:
         _Cpu.begin()

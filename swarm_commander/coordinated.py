@@ -122,7 +122,7 @@ class CoordinatedRunner:
         self.error: str | None = None
         self.finished = Future()
         self._started = False
-        self._deadline = time.monotonic() + cfg.wait_timeout
+        self._deadline: float | None = None  # from the first timer call (CommanderRunner's)
         self._epoch: str | None = None
         self._seq = 0
         self._pending: Request | None = None
@@ -180,6 +180,8 @@ class CoordinatedRunner:
         if self.finished.done():
             return
         now = time.monotonic()
+        if self._deadline is None:
+            self._deadline = now + self.cfg.wait_timeout
         if not self.nav.connected:
             # Connect (the navigator's start gate opens) only once the coordinator hears our
             # requests and we hear its answers: at the start it answers once every robot asked,

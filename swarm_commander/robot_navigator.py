@@ -41,7 +41,8 @@ spin the node themselves, as nav2's do, unless the node has been added to an exe
 it elsewhere (e.g. ``rclpy.spin`` in a thread); then they wait for that executor's callbacks
 instead. Code that runs *inside* that executor's callbacks (a commander driven by timers, several
 robots in one process) uses the non-blocking :attr:`BasicNavigator.navigator_ready`,
-:meth:`BasicNavigator.task_complete` and :attr:`BasicNavigator.on_task_complete` instead.
+:meth:`BasicNavigator.task_complete`, :attr:`BasicNavigator.on_task_complete` and
+:attr:`BasicNavigator.on_first_status` instead.
 
 If the navigator reports ``IDLE`` while our goal should be running (it was restarted, or the goal
 message was lost), the current pose is sent again after :attr:`BasicNavigator.resend_after`
@@ -202,6 +203,9 @@ class BasicNavigator(Node):
         self.on_task_complete = None
         """Optional ``callable(TaskResult)``, called in the executor's thread right after a task
         ends (from the ``nav_status`` callback), for commanders driven by callbacks."""
+        self.on_first_status = None
+        """Optional ``callable()``, called in the executor's thread right after the first
+        ``nav_status`` arrived (for commanders driven by callbacks: the navigator may be ready)."""
         self._cond = threading.Condition(threading.RLock())
         self._task: _Task | None = None
         self._result = TaskResult.UNKNOWN
@@ -538,6 +542,7 @@ class BasicNavigator(Node):
         status = decode({kv.key: kv.value for kv in msg.values}, msg.message)
         state, goal_id = status.state, status.goal_id
         ended = None
+        first = not self._nav_status_received
         with self._cond:
             if status.stamp_ns is not None:
                 self._status_stamp_ns = status.stamp_ns
@@ -559,6 +564,8 @@ class BasicNavigator(Node):
                 if task.result is not None:
                     ended = task.result
             self._cond.notify_all()
+        if first and self.on_first_status is not None:
+            self.on_first_status()
         if ended is not None and self.on_task_complete is not None:
             self.on_task_complete(ended)
 

@@ -30,9 +30,30 @@ its own (the caller passes the wall time).
 
 from __future__ import annotations
 
+import math
+
 from swarm_common.stall import STALL_REPORT_S, StallReport
 
 POLL_S = 0.05  # [s] wall: how often a held tick checks that its commander is still there
+POLL_STEPS = ((1.0, 0.05), (5.0, 0.25), (math.inf, 1.0))
+"""([s] waited, [s] period) wall: a held tick polls every ``period`` until it has waited that
+long; the period grows with the wait (:func:`poll_period`)."""
+
+
+def poll_period(waited_s: float) -> float:
+    """[s] wall: how often a tick that has waited ``waited_s`` [s] wall polls (:data:`POLL_STEPS`).
+
+    A wait that lasts is a long one (a start gate waiting for discovery, a commander far behind):
+    polling it 20 times a second cost a process of 500 waiting navigators 10,000 timer callbacks
+    a second, more than it could run, and the executor's queue grew until no message was taken
+    (1,000 robots in 2 group processes held at tick 0.2). Nothing simulated depends on the period:
+    it only decides how soon, in wall time, a change without an event of its own (a reader or
+    writer matched, a commander gone) is noticed.
+    """
+    for until, period in POLL_STEPS:
+        if waited_s < until:
+            return period
+    return POLL_STEPS[-1][1]
 
 NONE_COMING, COMING = "none", "coming"
 
@@ -131,6 +152,10 @@ class GoalHandshake:
     def released(self) -> None:
         """No tick waits any more."""
         self._stall.end()
+
+    def waited(self, now_s: float) -> float:
+        """[s] wall the current wait has lasted at ``now_s`` [s] (0 when no tick waits)."""
+        return self._stall.waited(now_s)
 
     def poll(self, t_ns: int, now_s: float, commander: bool) -> tuple[bool, float | None]:
         """Check a waiting tick ``t_ns`` at wall time ``now_s`` [s].

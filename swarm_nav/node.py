@@ -35,7 +35,7 @@ from swarm_common.cdr import (
 )
 from swarm_common.errors import InputError
 from swarm_common.geometry import quaternion_to_yaw, transform_points
-from swarm_common.lockstep import COMING, NONE_COMING, POLL_S, GoalHandshake
+from swarm_common.lockstep import COMING, NONE_COMING, GoalHandshake, poll_period
 from swarm_common.nav_status import OUTCOMES, TERMINAL, NavState, NavStatusRecord, encode, level_of
 from swarm_common.stamps import NS_PER_S, format_stamp
 from swarm_nav import jit
@@ -164,6 +164,7 @@ class NavigatorNode(Node):
         self._held: tuple[int, bytes] | None = None  # a computed answer awaiting its commander
         self._last_t: int | None = None  # the last tick answered (a re-published one is not)
         self._wait_timer = None  # polls a held tick (wall clock: it only reports and checks)
+        self._wait_period = 0.0  # [s] wall, the period of _wait_timer
         self._wait_t = 0
         self._said_at = 0.0  # [s] monotonic: when a waiting tick last said its status again
         self._answered = False
@@ -351,12 +352,19 @@ class NavigatorNode(Node):
         return " and ".join(waiting)
 
     def _hold(self, t: int) -> None:
-        """Tick ``t`` waits: poll it on a wall-clock timer (one at a time)."""
+        """Tick ``t`` waits: poll it on a wall-clock timer (one at a time), less often the
+        longer the wait lasts (:func:`swarm_common.lockstep.poll_period`)."""
         self._wait_t = t
-        self.handshake.waiting(time.monotonic())
+        now = time.monotonic()
+        self.handshake.waiting(now)
+        period = poll_period(self.handshake.waited(now))
+        if self._wait_timer is not None and self._wait_period != period:
+            self.destroy_timer(self._wait_timer)
+            self._wait_timer = None
         if self._wait_timer is None:
+            self._wait_period = period
             self._wait_timer = self.create_timer(
-                POLL_S, self._on_wait_poll, clock=Clock(clock_type=ClockType.STEADY_TIME))
+                period, self._on_wait_poll, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     def _unhold(self) -> None:
         self.handshake.released()

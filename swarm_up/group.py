@@ -111,6 +111,7 @@ def _run(argv: list[str]) -> int:
                     runners.append(CommanderRunner(nav, routes[ns],
                                                    CommanderConfig(loops=opts.loops),
                                                    emit=lambda line: print(line, flush=True)))
+                    runners[-1].finished.add_done_callback(_say_error(runners[-1]))
                     executor.add_node(nav)
                     nodes.append(nav)
                     commanders[ns] = (nav, runners[-1])
@@ -152,6 +153,15 @@ def _run(argv: list[str]) -> int:
             for node in nodes:
                 node.destroy_node()
     return 0
+
+
+def _say_error(runner):
+    """A callback for ``runner.finished``: print the runner's error at once (a commander that
+    gave up leaves its navigator's tick waiting: the line says why)."""
+    def say(_future):
+        if runner.error:
+            print(f"{PROG}: error: {runner.error}", flush=True)
+    return say
 
 
 def commander_node(ns: str, connect: bool = True):
@@ -204,6 +214,7 @@ def _add_coordinated_commanders(names, executor, nodes, runners, commanders: dic
         nav = commander_node(ns, connect=False)  # connects once it reaches the coordinator
         nav.get_logger().set_level(LoggingSeverity.WARN)
         runners.append(CoordinatedRunner(nav, cfg, emit=lambda line: print(line, flush=True)))
+        runners[-1].finished.add_done_callback(_say_error(runners[-1]))
         executor.add_node(nav)
         nodes.append(nav)
         commanders[ns] = (nav, runners[-1])

@@ -312,6 +312,63 @@ def test_the_line_names_the_workstation_the_navigator_took_and_its_stop_is_skipp
                      "reached (5.00, 5.00), sent to unload (taken)"] * 2
 
 
+def test_the_runner_is_driven_by_the_navigators_events_not_its_idle_timer(context, tmp_path):
+    """With an idle period of a minute, the runner still sends its first goal on the first
+    status and every next one on the end of the last: the route of 4 stops is done in well under
+    the idle period (its timer then fires only while something is due)."""
+    ns = f"Tidle{next(_COUNTER)}"
+    (tmp_path / "w.yaml").write_text(POI_YAML)
+    stops = stops_from_workstations(load_poi(tmp_path / "w.yaml").workstations)
+    lines: list[str] = []
+    executor = SingleThreadedExecutor(context=context)
+    with running_fake_navigator(ns, context, drive_time=0.1) as fake:
+        nav = BasicNavigator(node_name="commander", namespace=ns, context=context,
+                             parameter_overrides=[Parameter("use_sim_time", value=False)])
+        cfg = CommanderConfig(loops=2, wait_timeout=30.0, idle_period=60.0)
+        runner = CommanderRunner(nav, FixedRoute(stops[:2]), cfg, emit=lines.append)
+        executor.add_node(nav)
+        try:
+            deadline = time.monotonic() + 30.0
+            while not runner.finished.done():
+                assert time.monotonic() < deadline, lines
+                executor.spin_once(timeout_sec=0.1)
+        finally:
+            executor.shutdown(timeout_sec=0)
+            nav.destroy_node()
+    assert runner.finished.result() == 0
+    assert (runner.tasks, runner.reached) == (4, 4)
+    assert len(fake.goals) == 4
+
+
+def test_the_wait_for_the_navigator_counts_from_the_first_spin_not_from_construction(
+        context, tmp_path):
+    """A group process makes all its commanders before it spins any (minutes at 500 robots):
+    a runner made ``wait_timeout`` seconds before its executor spins still waits that long
+    for its navigator, and drives its route."""
+    ns = f"Tlate{next(_COUNTER)}"
+    (tmp_path / "w.yaml").write_text(POI_YAML)
+    stops = stops_from_workstations(load_poi(tmp_path / "w.yaml").workstations)
+    lines: list[str] = []
+    executor = SingleThreadedExecutor(context=context)
+    nav = BasicNavigator(node_name="commander", namespace=ns, context=context,
+                         parameter_overrides=[Parameter("use_sim_time", value=False)])
+    cfg = CommanderConfig(loops=1, wait_timeout=5.0)
+    runner = CommanderRunner(nav, FixedRoute(stops[:1]), cfg, emit=lines.append)
+    time.sleep(6.0)  # longer than wait_timeout, before anything spins
+    with running_fake_navigator(ns, context, drive_time=0.1) as fake:
+        executor.add_node(nav)
+        try:
+            deadline = time.monotonic() + 30.0
+            while not runner.finished.done():
+                assert time.monotonic() < deadline, lines
+                executor.spin_once(timeout_sec=0.1)
+        finally:
+            executor.shutdown(timeout_sec=0)
+            nav.destroy_node()
+    assert (runner.finished.result(), runner.error) == (0, None)
+    assert (runner.tasks, runner.reached, len(fake.goals)) == (1, 1, 1)
+
+
 def test_subprocesses_inherit_the_private_domain():
     assert os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
     assert os.environ["ROS_DOMAIN_ID"] == os.environ["SWARM_WB_TEST_DOMAIN"]

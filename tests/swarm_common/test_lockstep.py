@@ -1,7 +1,14 @@
 """The goal handshake of the lockstep (swarm_common.lockstep), pure: which tick waits for what,
 and that inside the lockstep no wait ends by the wall clock."""
 
-from swarm_common.lockstep import COMING, NONE_COMING, STALL_REPORT_S, GoalHandshake
+from swarm_common.lockstep import (
+    COMING,
+    NONE_COMING,
+    POLL_S,
+    STALL_REPORT_S,
+    GoalHandshake,
+    poll_period,
+)
 
 TICK = 100_000_000  # [ns]
 
@@ -123,3 +130,17 @@ def test_a_goal_that_ends_at_the_tick_it_took_effect_is_a_new_end():
     hs.answered(11 * TICK, terminal=True, outcome=True, goal_set=True)  # reached at once
     assert hs.holds_end(11 * TICK, False, yes)
     assert hs.awaits_goal(12 * TICK, False, yes)
+
+
+def test_a_wait_is_polled_less_often_the_longer_it_lasts():
+    """POLL_STEPS: 20 Hz for the first second, then 4 Hz, then 1 Hz from 5 s on."""
+    assert [poll_period(w) for w in (0.0, 0.99, 1.0, 4.99, 5.0, 3600.0)] == [
+        0.05, 0.05, 0.25, 0.25, 1.0, 1.0]
+    assert poll_period(0.0) == POLL_S
+    hs = _ended_at(TICK, lockstep=True)
+    assert hs.waited(100.0) == 0.0
+    hs.waiting(100.0)
+    hs.waiting(101.0)  # a wait already runs: it is not restarted
+    assert hs.waited(102.5) == 2.5
+    hs.released()
+    assert hs.waited(103.0) == 0.0
