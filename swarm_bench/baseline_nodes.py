@@ -487,8 +487,8 @@ class BaselineCommanderNode(Node):
     """A commander's traffic: a next goal in answer to each ended goal, stamped as the real one.
 
     As the real commander (:data:`swarm_commander.robot_navigator.STATUS_REMATCH_S`), its
-    ``nav_status`` reader is made again every ``STATUS_REMATCH_S`` wall seconds until the first
-    status arrives: Fast DDS can leave a late-joining transient-local reader without the
+    ``nav_status`` reader is made again every ``STATUS_REMATCH_S`` wall seconds of spinning until
+    the first status arrives: Fast DDS can leave a late-joining transient-local reader without the
     writer's history (eProsima/Fast-DDS#3822), and the navigator, waiting for this commander's
     first goal in the lockstep, publishes nothing new (a CI run's baseline held its second tick
     for 10 minutes so).
@@ -509,8 +509,10 @@ class BaselineCommanderNode(Node):
         self._heard = False
         self._status_sub = self._status_reader()
         self.status_rematches = 0
+        self._rematch_s = float(status_rematch_s)
+        self._watched_since: float | None = None  # as the real commander: from the first check
         self._rematch_timer = self.create_timer(
-            status_rematch_s, self._rematch_status,
+            self._rematch_s / 5, self._rematch_status,
             clock=RclpyClock(clock_type=ClockType.STEADY_TIME))
         self._cancel_client = self.create_client(Trigger, topics.CANCEL_SERVICE)
         self.create_timer(CommanderConfig.idle_period, self._on_timer,
@@ -524,8 +526,14 @@ class BaselineCommanderNode(Node):
         if self._heard:
             self.destroy_timer(self._rematch_timer)
             return
+        now = time.monotonic()
+        if self._watched_since is None:
+            self._watched_since = now
+        if now - self._watched_since < self._rematch_s:
+            return
         self.destroy_subscription(self._status_sub)
         self._status_sub = self._status_reader()
+        self._watched_since = now
         self.status_rematches += 1
 
     def _on_timer(self) -> None:

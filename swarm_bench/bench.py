@@ -157,6 +157,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "\".[ledger]\")")
     p.add_argument("--ledger-plot", type=Path, default=Path("ledger.png"), metavar="PATH.png",
                    help="the ledger's PNG chart, with --ledger (default: %(default)s)")
+    p.add_argument("--ready-timeout", type=cli.positive_float, default=None, metavar="SEC",
+                   help="passed to swarm-up: wall seconds to wait for every navigator to be "
+                   "ready (default: swarm-up's; 1,000 robots take about 300 s here)")
     return p
 
 
@@ -177,8 +180,8 @@ class BenchConfig:
         baseline: measure the baseline.
         run_dir: absolute directory of the logs and runs.
         swarm_up: the ``swarm-up`` executable measured (absolute).
-        extra_args: more ``swarm-up`` flags for every run (``swarm-experiment``'s
-            ``--faults SPEC``).
+        extra_args: more ``swarm-up`` flags for every run (``swarm-bench``'s
+            ``--ready-timeout``, ``swarm-experiment``'s ``--faults SPEC``).
         py_spy: the ``py-spy`` executable with ``--ledger``, else None (no ledger).
         ledger_plot: the ledger's PNG with ``--ledger``.
     """
@@ -251,7 +254,9 @@ def validate(args: argparse.Namespace) -> BenchConfig:
         sizes=args.sizes, duration_s=args.duration, runs=args.runs, world=world,
         seed=args.seed, coordination=args.coordination, processes=args.processes,
         output=output, plot=plot, baseline=args.baseline, run_dir=run_dir.expanduser().resolve(),
-        swarm_up=swarm_up_path(args.swarm_up), py_spy=py_spy, ledger_plot=ledger_plot)
+        swarm_up=swarm_up_path(args.swarm_up), py_spy=py_spy, ledger_plot=ledger_plot,
+        extra_args=(() if args.ready_timeout is None
+                    else ("--ready-timeout", f"{args.ready_timeout:g}")))
 
 
 # -------------------------------------------------------------------------------------- context

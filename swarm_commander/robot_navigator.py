@@ -50,10 +50,10 @@ seconds; a goal replaced by someone else's goal ends the task as ``FAILED``, as 
 goal is aborted.
 
 A navigator that has not been heard from :data:`STATUS_REMATCH_S` seconds (wall) after the
-``nav_status`` reader was made gets a new reader, until the first status arrives: Fast DDS can
-intermittently leave a late-joining reliable, transient-local reader without the writer's history
-(eProsima/Fast-DDS#3822, open), and the navigator publishes nothing new while the simulation
-waits for this very commander.
+``nav_status`` reader was first spun gets a new reader, until the first status arrives: Fast DDS
+can intermittently leave a late-joining reliable, transient-local reader without the writer's
+history (eProsima/Fast-DDS#3822, open), and the navigator publishes nothing new while the
+simulation waits for this very commander.
 """
 
 from __future__ import annotations
@@ -222,7 +222,9 @@ class BasicNavigator(Node):
         self._status_sub = self._status_reader()
         self.status_rematches = 0
         """How many times the ``nav_status`` reader was made again (:data:`STATUS_REMATCH_S`)."""
-        self._rematch_timer = self.create_timer(status_rematch_s, self._rematch_status,
+        self._rematch_s = float(status_rematch_s)
+        self._watched_since: float | None = None  # [s] monotonic: the first check of the reader
+        self._rematch_timer = self.create_timer(self._rematch_s / 5, self._rematch_status,
                                                 clock=Clock(clock_type=ClockType.STEADY_TIME))
         self._cancel_client = self.create_client(Trigger, topics.CANCEL_SERVICE)
 
@@ -231,17 +233,26 @@ class BasicNavigator(Node):
                             qos=topics.NAV_STATUS_COMMANDER_READER_QOS)
 
     def _rematch_status(self) -> None:
-        """Until the first ``nav_status``: replace the reader (module docstring)."""
+        """Until the first ``nav_status``: replace the reader once it has been spun
+        ``status_rematch_s`` without a status (module docstring). The time counts from the
+        first check, not from the reader's making: a group process makes all its nodes before
+        it spins any, and its 500 commanders' readers were all remade at once, the moment it
+        began to spin, before any could take what had arrived."""
         if self._nav_status_received:
             self.destroy_timer(self._rematch_timer)
             return
+        now = time.monotonic()
+        if self._watched_since is None:
+            self._watched_since = now
+        if now - self._watched_since < self._rematch_s:
+            return
         topic, writers = self._status_sub.topic_name, self._status_sub.get_publisher_count()
         log = self.warn if writers else self.debug
-        log(f"no status on {topic} within {self._rematch_timer.timer_period_ns / 1e9:g} s (wall) "
-            f"of making its reader "
+        log(f"no status on {topic} within {self._rematch_s:g} s (wall) of spinning its reader "
             f"({writers} writer(s) matched); making the reader again (eProsima/Fast-DDS#3822)")
         self.destroy_subscription(self._status_sub)
         self._status_sub = self._status_reader()
+        self._watched_since = now
         self.status_rematches += 1
 
     def connect(self) -> None:

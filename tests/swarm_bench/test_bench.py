@@ -20,7 +20,7 @@ from pathlib import Path
 import psutil
 import pytest
 
-from swarm_bench.bench import build_parser, summarize, write_plot
+from swarm_bench.bench import build_parser, summarize, swarm_up_command, validate, write_plot
 from swarm_up.args import default_processes
 from tests.support.ros import alive
 
@@ -72,6 +72,15 @@ def test_plot_is_a_png_with_or_without_rows(tmp_path):
         assert (tmp_path / name).read_bytes()[:8] == PNG_MAGIC
 
 
+def test_ready_timeout_is_passed_to_swarm_up_only_when_given(tmp_path):
+    base = ["--run-dir", str(tmp_path), "--swarm-up", sys.executable]
+    cfg = validate(build_parser().parse_args(base))
+    assert "--ready-timeout" not in swarm_up_command(cfg, 5, 0, tmp_path, tmp_path / "m.json")
+    cfg = validate(build_parser().parse_args([*base, "--ready-timeout", "900"]))
+    argv = swarm_up_command(cfg, 1000, 0, tmp_path, tmp_path / "m.json")
+    assert argv[-2:] == ["--ready-timeout", "900"]
+
+
 def test_defaults_are_the_issues():
     args = build_parser().parse_args([])
     assert args.sizes == (5, 20, 50, 100)
@@ -101,6 +110,8 @@ BAD_FLAGS = [
     (["--output", "/no/such/dir/bench.json"], "--output"),
     (["--swarm-up", "/no/such/swarm-up"], "--swarm-up"),
     (["--swarm-up", "/etc/passwd"], "--swarm-up"),  # not executable
+    (["--ready-timeout", "0"], "--ready-timeout"),
+    (["--ready-timeout", "soon"], "--ready-timeout"),
     (["--frobnicate"], "--frobnicate"),
 ]
 
