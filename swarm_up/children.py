@@ -92,6 +92,102 @@ def shm_free_env(env: dict[str, str]) -> dict[str, str]:
     return out
 
 
+SHM_DEFAULTS = (512 * 1024, 512)
+"""Fast DDS 2.14's shared-memory transport: a participant's segment [bytes] (what its writers'
+messages wait in until every reader took them) and its port's queue [messages] (what waits to be
+read by it)."""
+SHM_SIZED_ABOVE = 100
+"""Runs of more robots get a shared-memory transport sized to them (:func:`shm_sized_env`)."""
+BUILTIN_TRANSPORTS_ENV = "FASTDDS_BUILTIN_TRANSPORTS"
+
+
+def shm_sizes(robots: int) -> tuple[int, int]:
+    """The shared-memory segment [bytes] and port queue [messages] for a run of ``robots``: at
+    least Fast DDS's defaults (:data:`SHM_DEFAULTS`), else 8 KB of segment and 4 messages of
+    queue per robot, rounded up to a power of two.
+
+    Why: each lidar tick the simulator writes every robot's ``odom`` and ``scan`` (about 2.3 KB)
+    at once, and each group process is sent those of its robots, the simulator every robot's
+    ``cmd_vel``. With the defaults, 1,000 robots in 2 group processes overflowed them: the
+    reliable topics then waited for Fast DDS to send again (its heartbeat, seconds), and a
+    simulated second took 27 s of wall time with the cores two-thirds idle; sized so, 5.5 s
+    (docs/results/scaling.md#1000-robots-on-one-host).
+    """
+    def pow2(n: int) -> int:
+        return 1 << max(int(n) - 1, 1).bit_length()
+
+    return (max(SHM_DEFAULTS[0], pow2(8 * 1024 * robots)),
+            max(SHM_DEFAULTS[1], pow2(4 * robots)))
+
+
+def shm_profile_xml(segment: int, queue: int, loopback: bool) -> str:
+    """A Fast DDS profiles file: shared memory with ``segment`` bytes and a port queue of
+    ``queue`` messages, and UDPv4 (on the loopback interface only when ``loopback``: the range
+    LOCALHOST done as :func:`shm_free_env` does it, since under LOCALHOST rmw_fastrtps replaces
+    a profile's transports by its own defaults).
+    Format: https://fast-dds.docs.eprosima.com/en/v2.14.5/fastdds/xml_configuration/transports.html
+    """
+    udp = peers = ""
+    if loopback:
+        udp = ("<TTL>0</TTL><maxInitialPeersRange>120</maxInitialPeersRange>"
+               "<interfaceWhiteList><address>127.0.0.1</address></interfaceWhiteList>")
+        peers = ("<builtin><initialPeersList><locator><udpv4><address>127.0.0.1</address>"
+                 "</udpv4></locator></initialPeersList></builtin>")
+    return f"""<?xml version="1.0" encoding="UTF-8" ?>
+<!-- written by swarm-up for this run (swarm_up/children.py shm_sized_env) -->
+<profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
+  <transport_descriptors>
+    <transport_descriptor>
+      <transport_id>swarm_shm</transport_id>
+      <type>SHM</type>
+      <segment_size>{segment}</segment_size>
+      <port_queue_capacity>{queue}</port_queue_capacity>
+    </transport_descriptor>
+    <transport_descriptor>
+      <transport_id>swarm_udp</transport_id>
+      <type>UDPv4</type>{udp}
+    </transport_descriptor>
+  </transport_descriptors>
+  <participant profile_name="swarm_shm_participant" is_default_profile="true">
+    <rtps>{peers}
+      <userTransports>
+        <transport_id>swarm_shm</transport_id>
+        <transport_id>swarm_udp</transport_id>
+      </userTransports>
+      <useBuiltinTransports>false</useBuiltinTransports>
+    </rtps>
+  </participant>
+</profiles>
+"""
+
+
+def shm_sized_env(env: dict[str, str], robots: int, profile: Path) -> dict[str, str]:
+    """``env`` for the processes that carry a big run's bursts (the simulator, the group
+    processes, the recorder): Fast DDS with a shared-memory transport sized to ``robots``
+    (:func:`shm_sizes`), its profile written to ``profile``.
+
+    ``env`` is returned unchanged for a run of at most :data:`SHM_SIZED_ABOVE` robots (the
+    defaults hold), and whenever the user configured Fast DDS's transports or discovery
+    (``FASTRTPS_DEFAULT_PROFILES_FILE``, ``FASTDDS_BUILTIN_TRANSPORTS``, ``ROS_STATIC_PEERS``,
+    ``ROS_DISCOVERY_SERVER``): then they decide. Under the range LOCALHOST the process gets the
+    range SUBNET and a profile that keeps UDP on the loopback interface, as :func:`shm_free_env`.
+    """
+    if robots <= SHM_SIZED_ABOVE or any(
+            env.get(k) for k in (PROFILES_ENV, BUILTIN_TRANSPORTS_ENV, STATIC_PEERS_ENV,
+                                 DISCOVERY_ENV)):
+        return env
+    out = dict(env)
+    loopback = (out.get(LOCALHOST_ONLY_ENV) == "1"
+                or out.get(RANGE_ENV, "").upper() == "LOCALHOST")
+    if loopback:
+        if LOCALHOST_ONLY_ENV in out:
+            out[LOCALHOST_ONLY_ENV] = "0"
+        out[RANGE_ENV] = "SUBNET"
+    profile.write_text(shm_profile_xml(*shm_sizes(robots), loopback))
+    out[PROFILES_ENV] = str(profile)
+    return out
+
+
 def fault_killed_robots(cfg: RunConfig) -> frozenset[str]:
     """The robots whose processes a ``kill-nav`` or ``kill-robot`` fault of the run kills."""
     return frozenset(f.robot for f in cfg.faults if f.kind in ("kill-nav", "kill-robot"))
@@ -119,11 +215,14 @@ def child_specs(cfg: RunConfig):
     world = str(cfg.world_path)
     sim = sim_argv(cfg)
     specs = []
+    # the processes that carry a big run's bursts: shared memory sized to the run
+    burst_env = env if cfg.groups is None else shm_sized_env(env, len(cfg.robots),
+                                                             params / "fastdds_shm.xml")
     if cfg.leader:  # rank 0 (or the only host): simulator, recorder, coordinator
         specs.append(ChildSpec("sim", tuple(sim), logs / "sim.log", kind="sim", restart=False,
-                               env=env))
+                               env=burst_env))
         if cfg.record_path is not None:  # started first: swarm-up waits for it before the rest
-            specs.insert(0, recorder_spec(cfg, env))
+            specs.insert(0, recorder_spec(cfg, burst_env))
         if cfg.discovery_server:  # first of all: every other process is its client
             specs.insert(0, discovery_server_spec(cfg, env))
     coordinated = cfg.coordination == "centralized"
@@ -143,7 +242,7 @@ def child_specs(cfg: RunConfig):
             if cfg.faults:
                 argv += ["--faults", str(faults_file(cfg))]
             specs.append(ChildSpec(f"group_{g}", tuple(argv), logs / f"group_{g}.log",
-                                   kind="group", robots=group, env=env))
+                                   kind="group", robots=group, env=burst_env))
     return specs
 
 
