@@ -3,6 +3,7 @@
 import json
 import time
 
+import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from std_msgs.msg import String
@@ -21,6 +22,7 @@ def _spin_for(executor, seconds: float) -> None:
         executor.spin_once(timeout_sec=0.05)
 
 
+@pytest.mark.node
 def test_first_answers_wait_for_a_reader_of_the_events():
     """A restarted coordinator's first batch came out before discovery had matched the metrics'
     reader of the volatile /swarm/events: its "up" event and rebuilt reservations were lost (CI;
@@ -65,6 +67,7 @@ def test_first_answers_wait_for_a_reader_of_the_events():
             node.destroy_node()
 
 
+@pytest.mark.node
 def test_without_swarm_ups_metrics_the_first_answers_still_go_out():
     """A coordinator started by hand (no metrics node): the first answers go out
     ``metrics_absent_s`` after every robot was heard (what is recorded depends on it, not what

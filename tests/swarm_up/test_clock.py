@@ -1,5 +1,6 @@
 """One /clock subscription per group process (swarm_up.clock.SharedClock)."""
 
+import pytest
 import rclpy
 import rclpy.parameter
 from builtin_interfaces.msg import Time
@@ -17,6 +18,7 @@ def _clock_subscriptions(node) -> int:
                if info.node_namespace.startswith("/shared_clock_test"))
 
 
+@pytest.mark.node
 def test_adopted_nodes_follow_one_clock_subscription():
     with ros_context() as (ctx, executor):
         nodes = [rclpy.create_node(f"n{i}", namespace="/shared_clock_test", context=ctx,

@@ -139,6 +139,7 @@ def test_missing_poi_and_map_give_empty_strings(cfg, template):
     assert params["poi_file"] == "" and params["map_yaml_path"] == ""
 
 
+@pytest.mark.node  # a participant: with the tests that start ROS (tests/conftest.py)
 def test_ros_reads_the_file_for_the_namespaced_node(cfg, template):
     """rcl parses the file and gives its values to /Srobot2/navigator only."""
     import rclpy

@@ -96,6 +96,7 @@ PEER = textwrap.dedent("""
 """)
 
 
+@pytest.mark.node
 def test_a_shm_free_process_talks_to_ordinary_ones_and_maps_no_shm_file(tmp_path):
     # This test process is an ordinary participant (the session's range, LOCALHOST, with shared
     # memory); the peer runs with shm_free_env, as a killed-by-fault child would.
