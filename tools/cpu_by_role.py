@@ -39,7 +39,7 @@ def sample(root: psutil.Process, cpu: dict[int, tuple[str, float]]) -> None:
         try:
             with proc.oneshot():
                 used = sum(proc.cpu_times()[:2])
-                name = cpu[proc.pid][0] if proc.pid in cpu else role(proc.cmdline())
+                name = cpu[proc.pid][0] if proc.pid in cpu else role(" ".join(proc.cmdline()))
         except psutil.Error:
             continue
         cpu[proc.pid] = (name, max(used, cpu.get(proc.pid, ("", 0.0))[1]))
