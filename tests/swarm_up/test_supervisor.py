@@ -17,8 +17,11 @@ from swarm_up.supervisor import ChildSpec, ResourceSampler, Supervisor
 
 # Handles SIGINT as Python does by default even when started with SIGINT ignored (a test run
 # launched as `nohup ... &` inherits that, and the child then only dies of SIGTERM).
+# It says "ready" once its handler is in place: a SIGINT that comes while the interpreter still
+# starts ends it with code 1 (seen once in CI, under load), not -SIGINT.
 SLEEPER = (sys.executable, "-c", "import signal, time; "
-           "signal.signal(signal.SIGINT, signal.default_int_handler); time.sleep(100)")
+           "signal.signal(signal.SIGINT, signal.default_int_handler); "
+           "print('ready', flush=True); time.sleep(100)")
 # ignores SIGINT and SIGTERM, and starts a grandchild in its group that does the same
 STUBBORN = (
     sys.executable,
@@ -113,6 +116,9 @@ def test_stop_ends_everything_within_5s(tmp_path):
         sup.start(_spec(tmp_path, f"nav_{i}"))
     sup.start(_spec(tmp_path, "stubborn", STUBBORN))
     assert _wait(lambda: "grandchild" in (tmp_path / "logs" / "stubborn.log").read_text(), 10.0)
+    for i in range(3):  # each sleeper's SIGINT handler is in place
+        assert _wait(lambda i=i: "ready" in (tmp_path / "logs" / f"nav_{i}.log").read_text(),
+                     10.0)
     pids = [sup.pid(n) for n in sup.children]
     group_members = [p for p in psutil.process_iter(["pid"])
                      if _pgid(p.pid) in pids]
