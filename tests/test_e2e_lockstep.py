@@ -45,7 +45,8 @@ def _stressed_run(args: list[str], tmp_path, duration_s: float):
     """The run with busy cores and paused processes: (metrics, diagnostics, pauses)."""
     with BusyLoops(4, disk_file=str(tmp_path / "disk.bin")), \
             SwarmUp(args, tmp_path, "stressed") as run:
-        pauser = Pauser(run.proc.pid, PAUSED, seed=38)
+        # a pause every 0.3-1.0 s: at 0.5-1.5 s a 4-robot run once ended after 4 pauses
+        pauser = Pauser(run.proc.pid, PAUSED, seed=38, every_s=(0.3, 1.0))
         pauser.start()
         try:
             code = run.wait(READY_TIMEOUT_S + 4 * duration_s + EXIT_SLACK_S)
