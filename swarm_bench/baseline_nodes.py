@@ -39,6 +39,7 @@ from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from std_srvs.srv import Trigger
+from trajectory_msgs.msg import MultiDOFJointTrajectory
 
 from swarm_bench.baseline import BaselineConfig
 from swarm_commander.cli import CommanderConfig
@@ -49,6 +50,7 @@ from swarm_common.cdr import (
     PathWriter,
     PoseArrayWriter,
     TwistStampedWriter,
+    cmd_vel_batch,
     diagnostic_status,
     odom_pose,
     scan_ranges,
@@ -66,6 +68,7 @@ from swarm_ros.qos import publisher, subscription
 from swarm_ros.robot_topics import RobotTopics, publish_sensors
 from swarm_ros.session import node_session, spin_forever
 from swarm_sim.loop import SimLoop
+from swarm_up.answers import AnswerBatch, spin_batched
 from swarm_up.clock import SharedClock
 
 STATUS_PERIOD_NS = NS_PER_S // 2  # nav_status at 2 Hz simulated and on every change (as nav)
@@ -148,6 +151,7 @@ class BaselineSimNode(Node):
         # State.
         self.cfg = cfg
         self.names = list(cfg.robots)
+        self._index = {ns: i for i, ns in enumerate(self.names)}
         self.world = StillWorld(cfg)
         self.period_ns = round(NS_PER_S / cfg.control_rate_hz)
         self.loop = SimLoop(self.world, self, self.names, self.period_ns,
@@ -167,6 +171,8 @@ class BaselineSimNode(Node):
         self._cmd_subs = [subscription(
             self, TwistStamped, topics.CMD_VEL, lambda buf, i=i: self._on_cmd_vel(i, buf), ns,
             topics.CMD_VEL_READER_QOS, raw=True) for i, ns in enumerate(cfg.robots)]
+        subscription(self, MultiDOFJointTrajectory, topics.CMD_VEL_BATCH,
+                     self._on_cmd_vel_batch, qos=topics.CMD_VEL_BATCH_READER_QOS, raw=True)
         subscription(self, DiagnosticStatus, topics.SUPERVISION, self._on_supervision)
         self._poses_writer = PoseArrayWriter("map")
         from swarm_scene.map_io import load_map
@@ -185,6 +191,17 @@ class BaselineSimNode(Node):
             return
         if math.isfinite(v) and math.isfinite(w):
             self.loop.gate.answer(i, stamp, v, w, time.monotonic())
+
+    def _on_cmd_vel_batch(self, buf: bytes) -> None:
+        try:
+            stamp, names, vw = cmd_vel_batch(buf)
+        except ValueError:
+            return
+        now = time.monotonic()
+        for ns, (v, w) in zip(names, vw.tolist(), strict=True):
+            i = self._index.get(ns)
+            if i is not None and math.isfinite(v) and math.isfinite(w):
+                self.loop.gate.answer(i, stamp, v, w, now)
 
     def _on_supervision(self, msg: DiagnosticStatus) -> None:
         if msg.name == LOST:
@@ -355,6 +372,7 @@ class BaselineNavigatorNode(Node):
         self._scan_stamp = -1
         self._ranges = None
         self._pending: Odometry | None = None
+        self.answers = None  # the group's AnswerBatch, as swarm_nav.node's
         self._goals: list[tuple[int, str]] = []  # (stamp, id) awaiting a tick
         self._last_status: tuple | None = None
         self._last_status_ns = -STATUS_PERIOD_NS
@@ -394,6 +412,8 @@ class BaselineNavigatorNode(Node):
         return response
 
     def _release(self) -> None:
+        if self.answers is not None:
+            self.answers.busy()
         odom = self._pending
         if odom is None:
             return
@@ -450,7 +470,12 @@ class BaselineNavigatorNode(Node):
             self.goals_taken += 1
         elif self.state == "DRIVING" and t - self.goal_start_ns >= self.goal_period_ns:
             self.state = "SUCCEEDED"
-        self.cmd_pub.publish(self._cmd_writer.write(t, 0.0, 0.0))  # bytes, as swarm_nav.node
+        if self.answers is None:  # as swarm_nav.node: cmd_vel bytes, or the group's batch
+            self.cmd_pub.publish(self._cmd_writer.write(t, 0.0, 0.0))
+        else:
+            self.answers.put(self.ns, t, 0.0, 0.0)
+            if self.cmd_pub.get_subscription_count() > 1:
+                self.cmd_pub.publish(self._cmd_writer.write(t, 0.0, 0.0))
         self.handshake.answered(t, self.state in TERMINAL, goal_set=bool(due))
         if self.has_map:
             self._publish_status()
@@ -590,14 +615,18 @@ class BaselineListenerNode(Node):
 
 
 # ------------------------------------------------------------------------------------ processes
-def _spin(nodes: list[Node]) -> None:
+def _spin(nodes: list[Node], batch: AnswerBatch | None = None) -> None:
     """Spin ``nodes`` until SIGINT/SIGTERM (rclpy's own handlers end the spin), then print the
-    navigators' goals and this process's CPU line."""
+    navigators' goals and this process's CPU line; ``batch``: the group's answers
+    (:func:`swarm_up.answers.spin_batched`)."""
     executor = EventsExecutor()
     for node in nodes:
         executor.add_node(node)
     try:
-        spin_forever(executor, nodes[0].context)
+        if batch is not None:
+            spin_batched(executor, nodes[0].context, batch)
+        else:
+            spin_forever(executor, nodes[0].context)
     finally:
         executor.shutdown()
         for node in nodes:
@@ -620,12 +649,16 @@ def run_group(cfg: BaselineConfig, namespaces: list[str], navigators: bool,
                 nodes.append(BaselineNavigatorNode(ns, cfg))
             if commanders:
                 nodes.append(BaselineCommanderNode(ns))
-        if len(nodes) > 1:  # a group process: one /clock subscription, as swarm_up.group
-            clock = SharedClock(f"/{namespaces[0]}")
+        batch = None
+        if len(nodes) > 1:  # a group process: one /clock subscription and the navigators'
+            clock = SharedClock(f"/{namespaces[0]}")  # answers in one message, as swarm_up.group
+            batch = AnswerBatch(clock.node)
             for node in nodes:
                 clock.adopt(node)
+                if isinstance(node, BaselineNavigatorNode):
+                    node.answers = batch
             nodes.append(clock.node)
-        _spin(nodes)
+        _spin(nodes, batch)
     return 0
 
 

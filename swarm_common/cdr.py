@@ -33,8 +33,9 @@ import numpy as np
 
 from swarm_common.geometry import quaternion_to_yaw
 
-__all__ = ["LaserScanWriter", "OdometryWriter", "PathWriter", "PoseArrayWriter",
-           "TwistStampedWriter", "diagnostic_status", "header_stamp", "odom_pose",
+__all__ = ["CmdVelBatchWriter", "LaserScanWriter", "OdometryWriter", "PathWriter",
+           "PoseArrayWriter", "TwistStampedWriter", "cmd_vel_batch", "diagnostic_status",
+           "header_stamp", "odom_pose",
            "odometry_pose", "path_points", "pose_array", "scan_ranges", "string_data",
            "tf_message", "twist_stamped"]
 
@@ -276,6 +277,60 @@ def _twist_stamped(body: memoryview) -> tuple[int, str, float, float]:
         raise ValueError(f"frame_id is not UTF-8: {exc}") from None
     v, _, _, _, _, w = _TWIST.unpack_from(body, _align(end, 8))
     return _stamp_ns(body), frame, v, w
+
+
+def cmd_vel_batch(buf) -> tuple[int, list[str], np.ndarray]:
+    """The robots and planar velocities of a serialized ``trajectory_msgs/MultiDOFJointTrajectory``
+    used as a batch of control-tick answers (:data:`swarm_common.topics.CMD_VEL_BATCH`).
+
+    Args:
+        buf: the message's CDR bytes.
+
+    Returns:
+        ``(stamp_ns, names, vw)``: header stamp [ns] (the tick answered); ``joint_names`` (the
+        robots' namespaces); (N, 2) ``linear.x`` [m/s] and ``angular.z`` [rad/s] of the first
+        point's ``velocities``, in the names' order ((0, 2) without a point).
+
+    Raises:
+        ValueError: not little-endian CDR, truncated, a name that is not UTF-8, or a point
+            whose velocities do not match the names one for one.
+    """
+    return _decoded(_cmd_vel_batch, buf)
+
+
+def _cmd_vel_batch(body: memoryview) -> tuple[int, list[str], np.ndarray]:
+    pos = _after_header(body)
+    pos = _align(pos, 4)
+    (n,) = _U32.unpack_from(body, pos)
+    pos += 4
+    names = []
+    for _ in range(n):
+        start = _align(pos, 4) + 4
+        pos = _skip_string(body, pos)
+        try:
+            names.append(bytes(body[start:pos - 1]).decode())
+        except UnicodeDecodeError as exc:
+            raise ValueError(f"joint name is not UTF-8: {exc}") from None
+    pos = _align(pos, 4)
+    (points,) = _U32.unpack_from(body, pos)
+    if points == 0:
+        if n:
+            raise ValueError(f"{n} joint names and no point")
+        return _stamp_ns(body), names, np.zeros((0, 2))
+    pos += 4
+    (transforms,) = _U32.unpack_from(body, pos)  # geometry_msgs/Transform: 7 float64
+    pos += 4
+    if transforms:
+        pos = _align(pos, 8) + 56 * transforms
+    pos = _align(pos, 4)
+    (count,) = _U32.unpack_from(body, pos)
+    if count != n:
+        raise ValueError(f"{n} joint names and {count} velocities")
+    pos = _align(pos + 4, 8)
+    if pos + 48 * count > len(body):
+        raise ValueError("velocities run past the end of the message")
+    twists = np.frombuffer(body, dtype="<f8", count=6 * count, offset=pos).reshape(count, 6)
+    return _stamp_ns(body), names, twists[:, [0, 5]].copy()
 
 
 # ------------------------------------------------------------------------------------ writers
@@ -520,6 +575,54 @@ class TwistStampedWriter:
         [rad/s], stamp [ns] (>= 0; 0 is "apply now" to the simulator)."""
         return b"".join((_ENCAPSULATION, _stamp(stamp_ns), self._middle,
                          _TWIST.pack(v, 0.0, 0.0, 0.0, 0.0, w)))
+
+
+class CmdVelBatchWriter:
+    """Serialized ``trajectory_msgs/MultiDOFJointTrajectory`` carrying one control tick's answers
+    of several robots (:data:`swarm_common.topics.CMD_VEL_BATCH`): ``joint_names`` the robots'
+    namespaces, one point whose ``velocities[i]`` is robot ``i``'s planar command in its own
+    ``base_footprint`` (``linear.x``, ``angular.z``), no transforms or accelerations,
+    ``time_from_start`` zero; the header's stamp is the tick answered, its frame empty (each
+    velocity is in its own robot's frame).
+
+    Each name's string is laid out once (:meth:`write` takes them by name).
+    """
+
+    def __init__(self):
+        self._names: dict[str, bytes] = {}
+
+    def _name(self, ns: str) -> bytes:
+        """``ns`` as a CDR string padded to a multiple of 4 bytes (it starts aligned)."""
+        chunk = self._names.get(ns)
+        if chunk is None:
+            data = ns.encode() + b"\x00"
+            chunk = _U32.pack(len(data)) + data
+            chunk += bytes(_align(len(chunk), 4) - len(chunk))
+            self._names[ns] = chunk
+        return chunk
+
+    def write(self, stamp_ns: int, names, vw: np.ndarray) -> bytes:
+        """The message's bytes.
+
+        Args:
+            stamp_ns: [ns] the tick answered (>= 0).
+            names: (N) the robots' namespaces.
+            vw: (N, 2) ``linear.x`` [m/s] and ``angular.z`` [rad/s], in the names' order.
+        """
+        vw = np.asarray(vw, dtype=float).reshape(-1, 2)
+        if len(names) != len(vw):
+            raise ValueError(f"{len(names)} names and {len(vw)} velocities")
+        twists = np.zeros((len(vw), 6))
+        twists[:, 0], twists[:, 5] = vw[:, 0], vw[:, 1]
+        # header: stamp (8), empty frame_id (4 + 1, padded to 16); the names start aligned
+        head = _stamp(stamp_ns) + _U32.pack(1) + b"\x00\x00\x00\x00"
+        names_part = b"".join(map(self._name, names))
+        pos = len(head) + 4 + len(names_part)
+        # one point: no transforms, the velocities (aligned to 8), no accelerations, t = 0
+        tail = _U32.pack(1) + _U32.pack(0) + _U32.pack(len(vw))
+        pad = _pad(pos + len(tail), 8)
+        return b"".join((_ENCAPSULATION, head, _U32.pack(len(names)), names_part, tail, pad,
+                         twists.astype("<f8").tobytes(), _U32.pack(0), bytes(8)))
 
 
 def diagnostic_status(level: int, name: str, message: str, hardware_id: str,

@@ -173,6 +173,24 @@ FAULT_ACKS = Topic("/swarm/fault_acks", "diagnostic_msgs/msg/DiagnosticStatus",
                    ("swarm_sim",))
 """Transient local on both sides (the simulator's reader too): an acknowledgement published
 before the simulator's reader had matched its writer is delivered when it matches."""
+CMD_VEL_BATCH = Topic("/swarm/cmd_vel_batch", "trajectory_msgs/msg/MultiDOFJointTrajectory",
+                      Qos(300, durability=TRANSIENT_LOCAL),
+                      ("group processes: their navigators' answers to a control tick",),
+                      ("swarm_sim (CMD_VEL_BATCH_READER_QOS)",))
+"""A group process's navigators' answers to one control tick in one message, in place of one
+``cmd_vel`` per robot (:mod:`swarm_up.answers`): ``header.stamp`` is the tick answered,
+``joint_names[i]`` a robot's namespace and ``points[0].velocities[i]`` its command in its own
+``base_footprint`` (``linear.x``, ``angular.z``); no transforms, no accelerations.  The
+simulator takes it as robot ``i``'s ``cmd_vel`` stamped with the tick, so it takes a message or
+two per group a tick instead of one per robot.  A navigator alone in its process
+(``swarm-nav``) answers on ``cmd_vel``; ``cmd_vel`` stays every robot's command topic (manual
+driving, readers such as the recorder: a batched navigator also publishes it while it has a
+reader besides the simulator).  Reliable and transient local on both sides, with the depth of
+:data:`CMD_VEL`'s history, for the reason :data:`EVENTS` gives: an answer sent before the
+simulator's reader matched comes from the writer's history, not lost."""
+CMD_VEL_BATCH_READER_QOS = Qos(1000, durability=TRANSIENT_LOCAL)
+"""The simulator's reader: one history for every group's writer (the topic has no key), so
+deep enough for all of them between two takes."""
 
 # ------------------------------------------------------------------- the coordinator's topics
 COORDINATOR_REQUEST = Topic("/swarm/coordinator/request", "std_msgs/msg/String",

@@ -3,7 +3,8 @@
 A thin ROS 2 shell around :class:`swarm_nav.core.NavigatorCore`: it converts messages to arrays,
 declares the parameters of :func:`swarm_nav.config.flat_defaults` and answers the simulator's
 synchronous control loop (docs/ARCHITECTURE.md): every ``odom`` tick gets exactly one
-``cmd_vel`` stamped with that tick; on a lidar tick (one ``scan_time`` after the last scan) the
+``cmd_vel`` stamped with that tick (in a group process, an entry in the group's batch of
+answers); on a lidar tick (one ``scan_time`` after the last scan) the
 answer waits until that tick's scan has arrived, so a run does not depend on message order.
 
 Nothing is shared with any other robot's navigator: it knows the others only through its scan.
@@ -139,6 +140,7 @@ class NavigatorNode(Node):
         self.lidar = robot.lidar
         # cmd_vel goes out every tick: written as CDR bytes (swarm_common.cdr), no message object
         self._cmd_writer = TwistStampedWriter(f"{self.ns}/base_footprint")
+        self._batch_name = self.get_namespace().strip("/")  # its name in a batch of answers
         self._plan_writer = PathWriter("map")
         self.core = NavigatorCore(self.cfg, robot.footprint, *sites)
         took = jit.warm_up()  # before the first tick needs the compiled kernels (once a process)
@@ -161,7 +163,11 @@ class NavigatorNode(Node):
             lockstep=bool(self.get_parameter("wait_for_commander").value),
             hold_goal_end=bool(self.get_parameter("hold_goal_end").value),
             timeout_s=goal_wait_timeout)
-        self._held: tuple[int, bytes] | None = None  # a computed answer awaiting its commander
+        self._held: tuple[int, float, float, bytes] | None = None  # t, v, w, cmd_vel bytes:
+        # a computed answer awaiting its commander
+        self.answers = None
+        """A group process's batch of answers (:class:`swarm_up.answers.AnswerBatch`), or None:
+        answer on ``cmd_vel`` alone."""
         self._last_t: int | None = None  # the last tick answered (a re-published one is not)
         self._wait_timer = None  # polls a held tick (wall clock: it only reports and checks)
         self._wait_period = 0.0  # [s] wall, the period of _wait_timer
@@ -298,13 +304,15 @@ class NavigatorNode(Node):
         lasts ``goal_wait_timeout``); a wait is polled (:meth:`_on_wait_poll`) to notice a
         commander that left and to report a stall.
         """
+        if self.answers is not None:
+            self.answers.busy()
         if self._held is not None:
-            t, cmd = self._held
+            t, v, w, cmd = self._held
             if self.handshake.holds_end(t, bool(self._goals), self._commander_connected):
                 self._hold(t)
                 return
             self._held = None
-            self.cmd_pub.publish(cmd)
+            self._answer(t, v, w, cmd)
         odom = self._pending
         if odom is None:
             self._unhold()
@@ -487,9 +495,21 @@ class NavigatorNode(Node):
             self._publish_status()
             self._publish_plan()
         if self.handshake.holds_end(t, bool(self._goals), self._commander_connected):
-            self._held = (t, cmd)
+            self._held = (t, float(v), float(w), cmd)
             self._hold(t)
         else:
+            self._answer(t, float(v), float(w), cmd)
+
+    def _answer(self, t: int, v: float, w: float, cmd: bytes) -> None:
+        """Answer tick ``t`` [ns] with ``v`` [m/s], ``w`` [rad/s] (``cmd``: the ``cmd_vel``
+        bytes): on ``cmd_vel``, or in the group's batch (:attr:`answers`), then on ``cmd_vel``
+        too only while it has a reader besides the simulator (a recorder, ``ros2 topic
+        echo``)."""
+        if self.answers is None:
+            self.cmd_pub.publish(cmd)
+            return
+        self.answers.put(self._batch_name, t, v, w)
+        if self.cmd_pub.get_subscription_count() > 1:
             self.cmd_pub.publish(cmd)
 
     def _scan_points(self, pose: np.ndarray) -> np.ndarray:

@@ -3,7 +3,8 @@
 Loads a Gazebo world and a URDF robot, spawns exactly N robots, and runs the synchronous control
 loop of docs/ARCHITECTURE.md: each control tick it publishes ``/clock``, every robot's ``odom``
 and ``ground_truth`` and, on lidar ticks, ``scan``; then waits for the ``cmd_vel`` each active
-navigator computed from that tick's data (stamped with the tick), applies the commands and steps
+navigator computed from that tick's data (stamped with the tick; a group process's navigators
+send theirs together on ``/swarm/cmd_vel_batch``), applies the commands and steps
 the world.  ``--rtf 1`` paces simulated time to the wall clock, ``--rtf 0`` runs unpaced.
 
 With the built ``tf2_msgs`` it also publishes ``/tf``, ``/tf_static`` and every robot's
@@ -37,9 +38,10 @@ from rclpy.node import Node, NodeNameNonExistentError
 from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
+from trajectory_msgs.msg import MultiDOFJointTrajectory
 
 from swarm_common import topics
-from swarm_common.cdr import LaserScanWriter, PoseArrayWriter, twist_stamped
+from swarm_common.cdr import LaserScanWriter, PoseArrayWriter, cmd_vel_batch, twist_stamped
 from swarm_common.errors import run_cli
 from swarm_common.events import COLLISION, CollisionEvent, LateEvent, RobotNotice, SpawnEvent
 from swarm_common.faults import ACK_NAME, EVENT_NAME, FaultAck
@@ -118,6 +120,9 @@ class SimulatorNode(Node):
         self._cmd_subs = [subscription(
             self, TwistStamped, topics.CMD_VEL, lambda buf, i=i: self._on_cmd_vel(i, buf), ns,
             topics.CMD_VEL_READER_QOS, raw=True) for i, ns in enumerate(namespaces)]
+        self._index = {ns: i for i, ns in enumerate(namespaces)}
+        subscription(self, MultiDOFJointTrajectory, topics.CMD_VEL_BATCH,
+                     self._on_cmd_vel_batch, qos=topics.CMD_VEL_BATCH_READER_QOS, raw=True)
         subscription(self, DiagnosticStatus, topics.SUPERVISION, self._on_supervision)
         self._progress_sub = (subscription(self, Clock, topics.RECORD_PROGRESS,
                               self._on_record_progress) if settings.record_window else None)
@@ -172,6 +177,27 @@ class SimulatorNode(Node):
             return
         if self.gate.answer(i, stamp, v, w, time.monotonic()):
             self._notice(i, f"{ns} answers again")
+
+    def _on_cmd_vel_batch(self, buf: bytes) -> None:
+        """A group process's answers (:data:`swarm_common.topics.CMD_VEL_BATCH`): each one
+        robot's ``cmd_vel`` stamped with the batch's tick."""
+        try:
+            stamp, names, vw = cmd_vel_batch(buf)
+        except ValueError as exc:
+            self._drop(f"{topics.CMD_VEL_BATCH.name}: malformed message ({exc})")
+            return
+        now = time.monotonic()
+        for ns, (v, w) in zip(names, vw.tolist(), strict=True):
+            i = self._index.get(ns)
+            if i is None:
+                self._drop(f"{topics.CMD_VEL_BATCH.name}: no robot '{ns}'")
+            elif not (math.isfinite(v) and math.isfinite(w)):
+                self._drop(f"{topics.CMD_VEL_BATCH.name}: {ns}: non-finite velocity ({v}, {w})")
+            elif stamp == 0:
+                self._drop(f"{topics.CMD_VEL_BATCH.name}: zero stamp (manual driving goes "
+                           f"to /{ns}/cmd_vel)")
+            elif self.gate.answer(i, stamp, v, w, now):
+                self._notice(i, f"{ns} answers again")
 
     def _drop(self, why: str) -> None:
         self.loop.log.dropped += 1

@@ -3,6 +3,7 @@
 Every rclpy process is one DDS participant and costs about 75 MB; 100 of them on 2 cores stall
 discovery, while 100 robots' nodes grouped into a few processes deliver every message.  Each
 robot keeps its own nodes, parameters and state: grouping shares the process, not the navigator.
+The navigators' answers to a control tick leave in one message (:mod:`swarm_up.answers`).
 
 Usage (what ``swarm-up --processes K`` runs)::
 
@@ -29,6 +30,7 @@ from swarm_common.errors import InputError, run_cli
 from swarm_nav.node import NavigatorNode
 from swarm_nav.planner import share_cost_to_go
 from swarm_ros.session import node_session, spin_forever
+from swarm_up.answers import AnswerBatch, spin_batched
 from swarm_up.clock import SharedClock
 
 PROG = "swarm_up.group"
@@ -73,12 +75,14 @@ def _run(argv: list[str]) -> int:
         routes = {ns: build_route(opts.world, opts.seed, ns) for ns in names}
 
     clock = None  # a SharedClock when this process holds more than one node
+    batch = None  # the navigators' answers in one message a tick (with the clock's node)
 
     def make_navigator(ns: str) -> NavigatorNode:
         node = NavigatorNode(namespace=f"/{ns}",
                              cli_args=["--ros-args", "--params-file", str(files[ns])])
         if clock is not None:
             clock.adopt(node)
+        node.answers = batch
         return node
 
     share_cost_to_go(len(names))
@@ -88,6 +92,7 @@ def _run(argv: list[str]) -> int:
             clock = SharedClock(f"/{names[0]}")
             executor.add_node(clock.node)
             owned.append(clock.node)
+            batch = AnswerBatch(clock.node)
         nodes, runners = [], []
         navigators, commanders = {}, {}  # ns -> node; ns -> (node, runner): what faults may kill
         faults = None
@@ -137,10 +142,15 @@ def _run(argv: list[str]) -> int:
                 faults = GroupFaults(executor, nodes[0].context, names[0], navigators,
                                      commanders, make_navigator, gone, added,
                                      emit=lambda line: print(line, flush=True))
-                context = nodes[0].context
-                while context.ok():
-                    executor.spin_once(timeout_sec=0.1)
-                    faults.service()
+                if batch is not None:
+                    spin_batched(executor, nodes[0].context, batch, faults.service, 0.1)
+                else:
+                    context = nodes[0].context
+                    while context.ok():
+                        executor.spin_once(timeout_sec=0.1)
+                        faults.service()
+            elif batch is not None:
+                spin_batched(executor, nodes[0].context, batch)
             else:
                 spin_forever(executor, nodes[0].context)
         finally:  # the session then destroys the clock node and shuts the context down

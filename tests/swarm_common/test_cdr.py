@@ -14,14 +14,17 @@ from rclpy.serialization import deserialize_message, serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 from std_msgs.msg import String
+from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectoryPoint
 
 from swarm_common.cdr import (
+    CmdVelBatchWriter,
     LaserScanWriter,
     OdometryWriter,
     PathWriter,
     PoseArrayWriter,
     TFMessageWriter,
     TwistStampedWriter,
+    cmd_vel_batch,
     diagnostic_status,
     header_stamp,
     odom_pose,
@@ -147,7 +150,7 @@ def test_scan_ranges_match_the_message():
 
 
 @pytest.mark.parametrize("reader", [odom_pose, path_points, pose_array, scan_ranges,
-                                    twist_stamped])
+                                    twist_stamped, cmd_vel_batch])
 @pytest.mark.parametrize("buf", [b"", b"\x00\x00\x00\x00" + bytes(200), b"\x00\x01\x00\x00\x05"])
 def test_malformed_bytes_are_a_value_error(reader, buf):
     with pytest.raises(ValueError):
@@ -323,3 +326,56 @@ def test_tf_message_writer_writes_what_rclpy_serializes(names):
     back = deserialize_message(writer.write(stamp + 100_000_000, poses[::-1] if names else poses),
                                TFMessage)
     assert [t.header.stamp.nanosec for t in back.transforms] == [445_678_901] * len(names)
+
+
+# Robots' names of every length mod 4, so that every string's padding is exercised.
+BATCH_NAMES = [[], ["S"], ["Srobot1", "Srobot22", "Srobot333", "Srobot4444", "ü"],
+               [f"Srobot{i}" for i in range(1, 51)]]
+
+
+@pytest.mark.parametrize("names", BATCH_NAMES)
+def test_cmd_vel_batch_writer_reads_back_with_rclpy(names):
+    n = len(names)
+    vw = np.column_stack((np.linspace(-0.26, 0.26, n), np.linspace(1.8, -1.8, n)))
+    msg = deserialize_message(CmdVelBatchWriter().write(41_200_000_007, names, vw),
+                              MultiDOFJointTrajectory)
+    assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (41, 200_000_007)
+    assert msg.header.frame_id == "" and list(msg.joint_names) == names
+    (point,) = msg.points
+    assert len(point.transforms) == 0 and len(point.accelerations) == 0
+    assert (point.time_from_start.sec, point.time_from_start.nanosec) == (0, 0)
+    got = [(t.linear.x, t.linear.y, t.linear.z, t.angular.x, t.angular.y, t.angular.z)
+           for t in point.velocities]
+    assert got == [(v, 0.0, 0.0, 0.0, 0.0, w) for v, w in vw.tolist()]
+
+
+@pytest.mark.parametrize("names", BATCH_NAMES)
+@pytest.mark.parametrize("transforms", [0, 2])
+def test_cmd_vel_batch_matches_the_message(names, transforms):
+    from geometry_msgs.msg import Transform, Twist
+
+    msg = MultiDOFJointTrajectory(joint_names=names)
+    msg.header.stamp.sec, msg.header.stamp.nanosec = 7, 100_000_000
+    msg.header.frame_id = "map"
+    point = MultiDOFJointTrajectoryPoint(transforms=[Transform() for _ in range(transforms)])
+    for k in range(len(names)):
+        twist = Twist()
+        twist.linear.x, twist.linear.y, twist.angular.z = 0.1 * k, 9.0, -0.2 * k
+        point.velocities.append(twist)
+    msg.points = [point, MultiDOFJointTrajectoryPoint()]
+    stamp, got_names, vw = cmd_vel_batch(serialize_message(msg))
+    assert (stamp, got_names) == (7_100_000_000, names)
+    assert vw.shape == (len(names), 2)
+    assert vw.tolist() == [[0.1 * k, -0.2 * k] for k in range(len(names))]
+
+
+def test_cmd_vel_batch_refuses_names_without_their_velocities():
+    msg = MultiDOFJointTrajectory(joint_names=["Srobot1", "Srobot2"])
+    msg.points = [MultiDOFJointTrajectoryPoint()]
+    with pytest.raises(ValueError, match="2 joint names and 0 velocities"):
+        cmd_vel_batch(serialize_message(msg))
+    msg.points = []
+    with pytest.raises(ValueError, match="no point"):
+        cmd_vel_batch(serialize_message(msg))
+    with pytest.raises(ValueError, match="2 names and 1 velocities"):
+        CmdVelBatchWriter().write(0, ["a", "b"], [(0.0, 0.0)])
