@@ -65,6 +65,7 @@ RULES: tuple[tuple[str, str, str | None], ...] = (
     ("executor", "rclpy/", None),
     ("executor", "swarm_ros/session.py", None),
     ("executor", "swarm_sim/node.py", "spin"),
+    ("executor", "swarm_up/answers.py", "spin_batched"),
     ("planning", "swarm_nav/planner", None),
     ("planning", "swarm_nav/costmap", None),
     ("dwa", "swarm_nav/dwa", None),
@@ -78,6 +79,7 @@ RULES: tuple[tuple[str, str, str | None], ...] = (
     ("lockstep", "swarm_sim/tick.py", None),
     ("lockstep", "swarm_sim/loop.py", None),
     ("lidar", "swarm_sim/lidar", None),
+    ("lidar", "swarm_sim/sensors.py", None),
     ("physics", "swarm_sim/engine.py", None),
     ("physics", "swarm_sim/kinematics.py", None),
     ("physics", "swarm_sim/separation_kernels.py", None),
@@ -86,6 +88,7 @@ RULES: tuple[tuple[str, str, str | None], ...] = (
     ("messages", "swarm_ros/", None),
     ("messages", "swarm_sim/node.py", None),
     ("messages", "swarm_up/group.py", None),
+    ("messages", "swarm_up/answers.py", None),
     ("metrics", "swarm_metrics/", None),
     ("metrics", "swarm_up/", None),
 )

@@ -25,10 +25,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from swarm_scene.world import World, obstacle_shapes, world_polygons
+from swarm_scene.world import World, obstacle_shapes
 from swarm_sim import separation_kernels
 from swarm_sim.kinematics import DriveLimits, integrate_unicycle, limit_twist
-from swarm_sim.lidar import PlanarLidar, ScanPattern, counter_clockwise, polygons_to_segments
+from swarm_sim.lidar import PlanarLidar, counter_clockwise
+from swarm_sim.sensors import SwarmSensors, pad_polygons, planar_lidar
+
+__all__ = ["CollisionEvent", "EngineConfig", "SimEngine", "pad_polygons", "polygon_distances"]
 
 
 def _import_pybullet():
@@ -103,32 +106,6 @@ def polygon_distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
                                              np.ascontiguousarray(b, dtype=float))
 
 
-def _same_model_kinds(models) -> tuple[list, np.ndarray]:
-    """The distinct models (by identity, in order of first robot) and each robot's index into
-    them, (N,) int."""
-    kinds: list = []
-    kind = np.empty(len(models), dtype=int)
-    for i, model in enumerate(models):
-        for k, known in enumerate(kinds):
-            if known is model:
-                kind[i] = k
-                break
-        else:
-            kind[i] = len(kinds)
-            kinds.append(model)
-    return kinds, kind
-
-
-def pad_polygons(polygons) -> np.ndarray:
-    """(P, K, 2) of polygons with up to K vertices, each padded to K by repeating its last vertex.
-
-    Args:
-        polygons: sequence of (K_p, 2) vertex arrays x, y [m].
-    """
-    k = max(len(p) for p in polygons)
-    return np.stack([np.vstack((p, np.repeat(p[-1:], k - len(p), axis=0))) for p in polygons])
-
-
 class SimEngine:
     """A PyBullet world with ``n`` differential-drive robots, of one model or a mix.
 
@@ -155,8 +132,10 @@ class SimEngine:
             raise ValueError(f"{len(models)} robot models for {self.n} robots")
         self.models = models
         """The model of every robot, (N,) tuple."""
-        kinds, self.kind = _same_model_kinds(models)
-        kinds = kinds or [robot]  # no robots
+        self.sensors = SwarmSensors(world, models, seed, self.config.control_period)
+        """The footprints and lidars (:class:`swarm_sim.sensors.SwarmSensors`)."""
+        self.kind = self.sensors.kind
+        kinds = list(self.sensors.kinds) or [robot]  # no robots
         self.kinds = tuple(kinds)
         """The distinct models, in order of first robot; ``kind[i]`` indexes robot i's."""
         self.mixed = len(kinds) > 1
@@ -176,20 +155,17 @@ class SimEngine:
         self.collisions = np.zeros(self.n, dtype=int)  # episodes per robot
         self.collision_counts = {"robot_robot": 0, "robot_wall": 0}
         self.min_separation = math.inf  # [m] least footprint-to-footprint gap seen
-        self.rng = np.random.default_rng(seed)
-        self._footprint = counter_clockwise(self.robot.footprint)
-        # a mix: (N, K, 2) every robot's own footprint, padded to the most vertices
-        feet = pad_polygons([counter_clockwise(m.footprint) for m in kinds])
-        self._feet = np.ascontiguousarray(feet[self.kind]) if self.mixed else None
-        self._mounts = (np.array([m.lidar.pose for m in models], dtype=float) if self.mixed
-                        else None)
+        self.rng = self.sensors.rng
+        """The generator of the lidar noise (the sensors')."""
         self._radius = max(float(m.radius) for m in kinds)  # [m] the largest robot's
         self._active_contacts: dict[tuple, bool] = {}
 
-        self.kind_lidars = tuple(self._planar_lidar(world, m.lidar) for m in kinds)
+        self.kind_lidars = (self.sensors.kind_lidars
+                            or (self._planar_lidar(world, self.robot.lidar),))
         """One :class:`PlanarLidar` per model (``kinds``)."""
-        self.kind_periods = np.array([self._period(m.lidar) for m in kinds], dtype=int)
-        self.lidar_periods = self.kind_periods[self.kind]
+        self.kind_periods = (self.sensors.kind_periods if self.n
+                             else np.array([self._period(self.robot.lidar)], dtype=int))
+        self.lidar_periods = self.sensors.lidar_periods
         """(N,) control ticks between two scans of each robot's lidar."""
         self.lidar = self.kind_lidars[0]
         self.lidar_period_ticks = int(self.kind_periods[0])
@@ -213,10 +189,7 @@ class SimEngine:
     @staticmethod
     def _planar_lidar(world: World, lidar) -> PlanarLidar:
         """The planar lidar of one model: the world's outlines at its scan height."""
-        return PlanarLidar(
-            polygons_to_segments(world_polygons(world, lidar.z - 1e-3, lidar.z + 1e-3)),
-            ScanPattern.from_spec(lidar),
-        )
+        return planar_lidar(world, lidar)
 
     def _build_world(self, world: World) -> None:
         """One static body per obstacle of the world; floor slabs, ground planes and heightmaps
@@ -297,28 +270,11 @@ class SimEngine:
     def footprints(self, poses: np.ndarray | None = None) -> np.ndarray:
         """(N, K, 2) footprint polygons of all robots in ``map`` [m], counter-clockwise (a mix:
         each robot's own, padded to K vertices by repeating the last)."""
-        poses = self.poses if poses is None else poses
-        # transform_points for every robot at once, the same operations in the same order (its
-        # cos and sin are the C library's, as there; numpy's SIMD ones may round differently)
-        yaw = poses[:, 2].tolist()
-        c = np.array([math.cos(a) for a in yaw])[:, None]
-        s = np.array([math.sin(a) for a in yaw])[:, None]
-        if self._feet is None:
-            fx, fy = self._footprint[:, 0][None, :], self._footprint[:, 1][None, :]
-        else:
-            fx, fy = self._feet[:, :, 0], self._feet[:, :, 1]
-        return np.stack((poses[:, 0:1] + c * fx - s * fy, poses[:, 1:2] + s * fx + c * fy),
-                        axis=2)
+        return self.sensors.footprints(self.poses if poses is None else poses)
 
     def lidar_poses(self) -> np.ndarray:
         """(N, 3) poses of every robot's lidar in ``map``."""
-        mount = self.robot.lidar.pose if self._mounts is None else self._mounts.T
-        c, s = np.cos(self.poses[:, 2]), np.sin(self.poses[:, 2])
-        return np.column_stack((
-            self.poses[:, 0] + c * mount[0] - s * mount[1],
-            self.poses[:, 1] + s * mount[0] + c * mount[1],
-            self.poses[:, 2] + mount[2],
-        ))
+        return self.sensors.lidar_poses(self.poses)
 
     def lidar_due(self) -> bool:
         """True when the current tick is a lidar tick of some robot (every ``1 / rate_hz``
@@ -327,28 +283,18 @@ class SimEngine:
 
     def lidar_due_mask(self) -> np.ndarray:
         """(N,) bool: whose lidar scans at the current tick."""
-        return self.ticks % self.lidar_periods == 0
+        return self.sensors.due_mask(self.ticks)
 
     def scans(self) -> np.ndarray | list:
-        """Ranges [m] of the robots' lidars at the current poses (REP 117), float32.
+        """Ranges [m] of the robots' lidars at the current poses (REP 117), float32
+        (:meth:`swarm_sim.sensors.SwarmSensors.scans`).
 
         Returns:
             One model: (N, B) every robot's scan.  A mix: a list of N entries, robot i's (B_i,)
             scan if its lidar is due at this tick (:meth:`lidar_due_mask`), else None; the
             models cast in ``kinds`` order, each drawing its noise from the one generator.
         """
-        if not self.mixed:
-            return self.lidar.scan(self.lidar_poses(), self.footprints(), self.rng)
-        due = self.lidar_due_mask()
-        poses, feet = self.lidar_poses(), self.footprints()
-        out: list = [None] * self.n
-        for k, lidar in enumerate(self.kind_lidars):
-            idx = np.flatnonzero((self.kind == k) & due)
-            if idx.size:
-                for i, ranges in zip(idx.tolist(), lidar.scan(poses[idx], feet, self.rng,
-                                                              own=idx), strict=True):
-                    out[i] = ranges
-        return out
+        return self.sensors.scans(self.poses, self.ticks)
 
     # -- stepping ------------------------------------------------------------------------------
 

@@ -211,8 +211,15 @@ class PlanarLidar:
         hi = lo + np.abs(sweep) + 2e-9
         return lo, hi
 
+    def draw_noise(self, m: int, rng: np.random.Generator) -> np.ndarray | None:
+        """(M, B) range noise [m] of ``m`` scans from ``rng``, as :meth:`scan` draws it; None
+        without noise (nothing is drawn)."""
+        if self.pattern.noise_stddev <= 0.0:
+            return None
+        return rng.normal(0.0, self.pattern.noise_stddev, size=(m, self.pattern.angles.size))
+
     def scan(self, lidar_poses, bodies, rng: np.random.Generator,
-             own: np.ndarray | None = None) -> np.ndarray:
+             own: np.ndarray | None = None, noise: np.ndarray | None = None) -> np.ndarray:
         """Simulated scans: true ranges plus seeded Gaussian noise, REP 117 for invalid beams.
 
         Args:
@@ -220,14 +227,18 @@ class PlanarLidar:
             bodies: (N, K, 2) robot footprints in ``map`` (see :meth:`true_ranges`).
             rng: the simulator's seeded generator (same seed, same noise).
             own: (M,) each lidar's own body (see :meth:`true_ranges`); None: M = N.
+            noise: (M, B) the noise [m] to add, drawn beforehand (:meth:`draw_noise`; ``rng``
+                is then not used); None: drawn here.
 
         Returns:
             (M, B) float32 ranges [m]: ``+inf`` no return within ``range_max``, ``-inf`` closer
             than ``range_min``.
         """
         ranges = self.true_ranges(lidar_poses, bodies, own)
-        if self.pattern.noise_stddev > 0.0:
-            ranges = ranges + rng.normal(0.0, self.pattern.noise_stddev, size=ranges.shape)
+        if noise is None:
+            noise = self.draw_noise(ranges.shape[0], rng)
+        if noise is not None:
+            ranges = ranges + noise
         ranges = np.where(ranges > self.pattern.range_max, np.inf, ranges)
         ranges = np.where(ranges < self.pattern.range_min, -np.inf, ranges)
         return ranges.astype(np.float32)
