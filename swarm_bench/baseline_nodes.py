@@ -38,6 +38,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import PointCloud2
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
@@ -46,14 +47,18 @@ from swarm_commander.cli import CommanderConfig
 from swarm_commander.robot_navigator import STATUS_REMATCH_S
 from swarm_common import cli, topics
 from swarm_common.cdr import (
+    ODOM_PUBLISHED,
+    SCAN_PUBLISHED,
     LaserScanWriter,
     PathWriter,
     PoseArrayWriter,
+    RobotStatesWriter,
     TwistStampedWriter,
     cmd_vel_batch,
     diagnostic_status,
     odom_pose,
     scan_ranges,
+    scan_reading,
     twist_stamped,
 )
 from swarm_common.errors import InputError, run_cli
@@ -70,6 +75,7 @@ from swarm_ros.session import node_session, spin_forever
 from swarm_sim.loop import SimLoop
 from swarm_up.answers import AnswerBatch, spin_batched
 from swarm_up.clock import SharedClock
+from swarm_up.feed import SensorFeed
 
 STATUS_PERIOD_NS = NS_PER_S // 2  # nav_status at 2 Hz simulated and on every change (as nav)
 PROGRESS_EVERY_S = 5.0  # [s] wall between the baseline simulator's progress lines
@@ -137,6 +143,26 @@ class StillWorld:
         return self._scans
 
 
+class FixedScans:
+    """A group's renderer of the baseline's scans (:class:`swarm_up.feed.SensorFeed`): every
+    robot's lidar every ``lidar_every`` ticks, the same ranges as :class:`StillWorld`'s, nothing
+    cast and nothing drawn."""
+
+    def __init__(self, cfg: BaselineConfig):
+        self.n = len(cfg.robots)
+        self.lidar_every = cfg.lidar_every
+        self.ranges = np.full(cfg.beams, 0.5 * (cfg.range_min + cfg.range_max), np.float32)
+
+    def due_mask(self, ticks: int) -> np.ndarray:
+        return np.full(self.n, ticks % self.lidar_every == 0)
+
+    def scans(self, poses, ticks: int, rows) -> list:
+        return [self.ranges] * len(rows)
+
+    def skip(self, ticks: int) -> None:
+        pass
+
+
 class BaselineSimNode(Node):
     """The simulator's control loop (:class:`swarm_sim.loop.SimLoop`, the same tick gate and
     waits as ``swarm-sim``) and its messages, on a :class:`StillWorld`: no physics, ray casting
@@ -164,6 +190,10 @@ class BaselineSimNode(Node):
         self.map_pub = publisher(self, OccupancyGrid, topics.MAP)
         self.events_pub = publisher(self, DiagnosticArray, topics.EVENTS)
         self.poses_pub = publisher(self, PoseArray, topics.POSES)
+        self.states_pub = publisher(self, PointCloud2, topics.ROBOT_STATES)
+        self._states_writer = RobotStatesWriter(len(self.names))
+        self._published = np.full(len(self.names), ODOM_PUBLISHED | SCAN_PUBLISHED, np.uint8)
+        self._states_resent = -math.inf
         self.robots = [RobotTopics(self, ns, LaserScanWriter(
             f"{ns}/{cfg.lidar_frame}", cfg.angle_min, cfg.angle_max,
             (cfg.angle_max - cfg.angle_min) / max(cfg.beams - 1, 1), 1.0 / cfg.lidar_rate_hz,
@@ -235,16 +265,28 @@ class BaselineSimNode(Node):
         its scan, robot after robot; ``/swarm/poses`` while heard: as ``swarm_sim.node``."""
         t_ns, world = self.loop.gate.t_ns, self.world
         self.clock_pub.publish(Clock(clock=time_msg(t_ns)))
+        self._publish_states()
         publish_sensors(self.robots, t_ns, world.poses, world.v, world.w,
-                        world.scans() if world.lidar_due() else None)
+                        world.scans() if world.lidar_due() else None, lazy=True)
         if self.poses_pub.get_subscription_count():
             self.poses_pub.publish(self._poses_writer.write(t_ns, world.poses))
 
+    def _publish_states(self) -> None:
+        if self.states_pub.get_subscription_count():
+            world = self.world
+            self.states_pub.publish(self._states_writer.write(
+                self.loop.gate.t_ns, world.poses, world.v, world.w, self._published))
+
     def republish(self, i: int) -> None:
-        t_ns, world = self.loop.gate.t_ns, self.world
-        if world.lidar_due():
-            self.robots[i].publish_scan(t_ns, world.scans()[i])
-        self.robots[i].publish_odom(t_ns, world.poses[i].tolist(), 0.0, 0.0, truth=False)
+        t_ns, world, robot = self.loop.gate.t_ns, self.world, self.robots[i]
+        if world.lidar_due() and robot.scan_pub.get_subscription_count():
+            robot.publish_scan(t_ns, world.scans()[i])
+        if robot.odom_pub.get_subscription_count():
+            robot.publish_odom(t_ns, world.poses[i].tolist(), 0.0, 0.0, truth=False)
+        now = time.monotonic()
+        if now - self._states_resent > 0.25:  # once a round of re-publishing, as swarm_sim
+            self._states_resent = now
+            self._publish_states()
 
     def announce_faults(self, due: list) -> None:
         pass  # the baseline injects none
@@ -348,7 +390,7 @@ class BaselineNavigatorNode(Node):
         cfg: the baseline's settings.
     """
 
-    def __init__(self, ns: str, cfg: BaselineConfig):
+    def __init__(self, ns: str, cfg: BaselineConfig, fed: bool = False):
         super().__init__("navigator", namespace=f"/{ns}", parameter_overrides=_sim_time())
         # State.
         self.ns = ns
@@ -379,19 +421,28 @@ class BaselineNavigatorNode(Node):
         self._now_ns = 0
         # Publishers, subscribers, service (swarm_nav.node's).
         self.cmd_pub, self.plan_pub, self.status_pub, self._goal_sub = navigator_interface(
-            self, self._on_map, self._on_scan, self._on_odom, self._on_goal_pose, self._on_cancel,
-            self._on_goal_coming)
+            self, self._on_map, None if fed else self._on_scan, None if fed else self._on_odom,
+            self._on_goal_pose, self._on_cancel, self._on_goal_coming)
 
     def _on_map(self, msg: OccupancyGrid) -> None:
         np.asarray(msg.data, dtype=np.int8)  # the conversion the real navigator makes
         self.has_map = True
 
     def _on_scan(self, buf: bytes) -> None:
-        self._scan_stamp, *_, self._ranges = scan_ranges(buf)
-        self._release()
+        t, *meta, ranges = scan_ranges(buf)
+        self.take_scan(t, tuple(meta), ranges)
 
     def _on_odom(self, buf: bytes) -> None:
-        self._pending = odom_pose(buf)  # (stamp [ns], x, y, yaw, v, w)
+        self.take_odom(odom_pose(buf))  # (stamp [ns], x, y, yaw, v, w)
+
+    def take_scan(self, t: int, meta: tuple, ranges) -> None:
+        """A scan, as swarm_nav.node's (from the group's feed, or ``scan``)."""
+        self._scan_stamp, self._ranges = t, ranges
+        self._release()
+
+    def take_odom(self, odom: tuple) -> None:
+        """A tick's odometry, as swarm_nav.node's (from the group's feed, or ``odom``)."""
+        self._pending = odom
         self._release()
 
     def _on_goal_pose(self, msg: PoseStamped) -> None:
@@ -643,20 +694,29 @@ def run_group(cfg: BaselineConfig, namespaces: list[str], navigators: bool,
     Returns:
         0 (stopped by SIGINT/SIGTERM).
     """
+    grouped = len(namespaces) * (int(navigators) + int(commanders)) > 1
     with node_session(["baseline_group"]) as nodes:
+        navs = {}
         for ns in namespaces:
-            if navigators:
-                nodes.append(BaselineNavigatorNode(ns, cfg))
+            if navigators:  # a group's navigators are fed, as swarm_up.group's
+                navs[ns] = BaselineNavigatorNode(ns, cfg, fed=grouped)
+                nodes.append(navs[ns])
             if commanders:
                 nodes.append(BaselineCommanderNode(ns))
         batch = None
-        if len(nodes) > 1:  # a group process: one /clock subscription and the navigators'
-            clock = SharedClock(f"/{namespaces[0]}")  # answers in one message, as swarm_up.group
-            batch = AnswerBatch(clock.node)
+        if grouped:  # a group process: one /clock subscription, the navigators' answers in one
+            clock = SharedClock(f"/{namespaces[0]}")  # message, and their sensors fed from the
+            batch = AnswerBatch(clock.node)  # robots' states: as swarm_up.group
             for node in nodes:
                 clock.adopt(node)
                 if isinstance(node, BaselineNavigatorNode):
                     node.answers = batch
+            if navs:
+                scans = FixedScans(cfg)
+                meta = scan_reading(cfg.angle_min, (cfg.angle_max - cfg.angle_min)
+                                    / max(cfg.beams - 1, 1), cfg.range_min, cfg.range_max)
+                SensorFeed(clock.node, navs, list(cfg.robots), scans, [meta] * len(cfg.robots),
+                           round(NS_PER_S / cfg.control_rate_hz), busy=batch.busy)
             nodes.append(clock.node)
         _spin(nodes, batch)
     return 0

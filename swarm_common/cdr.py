@@ -33,10 +33,11 @@ import numpy as np
 
 from swarm_common.geometry import quaternion_to_yaw
 
-__all__ = ["CmdVelBatchWriter", "LaserScanWriter", "OdometryWriter", "PathWriter",
-           "PoseArrayWriter", "TwistStampedWriter", "cmd_vel_batch", "diagnostic_status",
-           "header_stamp", "odom_pose",
-           "odometry_pose", "path_points", "pose_array", "scan_ranges", "string_data",
+__all__ = ["ODOM_PUBLISHED", "ROBOT_STATE", "SCAN_PUBLISHED", "CmdVelBatchWriter",
+           "LaserScanWriter", "OdometryWriter", "PathWriter", "PoseArrayWriter",
+           "RobotStatesWriter", "TwistStampedWriter", "cmd_vel_batch", "diagnostic_status",
+           "header_stamp", "odom_pose", "odom_reading", "odometry_pose", "path_points",
+           "pose_array", "robot_states", "scan_ranges", "scan_reading", "string_data",
            "tf_message", "twist_stamped"]
 
 _CDR_LE = b"\x00\x01"
@@ -333,6 +334,85 @@ def _cmd_vel_batch(body: memoryview) -> tuple[int, list[str], np.ndarray]:
     return _stamp_ns(body), names, twists[:, [0, 5]].copy()
 
 
+def odom_reading(stamp_ns: int, x: float, y: float, yaw: float, v: float,
+                 w: float) -> tuple[int, float, float, float, float, float]:
+    """What :func:`odom_pose` reads from the odometry :class:`OdometryWriter` writes of this
+    state (the simulator's ``swarm_ros.robot_topics.RobotTopics.publish_odom``), without the
+    message: the yaw goes through the quaternion ``(0, 0, sin(yaw / 2), cos(yaw / 2))`` as there.
+
+    Returns:
+        ``(stamp_ns, x, y, yaw, v, w)`` as :func:`odom_pose` returns them.
+    """
+    qz, qw = math.sin(yaw / 2.0), math.cos(yaw / 2.0)
+    if math.isfinite(qz) and math.isfinite(qw):
+        yaw = quaternion_to_yaw(0.0, 0.0, qz, qw)
+    else:
+        yaw = math.nan
+    return stamp_ns, x, y, yaw, v, w
+
+
+def scan_reading(angle_min: float, angle_increment: float, range_min: float,
+                 range_max: float) -> tuple[float, float, float, float]:
+    """The geometry :func:`scan_ranges` reads from a scan :class:`LaserScanWriter` writes with
+    these values (``float32`` fields): ``(angle_min, angle_increment, range_min, range_max)``."""
+    return struct.unpack("<4f", struct.pack("<4f", angle_min, angle_increment, range_min,
+                                            range_max))
+
+
+ROBOT_STATE = np.dtype({"names": ["x", "y", "yaw", "v", "w", "published"],
+                        "formats": ["<f8", "<f8", "<f8", "<f8", "<f8", "u1"],
+                        "offsets": [0, 8, 16, 24, 32, 40], "itemsize": 48})
+"""One robot's point of a :class:`RobotStatesWriter` cloud: its pose x [m], y [m], yaw [rad] in
+``map`` and its velocity v [m/s], w [rad/s] (``float64``, the simulator's own values), and which
+of its sensor messages the simulator writes at this tick (``published``: bit 0 its ``odom``,
+bit 1 its ``scan``; a fault mutes them)."""
+ODOM_PUBLISHED, SCAN_PUBLISHED = 1, 2
+_POINT_FIELDS = (("x", 0, 8), ("y", 8, 8), ("yaw", 16, 8), ("v", 24, 8), ("w", 32, 8),
+                 ("published", 40, 2))  # name, offset, PointField datatype (8 FLOAT64, 2 UINT8)
+
+
+def robot_states(buf) -> tuple[int, np.ndarray]:
+    """The tick and the robots' states of a serialized ``sensor_msgs/PointCloud2`` written by
+    :class:`RobotStatesWriter` (:data:`swarm_common.topics.ROBOT_STATES`).
+
+    Returns:
+        ``(stamp_ns, states)``: the header stamp [ns] and (N,) :data:`ROBOT_STATE` records,
+        robot ``i`` at ``i``.
+
+    Raises:
+        ValueError: not little-endian CDR, truncated, or fields other than
+            :data:`ROBOT_STATE`'s.
+    """
+    return _decoded(_robot_states, buf)
+
+
+def _robot_states(body: memoryview) -> tuple[int, np.ndarray]:
+    pos = _align(_after_header(body), 4)
+    height, width, nfields = struct.unpack_from("<3I", body, pos)
+    pos += 12
+    fields = []
+    for _ in range(nfields):
+        start = _align(pos, 4) + 4
+        pos = _skip_string(body, pos)
+        name = bytes(body[start:pos - 1]).decode(errors="replace")
+        pos = _align(pos, 4)
+        offset, datatype = struct.unpack_from("<IB", body, pos)
+        pos = _align(pos + 5, 4) + 4  # the count (uint32)
+        fields.append((name, offset, datatype))
+    if tuple(fields) != _POINT_FIELDS:
+        raise ValueError(f"fields {fields} are not the robot states' {list(_POINT_FIELDS)}")
+    pos += 1  # is_bigendian
+    pos = _align(pos, 4)
+    point_step, _, count = struct.unpack_from("<3I", body, pos)
+    pos += 12
+    n = height * width
+    if point_step != ROBOT_STATE.itemsize or count != n * point_step:
+        raise ValueError(f"{n} points of {point_step} bytes in {count} bytes of data")
+    if pos + count > len(body):
+        raise ValueError("data runs past the end of the message")
+    return _stamp_ns(body), np.frombuffer(body, dtype=ROBOT_STATE, count=n, offset=pos).copy()
+
+
 # ------------------------------------------------------------------------------------ writers
 _ENCAPSULATION = b"\x00\x01\x00\x00"  # little-endian CDR, no options (what rmw_fastrtps writes)
 _ZERO_COVARIANCE = bytes(36 * 8)
@@ -623,6 +703,51 @@ class CmdVelBatchWriter:
         pad = _pad(pos + len(tail), 8)
         return b"".join((_ENCAPSULATION, head, _U32.pack(len(names)), names_part, tail, pad,
                          twists.astype("<f8").tobytes(), _U32.pack(0), bytes(8)))
+
+
+class RobotStatesWriter:
+    """Serialized ``sensor_msgs/PointCloud2`` of every robot's state at a tick: one point per
+    robot, in robot index order, of :data:`ROBOT_STATE`'s fields, in ``map``; height 1, dense.
+
+    Args:
+        n: the robots (the cloud's width).
+    """
+
+    def __init__(self, n: int):
+        self.n = int(n)
+        parts = [_header_tail("map")]
+        pos = _STAMP.size + len(parts[0])
+        parts.append(_pad(pos, 4) + struct.pack("<3I", 1, self.n, len(_POINT_FIELDS)))
+        pos = _align(pos, 4) + 12
+        for name, offset, datatype in _POINT_FIELDS:
+            parts.append(_string(pos, name))
+            pos += len(parts[-1])
+            parts.append(_pad(pos, 4) + struct.pack("<IB", offset, datatype))
+            pos = _align(pos, 4) + 5
+            parts.append(_pad(pos, 4) + _U32.pack(1))
+            pos = _align(pos, 4) + 4
+        parts.append(b"\x00")  # is_bigendian
+        pos += 1
+        size = ROBOT_STATE.itemsize
+        parts.append(_pad(pos, 4) + struct.pack("<3I", size, size * self.n, size * self.n))
+        self._middle = b"".join(parts)
+        self._states = np.zeros(self.n, dtype=ROBOT_STATE)
+
+    def write(self, stamp_ns: int, poses: np.ndarray, v: np.ndarray, w: np.ndarray,
+              published: np.ndarray) -> bytes:
+        """The message's bytes.
+
+        Args:
+            stamp_ns: [ns] the tick.
+            poses: (N, 3) x, y, yaw in ``map`` [m, m, rad].
+            v: (N,) [m/s]; w: (N,) [rad/s].
+            published: (N,) uint8, :data:`ODOM_PUBLISHED` | :data:`SCAN_PUBLISHED` per robot.
+        """
+        st = self._states
+        st["x"], st["y"], st["yaw"] = poses[:, 0], poses[:, 1], poses[:, 2]
+        st["v"], st["w"], st["published"] = v, w, published
+        return b"".join((_ENCAPSULATION, _stamp(stamp_ns), self._middle, st.tobytes(),
+                         b"\x01"))  # is_dense
 
 
 def diagnostic_status(level: int, name: str, message: str, hardware_id: str,

@@ -173,6 +173,18 @@ FAULT_ACKS = Topic("/swarm/fault_acks", "diagnostic_msgs/msg/DiagnosticStatus",
                    ("swarm_sim",))
 """Transient local on both sides (the simulator's reader too): an acknowledgement published
 before the simulator's reader had matched its writer is delivered when it matches."""
+ROBOT_STATES = Topic("/swarm/robot_states", "sensor_msgs/msg/PointCloud2", DEFAULT,
+                     ("swarm_sim (every tick, while it has a reader)",),
+                     ("group processes: they render their robots' scans and feed their "
+                      "navigators from it",))
+"""Every robot's state at a tick in one message (:class:`swarm_common.cdr.RobotStatesWriter`):
+a point per robot in robot index order, its pose x, y, yaw in ``map`` and velocity v, w (the
+simulator's ``float64`` values) and which of its ``odom`` and ``scan`` the simulator writes at
+this tick (``published``: a fault mutes them); ``header.stamp`` is the tick.  A group process
+renders its robots' scans from it with the simulator's own sensor code
+(:mod:`swarm_sim.sensors`) and hands each navigator the odometry and scan it would have read
+(:mod:`swarm_up.feed`), so the simulator writes a robot's ``odom`` and ``scan`` only while that
+topic has a reader (a navigator in its own process, a recorder, ``ros2 topic echo``)."""
 CMD_VEL_BATCH = Topic("/swarm/cmd_vel_batch", "trajectory_msgs/msg/MultiDOFJointTrajectory",
                       Qos(300, durability=TRANSIENT_LOCAL),
                       ("group processes: their navigators' answers to a control tick",),

@@ -112,13 +112,15 @@ class NavigatorNode(Node):
 
     Args:
         namespace: the robot's namespace (``"/Srobot3"``); None takes it from ``--ros-args``.
+        fed: its odometry and scans come from its group process (:meth:`take_odom`,
+            :meth:`take_scan`, :mod:`swarm_up.feed`), not from subscriptions.
         **kwargs: passed to :class:`rclpy.node.Node` (``context``, ``cli_args``, ...).
 
     Raises:
         InputError: a parameter value is invalid, or the robot or points of interest do not load.
     """
 
-    def __init__(self, namespace: str | None = None, **kwargs):
+    def __init__(self, namespace: str | None = None, fed: bool = False, **kwargs):
         if namespace is not None:
             kwargs["namespace"] = namespace
         super().__init__("navigator", **kwargs)
@@ -182,8 +184,8 @@ class NavigatorNode(Node):
         self._warned: dict[str, float] = {}
         # Publishers, subscribers, service.
         self.cmd_pub, self.plan_pub, self.status_pub, self._goal_sub = navigator_interface(
-            self, self._on_map, self._on_scan, self._on_odom, self._on_goal_pose, self._on_cancel,
-            self._on_goal_coming)
+            self, self._on_map, None if fed else self._on_scan, None if fed else self._on_odom,
+            self._on_goal_pose, self._on_cancel, self._on_goal_coming)
         map_yaml = self.get_parameter("map_yaml_path").value
         if map_yaml:
             from swarm_scene.map_io import load_map
@@ -265,8 +267,14 @@ class NavigatorNode(Node):
         except ValueError as exc:
             self._warn("scan", f"dropped a malformed scan ({exc})")
             return
-        meta = (angle_min, inc, range_min, range_max)
-        if len(ranges) == 0 or not all(math.isfinite(x) for x in meta) or range_max <= 0.0:
+        self.take_scan(t, (angle_min, inc, range_min, range_max), ranges)
+
+    def take_scan(self, t: int, meta: tuple[float, float, float, float],
+                  ranges: np.ndarray) -> None:
+        """The scan of tick ``t`` [ns]: ``meta`` (angle_min [rad], angle_increment [rad],
+        range_min [m], range_max [m]) and (B,) float32 ranges [m] in the lidar's frame (REP
+        117), as :func:`swarm_common.cdr.scan_ranges` reads them."""
+        if len(ranges) == 0 or not all(math.isfinite(x) for x in meta) or meta[3] <= 0.0:
             self._warn("scan", "dropped a malformed scan (no beams or non-finite geometry)")
             return
         self._scan = (t, ranges)
@@ -283,6 +291,12 @@ class NavigatorNode(Node):
         except ValueError as exc:
             self._warn("odom", f"dropped a malformed odometry message ({exc})")
             return
+        self.take_odom(odom)
+
+    def take_odom(self, odom: tuple[int, float, float, float, float, float]) -> None:
+        """The odometry of a tick, ``(stamp [ns], x [m], y [m], yaw [rad], v [m/s], w [rad/s])``
+        as :func:`swarm_common.cdr.odom_pose` reads it: the tick is answered once it may be
+        (:meth:`_release`)."""
         if self._last_t is not None and odom[0] <= self._last_t:
             return  # a tick re-published (the start gate, a rejoin) that was answered already
         self._pending = odom  # a newer tick replaces one still waiting (that one is late anyway)

@@ -29,8 +29,8 @@ class NavigatorEndpoints(NamedTuple):
     goal_pose: object
 
 
-def navigator_interface(node, on_map: Callable, on_scan: Callable, on_odom: Callable,
-                        on_goal_pose: Callable, on_cancel: Callable,
+def navigator_interface(node, on_map: Callable, on_scan: Callable | None,
+                        on_odom: Callable | None, on_goal_pose: Callable, on_cancel: Callable,
                         on_goal_coming: Callable) -> NavigatorEndpoints:
     """Create a navigator's publishers, subscriptions and service on ``node`` (its namespace is
     the robot's).
@@ -39,7 +39,8 @@ def navigator_interface(node, on_map: Callable, on_scan: Callable, on_odom: Call
     ``on_odom(bytes)``, decoded with :mod:`swarm_common.cdr`: rclpy built 15 message objects per
     odometry message, 10 % of a group process's CPU); ``/map`` and ``goal_pose`` as messages;
     ``on_cancel`` serves ``navigator/cancel`` and ``on_goal_coming`` ``navigator/goal_coming``
-    (both ``std_srvs/Trigger``).
+    (both ``std_srvs/Trigger``).  ``on_scan`` or ``on_odom`` None: no subscription (a group
+    process feeds its navigators those, :mod:`swarm_up.feed`).
 
     Returns:
         The publishers of ``cmd_vel``, ``plan`` and ``nav_status``, and the ``goal_pose``
@@ -49,8 +50,10 @@ def navigator_interface(node, on_map: Callable, on_scan: Callable, on_odom: Call
     plan = publisher(node, Path, topics.PLAN)
     nav_status = publisher(node, DiagnosticStatus, topics.NAV_STATUS)
     subscription(node, OccupancyGrid, topics.MAP, on_map)
-    subscription(node, LaserScan, topics.SCAN, on_scan, raw=True)
-    subscription(node, Odometry, topics.ODOM, on_odom, raw=True)
+    if on_scan is not None:
+        subscription(node, LaserScan, topics.SCAN, on_scan, raw=True)
+    if on_odom is not None:
+        subscription(node, Odometry, topics.ODOM, on_odom, raw=True)
     goal_pose = subscription(node, PoseStamped, topics.GOAL_POSE, on_goal_pose)
     node.create_service(Trigger, topics.CANCEL_SERVICE, on_cancel)
     node.create_service(Trigger, topics.GOAL_COMING_SERVICE, on_goal_coming)

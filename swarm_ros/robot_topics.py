@@ -70,7 +70,8 @@ class RobotTopics:
 
 def publish_sensors(robots: Sequence[RobotTopics], t_ns: int, poses: np.ndarray,
                     v: np.ndarray, w: np.ndarray, scans: Sequence | None,
-                    mute_odom: Collection[int] = (), mute_scan: Collection[int] = ()) -> None:
+                    mute_odom: Collection[int] = (), mute_scan: Collection[int] = (),
+                    lazy: bool = False) -> None:
     """Every robot's sensor messages of tick ``t_ns`` [ns], robot after robot, its scan then its
     odometry: a navigator answers once it has both, so the first robots' navigators start while
     the last robots' messages are still being written (all scans first held every navigator back
@@ -85,9 +86,14 @@ def publish_sensors(robots: Sequence[RobotTopics], t_ns: int, poses: np.ndarray,
             when no lidar scans this tick.
         mute_odom: robots whose odometry (and ground truth) is not published (faults).
         mute_scan: robots whose scan is not published (faults).
+        lazy: write a robot's ``odom`` and ``scan`` only while that topic has a reader (the
+            group processes' navigators read them from ``/swarm/robot_states`` instead); a
+            reader that joins gets them from the next tick on.
     """
     pose_rows = poses.tolist()
     for i, robot in enumerate(robots):
-        if scans is not None and i not in mute_scan and scans[i] is not None:
+        if (scans is not None and i not in mute_scan and scans[i] is not None
+                and not (lazy and not robot.scan_pub.get_subscription_count())):
             robot.publish_scan(t_ns, scans[i])
-        robot.publish_odom(t_ns, pose_rows[i], float(v[i]), float(w[i]), i not in mute_odom)
+        robot.publish_odom(t_ns, pose_rows[i], float(v[i]), float(w[i]), i not in mute_odom
+                           and not (lazy and not robot.odom_pub.get_subscription_count()))

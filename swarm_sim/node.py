@@ -28,6 +28,7 @@ import signal
 import sys
 import time
 
+import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseArray, TwistStamped
@@ -38,10 +39,19 @@ from rclpy.node import Node, NodeNameNonExistentError
 from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import PointCloud2
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
 from swarm_common import topics
-from swarm_common.cdr import LaserScanWriter, PoseArrayWriter, cmd_vel_batch, twist_stamped
+from swarm_common.cdr import (
+    ODOM_PUBLISHED,
+    SCAN_PUBLISHED,
+    LaserScanWriter,
+    PoseArrayWriter,
+    RobotStatesWriter,
+    cmd_vel_batch,
+    twist_stamped,
+)
 from swarm_common.errors import run_cli
 from swarm_common.events import COLLISION, CollisionEvent, LateEvent, RobotNotice, SpawnEvent
 from swarm_common.faults import ACK_NAME, EVENT_NAME, FaultAck
@@ -53,7 +63,7 @@ from swarm_ros.robot_topics import RobotTopics, publish_sensors
 from swarm_ros.session import node_session
 from swarm_scene.world import describe_skipped
 from swarm_sim.faults import SimFaults
-from swarm_sim.loop import SimLoop
+from swarm_sim.loop import RESEND_S, SimLoop
 from swarm_sim.settings import (
     SimSettings,
     fault_schedule,
@@ -115,6 +125,9 @@ class SimulatorNode(Node):
         self.map_pub = publisher(self, OccupancyGrid, topics.MAP)
         self.events_pub = publisher(self, DiagnosticArray, topics.EVENTS)
         self.poses_pub = publisher(self, PoseArray, topics.POSES)
+        self.states_pub = publisher(self, PointCloud2, topics.ROBOT_STATES)
+        self._states_writer = RobotStatesWriter(len(namespaces))
+        self._states_resent = -math.inf  # [s] monotonic: the states last sent again
         self.robots = [RobotTopics(self, ns, self._scan_writer(i, ns))
                        for i, ns in enumerate(namespaces)]
         self._cmd_subs = [subscription(
@@ -325,8 +338,10 @@ class SimulatorNode(Node):
         t_ns, eng = self.gate.t_ns, self.engine
         self.clock_pub.publish(Clock(clock=time_msg(t_ns)))
         silenced, drops = self.gate.silenced, self.loop.drops
+        mute_odom, mute_scan = silenced | drops.odom, silenced | drops.scan
+        self._publish_states(mute_odom, mute_scan)
         publish_sensors(self.robots, t_ns, eng.poses, eng.v, eng.w, self._tick_scans(),
-                        mute_odom=silenced | drops.odom, mute_scan=silenced | drops.scan)
+                        mute_odom=mute_odom, mute_scan=mute_scan, lazy=True)
         if self.tf is not None:
             self.tf.publish(t_ns, eng.poses)
         if self.poses_pub.get_subscription_count():
@@ -334,12 +349,32 @@ class SimulatorNode(Node):
             # simulator's tick, on the lockstep's critical path, while a dashboard watched
             self.poses_pub.publish(self._poses_writer.write(t_ns, eng.poses))
 
+    def _publish_states(self, mute_odom, mute_scan) -> None:
+        """``/swarm/robot_states`` of this tick, while it has a reader (the group processes)."""
+        if not self.states_pub.get_subscription_count():
+            return
+        eng = self.engine
+        published = np.full(eng.n, ODOM_PUBLISHED | SCAN_PUBLISHED, dtype=np.uint8)
+        published[list(mute_odom)] &= ~np.uint8(ODOM_PUBLISHED)
+        published[list(mute_scan)] &= ~np.uint8(SCAN_PUBLISHED)
+        self.states_pub.publish(self._states_writer.write(self.gate.t_ns, eng.poses, eng.v,
+                                                          eng.w, published))
+
     def republish(self, i: int) -> None:
+        """Robot ``i``'s tick again: its ``odom`` and ``scan`` to their readers, and the robots'
+        states (once a wall-clock round of re-publishing, whichever robots it is for)."""
         eng, scans = self.engine, self._tick_scans()
-        if scans is not None and scans[i] is not None:
-            self.robots[i].publish_scan(self.gate.t_ns, scans[i])
-        self.robots[i].publish_odom(self.gate.t_ns, eng.poses[i].tolist(), float(eng.v[i]),
-                                    float(eng.w[i]), truth=False)
+        robot = self.robots[i]
+        if scans is not None and scans[i] is not None and robot.scan_pub.get_subscription_count():
+            robot.publish_scan(self.gate.t_ns, scans[i])
+        if robot.odom_pub.get_subscription_count():
+            robot.publish_odom(self.gate.t_ns, eng.poses[i].tolist(), float(eng.v[i]),
+                               float(eng.w[i]), truth=False)
+        now = time.monotonic()
+        if now - self._states_resent > 0.5 * RESEND_S:
+            self._states_resent = now
+            silenced, drops = self.gate.silenced, self.loop.drops
+            self._publish_states(silenced | drops.odom, silenced | drops.scan)
 
     def reader_matched(self, deadline_s: float) -> bool:
         """Whether the ``wait_for_reader`` node has ``reader_subscriptions`` subscriptions to

@@ -123,6 +123,16 @@ class SwarmSensors:
         """(N,) bool: whose lidar scans at control tick ``ticks``."""
         return ticks % self.lidar_periods == 0
 
+    def skip(self, ticks: int) -> None:
+        """Draw the noise of control tick ``ticks``'s scans without casting any (nothing when no
+        lidar is due): a process that renders none of that tick's scans, or catches up with the
+        ticks before its first, keeps the generator where the simulator's is."""
+        due = self.due_mask(ticks)
+        for k, lidar in enumerate(self.kind_lidars):
+            m = self.n if not self.mixed else int(((self.kind == k) & due).sum())
+            if m and due.any():
+                lidar.draw_noise(m, self.rng)
+
     def scans(self, poses: np.ndarray, ticks: int, rows=None) -> np.ndarray | list:
         """Ranges [m] of the robots' lidars at ``poses`` (N, 3) (REP 117), float32; the noise of
         every due robot is drawn whatever ``rows`` asks for.

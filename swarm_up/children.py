@@ -234,9 +234,12 @@ def child_specs(cfg: RunConfig):
     else:
         for g, group in enumerate(cfg.groups, start=1):
             argv = [sys.executable, "-m", "swarm_up.group", "--namespaces", ",".join(group),
-                    "--params-dir", str(params)]
+                    "--params-dir", str(params), "--world", world, "--seed", str(cfg.seed),
+                    # the robots' sensors rendered here (swarm_up.feed), as the simulator would
+                    "--sensors", "--robot", cfg.robot, "--swarm-size", str(len(cfg.robots)),
+                    "--name-prefix", cfg.name_prefix]
             if cfg.commanders:
-                argv += ["--commanders", "--world", world, "--seed", str(cfg.seed)]
+                argv += ["--commanders"]
                 if coordinated:
                     argv += ["--coordinated", "--coordinator-timeout", repr(cfg.ready_timeout)]
             if cfg.faults:

@@ -250,6 +250,7 @@ class GroupFaults:
         self._todo: deque[FaultEvent] = deque()
         self._done: set[int] = set()
         self._restarts: list[tuple[float, str]] = []  # (monotonic due, ns)
+        self._killed: list[Node] = []  # stopped nodes, destroyed by close()
         executor.add_node(self.node)
 
     def _on_events(self, msg: DiagnosticArray) -> None:
@@ -263,9 +264,15 @@ class GroupFaults:
                 self._todo.append(ev)
 
     def _destroy(self, node) -> None:
+        """A killed node stops: it leaves the executor (no callback of it runs again) and the
+        group's lists, and its DDS endpoints stay until the group ends, as a killed process's
+        linger until their lease ends.  Deleting them at once took back what its writers had
+        sent and a reader had not yet taken in: swarm-up's metrics listener, behind under load,
+        lost a killed navigator's goal (1 of 4 runs of
+        ``test_fault_runs_are_reproducible_in_both_process_layouts`` with two busy loops)."""
         self.executor.remove_node(node)
         self.on_node_gone(node)
-        node.destroy_node()
+        self._killed.append(node)
 
     def service(self) -> None:
         """Carry out the pending kills and the restarts that are due."""
@@ -300,6 +307,9 @@ class GroupFaults:
             self.emit(f"{r[1]}'s navigator restarted")
 
     def close(self) -> None:
-        """Destroy the fault node."""
+        """Destroy the fault node and the killed nodes."""
+        for node in self._killed:
+            node.destroy_node()
+        self._killed.clear()
         self.executor.remove_node(self.node)
         self.node.destroy_node()

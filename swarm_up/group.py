@@ -3,12 +3,15 @@
 Every rclpy process is one DDS participant and costs about 75 MB; 100 of them on 2 cores stall
 discovery, while 100 robots' nodes grouped into a few processes deliver every message.  Each
 robot keeps its own nodes, parameters and state: grouping shares the process, not the navigator.
-The navigators' answers to a control tick leave in one message (:mod:`swarm_up.answers`).
+With ``--sensors`` (what swarm-up runs) the process renders its robots' scans from the
+simulator's robot states and feeds its navigators (:mod:`swarm_up.feed`); the navigators'
+answers to a control tick leave in one message (:mod:`swarm_up.answers`).
 
 Usage (what ``swarm-up --processes K`` runs)::
 
-    python -m swarm_up.group --namespaces Srobot1,Srobot2 --params-dir RUN/params \\
-        [--commanders --world slim_blockage --seed 0]
+    python -m swarm_up.group --namespaces Srobot1,Srobot3 --params-dir RUN/params \\
+        --world slim_blockage --seed 0 --sensors --robot turtlebot3_waffle --swarm-size 4 \\
+        [--commanders]
 
 The params file of robot ``ns`` is ``<params-dir>/<ns>.yaml``, rooted at ``/<ns>/navigator``.
 
@@ -27,11 +30,13 @@ from rclpy.experimental import EventsExecutor
 
 from swarm_common import cli
 from swarm_common.errors import InputError, run_cli
+from swarm_common.stamps import NS_PER_S
 from swarm_nav.node import NavigatorNode
 from swarm_nav.planner import share_cost_to_go
 from swarm_ros.session import node_session, spin_forever
 from swarm_up.answers import AnswerBatch, spin_batched
 from swarm_up.clock import SharedClock
+from swarm_up.feed import SensorFeed
 
 PROG = "swarm_up.group"
 
@@ -58,6 +63,18 @@ def build_parser() -> cli.ArgumentParser:
                    "(swarm-up --coordination centralized)")
     p.add_argument("--coordinator-timeout", type=cli.positive_float, default=120.0,
                    help="wall seconds to wait for the coordinator before the commanders start")
+    p.add_argument("--sensors", action="store_true",
+                   help="render these robots' scans here and feed the navigators from the "
+                   "simulator's /swarm/robot_states (swarm_up.feed); needs the run's --world, "
+                   "--robot, --swarm-size, --name-prefix and --seed, as the simulator has them")
+    cli.add_shared(p, "--robot", help="the run's robot or fleet (with --sensors)")
+    p.add_argument("--swarm-size", type=cli.positive_int, default=None,
+                   help="the run's robots, all hosts (with --sensors)")
+    p.add_argument("--name-prefix", default="Srobot",
+                   help="the run's namespace prefix (with --sensors)")
+    p.add_argument("--control-rate", type=cli.positive_float, default=10.0,
+                   help="the simulator's control ticks per simulated second [Hz] (with "
+                   "--sensors)")
     return p
 
 
@@ -77,8 +94,13 @@ def _run(argv: list[str]) -> int:
     clock = None  # a SharedClock when this process holds more than one node
     batch = None  # the navigators' answers in one message a tick (with the clock's node)
 
+    sensors = _sensors(opts) if opts.sensors else None
+    if sensors is not None and not set(names) <= set(sensors[0]):
+        raise InputError(f"--namespaces: {sorted(set(names) - set(sensors[0]))[0]} is no robot "
+                         f"of a run of {opts.swarm_size} named {opts.name_prefix}<i>")
+
     def make_navigator(ns: str) -> NavigatorNode:
-        node = NavigatorNode(namespace=f"/{ns}",
+        node = NavigatorNode(namespace=f"/{ns}", fed=sensors is not None,
                              cli_args=["--ros-args", "--params-file", str(files[ns])])
         if clock is not None:
             clock.adopt(node)
@@ -102,6 +124,11 @@ def _run(argv: list[str]) -> int:
                 executor.add_node(node)
                 nodes.append(node)
                 navigators[ns] = node
+            if sensors is not None:
+                feed_node = clock.node if clock is not None else nodes[0]
+                SensorFeed(feed_node, navigators, *sensors,
+                           busy=batch.busy if batch is not None else None,
+                           warn=feed_node.get_logger().warning)
             if opts.commanders and opts.coordinated:
                 _add_coordinated_commanders(names, executor, nodes, runners, commanders,
                                             opts.coordinator_timeout, opts.faults)
@@ -123,6 +150,7 @@ def _run(argv: list[str]) -> int:
             if clock is not None:  # the commanders (each navigator was adopted at its creation)
                 for node in nodes:
                     clock.adopt(node)
+
             print(f"{PROG}: {len(names)} navigators{' and commanders' if runners else ''} up: "
                   f"{','.join(names)}", flush=True)
             if opts.faults:
@@ -163,6 +191,42 @@ def _run(argv: list[str]) -> int:
             for node in nodes:
                 node.destroy_node()
     return 0
+
+
+def _sensors(opts) -> tuple:
+    """``--sensors``: every robot's namespace, the run's sensors
+    (:class:`swarm_sim.sensors.SwarmSensors`, loaded as the simulator loads them:
+    :func:`swarm_sim.settings.prepare`), each robot's scan geometry as its navigator reads it,
+    and the control period [ns].
+
+    Raises:
+        InputError: a flag missing, or a world or robot that does not load.
+    """
+    from swarm_common.cdr import scan_reading
+    from swarm_scene.fleet import fleet_models
+    from swarm_scene.robot_model import load_robot
+    from swarm_scene.world import load_world, resolve_world
+    from swarm_sim.sensors import SwarmSensors
+
+    for flag, value in (("--world", opts.world), ("--robot", opts.robot),
+                        ("--swarm-size", opts.swarm_size)):
+        if value is None:
+            raise InputError(f"{flag}: needed with --sensors")
+    world = load_world(resolve_world(opts.world))
+    try:
+        models = fleet_models(opts.robot, opts.swarm_size)
+    except InputError as exc:
+        raise InputError(f"--robot: {exc}") from None
+    loaded = {name: load_robot(name) for name in dict.fromkeys(models)}
+    fleet = [loaded[name] for name in models]
+    sensors = SwarmSensors(world, fleet, opts.seed, 1.0 / opts.control_rate)
+    meta = []
+    for i in range(len(fleet)):
+        pattern = sensors.kind_lidars[sensors.kind[i]].pattern
+        meta.append(scan_reading(float(pattern.angles[0]), float(pattern.angle_increment),
+                                 float(pattern.range_min), float(pattern.range_max)))
+    names = [f"{opts.name_prefix}{i + 1}" for i in range(len(fleet))]
+    return names, sensors, meta, round(NS_PER_S / opts.control_rate)
 
 
 def _say_error(runner):

@@ -87,3 +87,19 @@ def test_footprints_and_lidar_poses_follow_the_pose(slim, robots):
     np.testing.assert_allclose(sensors.lidar_poses(pose)[0],
                                [3.0 - my, 2.0 + mx, math.pi / 2 + myaw], atol=1e-12)
     assert sensors.due_mask(0).tolist() == [True] and sensors.due_mask(1).tolist() == [False]
+
+
+@pytest.mark.parametrize("mix", [False, True])
+def test_a_late_renderer_skips_the_ticks_it_missed_and_renders_the_same(slim, robots, mix):
+    waffle, burger = robots["turtlebot3_waffle"], robots["turtlebot3_burger"]
+    models = [waffle, burger, waffle, burger] if mix else [waffle] * 4
+    early = SwarmSensors(slim, models, seed=3, control_period=0.1)
+    late = SwarmSensors(slim, models, seed=3, control_period=0.1)
+    poses = np.array(POSES[:4], dtype=float)
+    for ticks in range(1, 7):
+        if early.due_mask(ticks).any():
+            early.scans(poses, ticks)
+        late.skip(ticks)  # nothing drawn where no lidar is due
+    whole = early.scans(poses, 8)
+    part = late.scans(poses, 8, [1, 2])
+    _same(part, [whole[i] for i in (1, 2)] if mix else whole[[1, 2]])
