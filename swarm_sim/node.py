@@ -1,8 +1,10 @@
 """``swarm-sim``: the simulator node ``/swarm_sim`` (docs/reference/contract.md#s2, #s3, #s5).
 
 Loads a Gazebo world and a URDF robot, spawns exactly N robots, and runs the synchronous control
-loop of docs/ARCHITECTURE.md: each control tick it publishes ``/clock``, every robot's ``odom``
-and ``ground_truth`` and, on lidar ticks, ``scan``; then waits for the ``cmd_vel`` each active
+loop of docs/ARCHITECTURE.md: each control tick it publishes ``/clock``, every robot's state in
+one ``/swarm/robot_states`` (from which group processes render their robots' sensors), and every
+robot's ``odom``, ``ground_truth`` and, on lidar ticks, ``scan`` while that topic has a reader;
+then waits for the ``cmd_vel`` each active
 navigator computed from that tick's data (stamped with the tick; a group process's navigators
 send theirs together on ``/swarm/cmd_vel_batch``), applies the commands and steps
 the world.  ``--rtf 1`` paces simulated time to the wall clock, ``--rtf 0`` runs unpaced.

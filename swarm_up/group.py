@@ -126,7 +126,7 @@ def _run(argv: list[str]) -> int:
                 navigators[ns] = node
             if sensors is not None:
                 feed_node = clock.node if clock is not None else nodes[0]
-                SensorFeed(feed_node, navigators, *sensors,
+                SensorFeed(feed_node, navigators, *sensors,  # kept by its subscription
                            busy=batch.busy if batch is not None else None,
                            warn=feed_node.get_logger().warning)
             if opts.commanders and opts.coordinated:
@@ -150,7 +150,6 @@ def _run(argv: list[str]) -> int:
             if clock is not None:  # the commanders (each navigator was adopted at its creation)
                 for node in nodes:
                     clock.adopt(node)
-
             print(f"{PROG}: {len(names)} navigators{' and commanders' if runners else ''} up: "
                   f"{','.join(names)}", flush=True)
             if opts.faults:
