@@ -20,7 +20,14 @@ process layout; its real-time factor is the ceiling that the messaging sets, and
   answered it); ``spin_once`` of an ``EventsExecutor`` between ticks.  The loop, its waits and
   its tick gate are the simulator's own (:class:`swarm_sim.loop.SimLoop`, :mod:`swarm_sim.tick`)
   and so are its sensor topics (:mod:`swarm_ros.robot_topics`): no wall-clock timeout, a robot
-  not awaited only once its ``cmd_vel`` has no writer or the supervisor says it is gone.
+  not awaited only once its ``cmd_vel`` has no writer or the supervisor says it is gone.  As the
+  simulator, it also publishes every robot's state in one ``/swarm/robot_states`` a tick and
+  writes a robot's ``odom`` and ``scan`` only while that topic has a reader, and it takes a
+  group's answers in one ``/swarm/cmd_vel_batch``.
+- group process (several robots' navigators): as ``swarm_up.group``, it feeds its navigators
+  the states' odometry and fixed-range scans (:class:`swarm_up.feed.SensorFeed`) instead of
+  their subscribing to ``odom`` and ``scan``, and sends their answers in one batch
+  (:mod:`swarm_up.answers`).
 - navigator (one node ``/<ns>/navigator`` per robot, ``use_sim_time``; a process of its own
   subscribes to ``/clock`` itself, a group process once for all its nodes,
   :class:`swarm_up.clock.SharedClock`): subscribes ``/map``, ``scan``, ``odom``, ``goal_pose``;

@@ -5,8 +5,9 @@ started by :func:`swarm_bench.baseline.run_baseline`:
 
 - :class:`BaselineSimNode` (``sim``): the simulator's loop (:class:`swarm_sim.loop.SimLoop`) with
   the physics, the ray casting and the collision checks taken out: every control tick ``/clock``,
-  every robot's ``odom`` and ``ground_truth`` and, on lidar ticks, a ``scan`` with fixed ranges;
-  then it waits for every active robot's ``cmd_vel`` stamped with that tick, and steps time.
+  the robots' states and, while read, every robot's ``odom`` and ``ground_truth`` and, on lidar
+  ticks, a ``scan`` with fixed ranges; then it waits for every active robot's answer stamped with
+  that tick (its ``cmd_vel``, or its group's batch), and steps time.
 - :class:`BaselineNavigatorNode` and :class:`BaselineCommanderNode` (``group``): a navigator's
   and a commander's topics, types, QoS and rates (``swarm_nav/node.py``,
   ``swarm_commander/robot_navigator.py``), answering each tick at once instead of navigating.
