@@ -10,7 +10,11 @@ traffic included: the processes of one host talk UDP too). Needs root.
 Usage::
 
     python tools/host_traffic.py --hosts 2 --swarm-size 20 --duration 120 [--discovery-server]
-        [--out traffic.json] [-- extra swarm-up flags]
+        [--out traffic.json] [--pcap rank1.pcap] [-- extra swarm-up flags]
+
+``--pcap`` also captures rank 1's interface with ``tcpdump`` (the Debian package) for
+``tools/rtps_bytes.py``, which breaks the bytes down by topic (the JSON's ``ready_unix`` is the
+moment every navigator was ready, for its ``--after``).
 
 Prints a table per phase and host (bytes and packets out/in, per robot of the host per simulated
 second for the run phase) and writes the figures as JSON.
@@ -64,6 +68,8 @@ def main() -> int:
     p.add_argument("--discovery-server", action="store_true")
     p.add_argument("--out", type=Path, default=None)
     p.add_argument("--tag", type=int, default=240, help="namespace names and subnet")
+    p.add_argument("--pcap", type=Path, default=None,
+                   help="capture rank 1's interface into this pcap (tcpdump)")
     p.add_argument("extra", nargs="*", help="more swarm-up flags (after --)")
     a = p.parse_args()
     swarm_up = str(Path(sys.executable).parent / "swarm-up")
@@ -76,6 +82,12 @@ def main() -> int:
             run += ["--discovery-server", f"{hosts.addr[0]}:11811"]
         env = Hosts.env()
         procs = []
+        dump = None
+        if a.pcap:
+            dump = subprocess.Popen(hosts.argv(1, ["tcpdump", "-q", "-i", "eth0", "-s", "0",
+                                                   "-B", "65536", "-w", str(a.pcap)]),
+                                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            time.sleep(1.0)
         c0 = counters(hosts)
         t0 = time.monotonic()
         for rank in reversed(range(a.hosts)):
@@ -85,14 +97,18 @@ def main() -> int:
                                   str(tmp / f"r{rank}")]), stdout=log, stderr=subprocess.STDOUT,
                 env=env, start_new_session=True))
         leader_log = tmp / "rank0.log"
-        ready = c_ready = t_ready = None
+        ready = c_ready = t_ready = ready_unix = None
         while ready is None and procs[-1].poll() is None:
             m = re.search(r"all \d+ navigators ready in ([\d.]+) s", leader_log.read_text())
             if m:
                 ready, c_ready, t_ready = float(m.group(1)), counters(hosts), time.monotonic()
+                ready_unix = time.time()
             time.sleep(0.2)
         codes = [proc.wait() for proc in procs]
         c_end, t_end = counters(hosts), time.monotonic()
+        if dump is not None:
+            dump.terminate()
+            dump.wait()
     if ready is None:  # never all ready: the whole run is the start
         print(f"not every navigator was ready: {leader_log.read_text().splitlines()[-1]}")
         c_ready, t_ready = c_end, t_end
@@ -101,7 +117,7 @@ def main() -> int:
     robots = [h["robots"] for h in metrics.get("hosts", [])]
     sim_s = metrics.get("sim_time_s")
     result = {"command": " ".join(["swarm-up", *run]), "exit_codes": codes, "tmp": str(tmp),
-              "ready_s": ready, "start_wall_s": round(t_ready - t0, 1),
+              "ready_s": ready, "ready_unix": ready_unix, "start_wall_s": round(t_ready - t0, 1),
               "run_wall_s": round(t_end - t_ready, 1), "sim_time_s": sim_s,
               "rtf": metrics.get("rtf"),
               "robots_per_host": robots, "start": delta(c0, c_ready),
