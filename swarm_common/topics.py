@@ -20,7 +20,7 @@ this module (``tools/gen_docs.py``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 RELIABLE, BEST_EFFORT = "reliable", "best_effort"
 VOLATILE, TRANSIENT_LOCAL = "volatile", "transient_local"
@@ -185,6 +185,20 @@ renders its robots' scans from it with the simulator's own sensor code
 (:mod:`swarm_sim.sensors`) and hands each navigator the odometry and scan it would have read
 (:mod:`swarm_up.feed`), so the simulator writes a robot's ``odom`` and ``scan`` only while that
 topic has a reader (a navigator in its own process, a recorder, ``ros2 topic echo``)."""
+RANK_ROBOT_STATES = Topic("/swarm/rank<R>/robot_states", "sensor_msgs/msg/PointCloud2", DEFAULT,
+                          ("swarm-up on rank R > 0 (its relay of /swarm/robot_states)",),
+                          ("that host's group processes",))
+"""On a rank ``R`` > 0 with more than one group process, ``/swarm/robot_states`` as the rank's
+``swarm-up`` took it, written again byte for byte (:mod:`swarm_up.relay`) for that host's group
+processes alone, so that one copy a tick crosses the network per host instead of one per
+process (:func:`rank_robot_states` names it for a rank)."""
+
+
+def rank_robot_states(rank: int) -> Topic:
+    """:data:`RANK_ROBOT_STATES` of rank ``rank`` (``/swarm/rank1/robot_states``)."""
+    return replace(RANK_ROBOT_STATES, name=RANK_ROBOT_STATES.name.replace("<R>", str(int(rank))))
+
+
 CMD_VEL_BATCH = Topic("/swarm/cmd_vel_batch", "trajectory_msgs/msg/MultiDOFJointTrajectory",
                       Qos(300, durability=TRANSIENT_LOCAL),
                       ("group processes: their navigators' answers to a control tick",),

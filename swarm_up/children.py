@@ -238,6 +238,8 @@ def child_specs(cfg: RunConfig):
                     # the robots' sensors rendered here (swarm_up.feed), as the simulator would
                     "--sensors", "--robot", cfg.robot, "--swarm-size", str(len(cfg.robots)),
                     "--name-prefix", cfg.name_prefix]
+            if relays_states(cfg):
+                argv += ["--states-rank", str(cfg.rank)]
             if cfg.commanders:
                 argv += ["--commanders"]
                 if coordinated:
@@ -248,6 +250,12 @@ def child_specs(cfg: RunConfig):
                                    kind="group", robots=group, env=burst_env))
     return specs
 
+
+
+def relays_states(cfg: RunConfig) -> bool:
+    """Whether this host's ``swarm-up`` relays the robots' states to its group processes
+    (:mod:`swarm_up.relay`): on a rank other than 0 with more than one group process."""
+    return not cfg.leader and cfg.groups is not None and len(cfg.groups) > 1
 
 
 def sim_argv(cfg: RunConfig) -> list[str]:

@@ -44,12 +44,16 @@ class SensorFeed:
         busy: called when a message came in (the group's batch of answers,
             :meth:`swarm_up.answers.AnswerBatch.busy`), or None.
         warn: a line for a malformed message (throttled by the caller), or None.
+        topic: where the states come from: :data:`~swarm_common.topics.ROBOT_STATES` (the
+            simulator's), or a rank's relay of it
+            (:func:`~swarm_common.topics.rank_robot_states`).
     """
 
     def __init__(self, node, navigators: Mapping, names: Sequence[str], sensors,
                  scan_meta: Sequence[tuple], period_ns: int,
                  busy: Callable[[], None] | None = None,
-                 warn: Callable[[str], None] | None = None):
+                 warn: Callable[[str], None] | None = None,
+                 topic: topics.Topic = topics.ROBOT_STATES):
         self.navigators = navigators
         self.names = list(names)
         self.sensors = sensors
@@ -65,8 +69,8 @@ class SensorFeed:
         self._scans: dict[int, np.ndarray] = {}
         self._states = None
         self._warned = -1e9
-        self.sub = subscription(node, PointCloud2, topics.ROBOT_STATES, self.on_states,
-                                raw=True)
+        self.topic = topic
+        self.sub = subscription(node, PointCloud2, topic, self.on_states, raw=True)
 
     def on_states(self, buf: bytes) -> None:
         """A tick's states: render this tick's scans once, then feed every navigator of the
@@ -76,10 +80,10 @@ class SensorFeed:
         try:
             t, states = robot_states(buf)
         except ValueError as exc:
-            self._say(f"{topics.ROBOT_STATES.name}: dropped a malformed message ({exc})")
+            self._say(f"{self.topic.name}: dropped a malformed message ({exc})")
             return
         if len(states) != len(self.names):
-            self._say(f"{topics.ROBOT_STATES.name}: {len(states)} robots, not "
+            self._say(f"{self.topic.name}: {len(states)} robots, not "
                       f"{len(self.names)}: dropped")
             return
         if t < self.t_ns:

@@ -72,6 +72,10 @@ def build_parser() -> cli.ArgumentParser:
                    help="the run's robots, all hosts (with --sensors)")
     p.add_argument("--name-prefix", default="Srobot",
                    help="the run's namespace prefix (with --sensors)")
+    p.add_argument("--states-rank", type=cli.non_negative_int, default=0, metavar="R",
+                   help="with --sensors: read the states from rank R's relay "
+                   "(/swarm/rank<R>/robot_states, swarm_up.relay) instead of the simulator's "
+                   "/swarm/robot_states; 0 = the simulator's (default: %(default)s)")
     p.add_argument("--control-rate", type=cli.positive_float, default=10.0,
                    help="the simulator's control ticks per simulated second [Hz] (with "
                    "--sensors)")
@@ -128,7 +132,8 @@ def _run(argv: list[str]) -> int:
                 feed_node = clock.node if clock is not None else nodes[0]
                 SensorFeed(feed_node, navigators, *sensors,  # kept by its subscription
                            busy=batch.busy if batch is not None else None,
-                           warn=feed_node.get_logger().warning)
+                           warn=feed_node.get_logger().warning,
+                           topic=_states_topic(opts.states_rank))
             if opts.commanders and opts.coordinated:
                 _add_coordinated_commanders(names, executor, nodes, runners, commanders,
                                             opts.coordinator_timeout, opts.faults)
@@ -190,6 +195,13 @@ def _run(argv: list[str]) -> int:
             for node in nodes:
                 node.destroy_node()
     return 0
+
+
+def _states_topic(rank: int):
+    """Where ``--states-rank`` says the states come from."""
+    from swarm_common import topics
+
+    return topics.rank_robot_states(rank) if rank else topics.ROBOT_STATES
 
 
 def _sensors(opts) -> tuple:

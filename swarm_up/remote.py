@@ -3,11 +3,13 @@ R > 0): this host's navigators and commanders, supervised as on one host.
 
 Order (:func:`run_remote`): wait for rank 0's run identity on ``/swarm/run`` (up to
 ``--ready-timeout``), refuse (exit 2, one line) if this host's flags make another run or this
-rank already runs elsewhere → write the params files of this host's robots → start their
-processes (group processes or one per robot) → supervise them (restart what crashes, tell the
-simulator which robots a crashed process ran, carry out ``kill-nav``/``kill-robot`` faults of
-per-robot processes) and report to rank 0 once a second → end when rank 0 says its run ends
-(exit 0), when rank 0 falls silent for ``--rank-timeout`` (exit 1), or on Ctrl-C (exit 0).
+rank already runs elsewhere → write the params files of this host's robots → start the relay
+of the robots' states when the host runs more than one group process (:mod:`swarm_up.relay`)
+→ start their processes (group processes or one per robot) → supervise them (restart what
+crashes, tell the simulator which robots a crashed process ran, carry out
+``kill-nav``/``kill-robot`` faults of per-robot processes) and report to rank 0 once a second
+→ end when rank 0 says its run ends (exit 0), when rank 0 falls silent for ``--rank-timeout``
+(exit 1), or on Ctrl-C (exit 0).
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ import time
 
 from swarm_common.errors import EXIT_OK, EXIT_RUNTIME, InputError
 from swarm_common.ranks import ENDING, REFUSED, STARTING, UP
-from swarm_up.children import child_specs
+from swarm_up.children import child_specs, relays_states
 from swarm_up.hosts import HostLink, identity_of, new_session
 from swarm_up.output import say, warn
 from swarm_up.run_config import RunConfig
@@ -105,6 +107,7 @@ def run_remote(cfg: RunConfig) -> int:
                                                 f"restarted"))
     sampler = ResourceSampler(sup, robots=len(local))
     announcer = None
+    relay = None
     joined = False  # past the checks: rank 0 counts this rank's end as a loss
     code = EXIT_OK
     try:
@@ -119,6 +122,12 @@ def run_remote(cfg: RunConfig) -> int:
             from swarm_up.children import faults_file
 
             dump_faults(cfg.faults, faults_file(cfg))
+        if relays_states(cfg):  # before the group processes: they wait for its states
+            from swarm_up.relay import StatesRelay
+
+            relay = StatesRelay(cfg.rank)
+            say(f"relaying the robots' states to this host's {len(cfg.groups)} group processes "
+                f"on {relay.topic}")
         for spec in child_specs(cfg):
             try:
                 sup.start(spec)
@@ -184,6 +193,8 @@ def run_remote(cfg: RunConfig) -> int:
             link.report(ENDING, force=True)
             link.spin(0.2)
         link.close()
+        if relay is not None:
+            relay.close()
         if announcer is not None:
             announcer.close()
         for s, h in old.items():

@@ -81,7 +81,9 @@ def test_two_hosts_give_the_one_host_run_and_refuse_other_flags(one_host, hosts3
     one = one_host
     two = RUN + ["--hosts", "2"]
     paced = ["--rtf", "3"]  # the run lasts 20 s wall: time for the two refusals below
-    with _rank(hosts3, 1, two + paced + ["--host-rank", "1"], tmp_path, "r1") as r1, \
+    # rank 1 in two group processes: its swarm-up relays the robots' states to them
+    groups = ["--processes", "2"]
+    with _rank(hosts3, 1, two + paced + groups + ["--host-rank", "1"], tmp_path, "r1") as r1, \
             _rank(hosts3, 0, two + paced + ["--host-rank", "0"], tmp_path, "r0") as r0:
         r0.wait_for_stdout(r"rank 1 is up", READY_TIMEOUT_S)
         # another seed, and rank 1 once more, on host 2: each refused (exit 2, one line naming
@@ -105,6 +107,8 @@ def test_two_hosts_give_the_one_host_run_and_refuse_other_flags(one_host, hosts3
     assert [(h["rank"], h["robots"], h["lost"]) for h in rows] == [(0, 2, False), (1, 2, False)]
     assert rows[1]["cpu_percent"] and rows[1]["peak_rss_mb"], rows
     assert "hosts" in r0.stdout()  # the per-host table
+    assert ("relaying the robots' states to this host's 2 group processes on "
+            "/swarm/rank1/robot_states") in r1.stdout()
 
 
 def test_three_hosts_with_the_discovery_server(one_host, hosts3, tmp_path):
