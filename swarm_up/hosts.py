@@ -171,6 +171,12 @@ class HostLink:
         out, self._faults = self._faults, []
         return out
 
+    @property
+    def context(self):
+        """Its ``rclpy`` context (one DDS participant), for another node of ``swarm-up``'s
+        (:class:`swarm_up.relay.StatesRelay`)."""
+        return self._context
+
     def spin(self, seconds: float = 0.0) -> None:
         """Take what has arrived (for up to ``seconds`` wall)."""
         end = time.monotonic() + seconds

@@ -17,30 +17,35 @@ import threading
 
 
 class StatesRelay:
-    """A node ``/swarm/rank<R>/states_relay`` in a context of its own, spun by a thread of its
-    own, that republishes every ``/swarm/robot_states`` message on ``/swarm/rank<R>/robot_states``
-    as it arrives (its CDR bytes, not decoded).
+    """A node ``/swarm/rank<R>/states_relay``, spun by an executor and a thread of its own, that
+    republishes every ``/swarm/robot_states`` message on ``/swarm/rank<R>/robot_states`` as it
+    arrives (its CDR bytes, not decoded).
+
+    It lives in the context (the DDS participant) of ``swarm-up``'s link between the hosts
+    (:class:`swarm_up.hosts.HostLink`): in a second participant of the same process, Fast DDS
+    2.14.5 deadlocked once when the link destroyed a writer (its discovery delivered in-process
+    to the other participant, ``PDP::removeWriterProxyData`` waiting on a mutex), and the rank
+    never ended.
 
     Args:
         rank: this host's rank (> 0).
+        context: the ``rclpy`` context to make the node in (initialised; the caller shuts it
+            down after :meth:`close`).
 
     Attributes:
         relayed: how many messages it has republished.
     """
 
-    def __init__(self, rank: int):
-        import rclpy
+    def __init__(self, rank: int, context):
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
-        from rclpy.signals import SignalHandlerOptions
         from sensor_msgs.msg import PointCloud2
 
         from swarm_common import topics
         from swarm_ros.qos import publisher, subscription
 
         self.relayed = 0
-        self._context = rclpy.Context()
-        rclpy.init(context=self._context, signal_handler_options=SignalHandlerOptions.NO)
+        self._context = context
         self._node = Node("states_relay", namespace=f"/swarm/rank{rank}", context=self._context)
         self._executor = SingleThreadedExecutor(context=self._context)
         self._executor.add_node(self._node)
@@ -63,12 +68,10 @@ class StatesRelay:
             self._executor.spin_once(timeout_sec=0.05)
 
     def close(self) -> None:
-        """Stop the thread, destroy the node and shut its context down (idempotent)."""
+        """Stop the thread and destroy the node (idempotent); the context stays the caller's."""
         self._stop.set()
         self._thread.join(timeout=2.0)
         if self._node is not None:
             self._executor.shutdown(timeout_sec=0)
             self._node.destroy_node()
             self._node = None
-        if self._context.ok():
-            self._context.try_shutdown()

@@ -125,7 +125,7 @@ def run_remote(cfg: RunConfig) -> int:
         if relays_states(cfg):  # before the group processes: they wait for its states
             from swarm_up.relay import StatesRelay
 
-            relay = StatesRelay(cfg.rank)
+            relay = StatesRelay(cfg.rank, link.context)
             say(f"relaying the robots' states to this host's {len(cfg.groups)} group processes "
                 f"on {relay.topic}")
         for spec in child_specs(cfg):
@@ -192,9 +192,9 @@ def run_remote(cfg: RunConfig) -> int:
         if joined:
             link.report(ENDING, force=True)
             link.spin(0.2)
-        link.close()
-        if relay is not None:
+        if relay is not None:  # before its context is shut down
             relay.close()
+        link.close()
         if announcer is not None:
             announcer.close()
         for s, h in old.items():
