@@ -163,12 +163,15 @@ def cell_path(costmap: Costmap, start_rc: tuple[int, int], goal_rc: tuple[int, i
     predecessors.  On an overlay of a shareable costmap (a replan around robots seen, used once)
     the base's cost-to-go is repaired where the overlay's rises change it, and the repair stops
     once it has settled the start (:func:`swarm_nav.planner_kernels.repair_dijkstra`): the
-    start's path is the same, to the last bit, as the whole-map search's on the overlay.
+    start's path is the same, to the last bit, as the whole-map search's on the overlay. With
+    ``cfg.overlay_astar`` an overlay is searched by A* from the start instead, guided by the
+    base's cost-to-go (:func:`_overlay_astar`): a path of the same cost, not always the same
+    path among those of equal cost.
 
     Args:
         costmap: the costmap.
         start_rc, goal_rc: ``(row, col)`` of the start cell and of the goal cell.
-        cfg: ``cost_penalty`` and ``allow_unknown``.
+        cfg: ``cost_penalty``, ``allow_unknown`` and ``overlay_astar``.
 
     Returns:
         The cells ``(row, col)`` from start to goal, and the path's weighted length [m];
@@ -177,6 +180,11 @@ def cell_path(costmap: Costmap, start_rc: tuple[int, int], goal_rc: tuple[int, i
     w = costmap.width
     s = int(start_rc[0]) * w + int(start_rc[1])
     t = int(goal_rc[0]) * w + int(goal_rc[1])
+    if cfg.overlay_astar:
+        found = _overlay_astar(costmap, s, t, cfg)
+        if found is not None:
+            cells, cost = found
+            return [(int(c) // w, int(c) % w) for c in cells], cost
     togo, nxt = _overlay_cost_to_go(costmap, s, t, cfg)
     if togo is None:
         togo, nxt = _cost_to_go(costmap, t, cfg)
@@ -268,6 +276,33 @@ def _overlay_cost_to_go(costmap: Costmap, s: int, t: int, cfg: PlannerConfig
                     static[0], static[1], patch[0], patch[2], t, s,
                     _REPAIR_BOUND[0] * float(static[0][s]) + _REPAIR_BOUND[1])
     return costmap._cache[key]
+
+
+_OPPOSITE = np.array([_MOVES.index((-dr, -dc)) for dr, dc in _MOVES], dtype=np.int64)
+
+
+def _overlay_astar(costmap: Costmap, s: int, t: int, cfg: PlannerConfig
+                   ) -> tuple[np.ndarray, float] | None:
+    """``planner.overlay_astar``: a cheapest cell path from ``s`` to ``t`` on an overlay, by A*
+    guided by its base's cost-to-go to ``t`` (:func:`swarm_nav.planner_kernels.astar`; the
+    base's cost-to-go never exceeds the overlay's, which only raises costs).
+
+    Returns None when the costmap is no overlay of a shareable one (then the planner searches
+    as without the option); else ``(cells, cost)``, ``(empty, inf)`` when ``t`` cannot be
+    reached (cached per start, like :func:`_overlay_cost_to_go`).
+    """
+    base = costmap.base
+    if costmap.shareable or base is None or not base.shareable or costmap.changed is None:
+        return None
+    key = ("astar-to", s, t, cfg.cost_penalty, cfg.allow_unknown)
+    if key not in costmap._cache:
+        static = _cost_to_go(base, t, cfg)[0]
+        slots = _shared_graph(base, cfg)[1]
+        with _search_graph(costmap, cfg) as graph:
+            costmap._cache[key] = kernels.astar(graph.data, slots, _OPPOSITE, _MOVE_ARRAY,
+                                                costmap.width, static, s, t)
+    cells, cost = costmap._cache[key]
+    return cells, float(cost)
 
 
 def _cost_to_go(costmap: Costmap, t: int, cfg: PlannerConfig) -> tuple[np.ndarray, np.ndarray]:

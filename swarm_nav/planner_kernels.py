@@ -425,3 +425,118 @@ def patch_moves(pad, steps, moves, r0, r1, c0, c1, width, slots, base_data):
                     rows[count] = cell
                     count += 1
     return at[:count], cost[:count], rows[:count]
+
+
+@njit(cache=True, nogil=True)
+def _first(f1, h1, v1, f2, h2, v2):
+    """Whether A* heap entry ``(f1, h1, v1)`` pops before ``(f2, h2, v2)``: the smaller f, then
+    the smaller h (the deeper entry: on a tie of f the one nearer the goal), then the larger
+    vertex."""
+    return f1 < f2 or (f1 == f2 and (h1 < h2 or (h1 == h2 and v1 > v2)))
+
+
+@njit(cache=True, nogil=True)
+def astar(data, slots, opposite, moves, width, heuristic, source, target):
+    """A* from ``source`` to ``target`` over the grid graph, guided by ``heuristic``.
+
+    The graph is the planner's reversed cell graph (:func:`swarm_nav.planner._build_graph`):
+    ``slots[v, k]`` is the index in ``data`` of the cost [m] of the move into cell ``v`` from its
+    neighbour ``v + moves[k]`` (-1: none), so the move ``u -> u + moves[j]`` costs
+    ``data[slots[u + moves[j], opposite[j]]]``. With a heuristic that never exceeds the cost of a
+    move plus its own value at the cell moved into (consistent: the static map's cost-to-go
+    under an overlay that only raises costs), every cell is settled once and the path found is
+    a cheapest one (Hart, Nilsson, Raphael 1968); among paths of equal cost it is not always
+    the one Dijkstra's search from the goal would follow.
+
+    Args:
+        data: (E,) float64 move costs (``inf``: the move is forbidden).
+        slots: (N, 8) int32 data index of each (cell, neighbour slot).
+        opposite: (8,) int64 the slot of the move back.
+        moves: (8, 2) int64 (row, column) offset of each slot.
+        width: cells per row; N = rows * width.
+        heuristic: (N,) float64 a lower bound of each cell's cost to ``target`` (``inf``: it
+            cannot reach it).
+        source, target: flat cell indices.
+
+    Returns:
+        ``(path, cost)``: (K,) int64 the cells from ``source`` to ``target`` and the path's
+        cost [m]; an empty path and ``inf`` when ``target`` cannot be reached.
+    """
+    n = heuristic.shape[0]
+    rows = n // width
+    g = np.full(n, np.inf)
+    parent = np.full(n, -1, dtype=np.int64)
+    closed = np.zeros(n, dtype=np.bool_)
+    hf = np.empty(1024)  # the binary heap, as three columns: f, h, vertex
+    hh = np.empty(1024)
+    hv = np.empty(1024, dtype=np.int64)
+    size = 0
+    if math.isfinite(heuristic[source]):
+        g[source] = 0.0
+        hf[0], hh[0], hv[0] = heuristic[source], heuristic[source], source
+        size = 1
+    found = False
+    while size > 0:
+        v = hv[0]
+        size -= 1  # the last entry into the root's hole, sifted down
+        lf, lh, lv = hf[size], hh[size], hv[size]
+        i = 0
+        while True:
+            c = 2 * i + 1
+            if c >= size:
+                break
+            if c + 1 < size and _first(hf[c + 1], hh[c + 1], hv[c + 1], hf[c], hh[c], hv[c]):
+                c += 1
+            if not _first(hf[c], hh[c], hv[c], lf, lh, lv):
+                break
+            hf[i], hh[i], hv[i] = hf[c], hh[c], hv[c]
+            i = c
+        hf[i], hh[i], hv[i] = lf, lh, lv
+        if closed[v]:
+            continue
+        closed[v] = True
+        if v == target:
+            found = True
+            break
+        r, col = v // width, v % width
+        gv = g[v]
+        for j in range(8):
+            rr, cc = r + moves[j, 0], col + moves[j, 1]
+            if rr < 0 or rr >= rows or cc < 0 or cc >= width:
+                continue
+            u = rr * width + cc
+            k = slots[u, opposite[j]]
+            if k < 0 or closed[u]:
+                continue
+            ng = gv + data[k]
+            hu = heuristic[u]
+            if ng < g[u] and math.isfinite(hu):
+                g[u] = ng
+                parent[u] = v
+                if size == hf.shape[0]:
+                    hf = np.concatenate((hf, np.empty(size)))
+                    hh = np.concatenate((hh, np.empty(size)))
+                    hv = np.concatenate((hv, np.empty(size, dtype=np.int64)))
+                nf = ng + hu
+                i = size
+                size += 1
+                while i > 0:  # sift up
+                    q = (i - 1) // 2
+                    if not _first(nf, hu, u, hf[q], hh[q], hv[q]):
+                        break
+                    hf[i], hh[i], hv[i] = hf[q], hh[q], hv[q]
+                    i = q
+                hf[i], hh[i], hv[i] = nf, hu, u
+    if not found:
+        return np.empty(0, dtype=np.int64), np.inf
+    count = 1
+    v = target
+    while v != source:
+        v = parent[v]
+        count += 1
+    path = np.empty(count, dtype=np.int64)
+    v = target
+    for i in range(count - 1, -1, -1):
+        path[i] = v
+        v = parent[v]
+    return path, g[target]

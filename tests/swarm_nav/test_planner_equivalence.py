@@ -359,3 +359,92 @@ def test_replans_around_robots_on_slim_blockage_keep_the_whole_map_search_paths(
         else:
             assert got_cells == [] and got_cost == math.inf
         checked += 1
+
+
+# planner.overlay_astar: A* guided by the base's cost-to-go gives a cheapest path on the overlay
+# (the cost of scipy's whole search, up to the order of the additions), over moves the overlay
+# allows, and no path exactly where the whole search has none.
+
+def _path_cost(graph, cells) -> float:
+    """The summed move costs of a cell path on a reversed graph (entry (v, u): move u -> v)."""
+    total = 0.0
+    for u, v in zip(cells[:-1], cells[1:], strict=True):
+        row = slice(graph.indptr[v], graph.indptr[v + 1])
+        hit = np.flatnonzero(graph.indices[row] == u)
+        assert len(hit) == 1, f"{u} -> {v} is no move of the graph"
+        total += graph.data[row][hit[0]]
+    return total
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_astar_on_an_overlay_finds_a_cheapest_path(seed):
+    rng, free, (graph, patched) = _random_graphs(seed)
+    slots = None
+    found = unreachable = 0
+    for t in rng.choice(free, 4):
+        t = int(t)
+        base_d, _ = scipy_dijkstra(graph, directed=True, indices=t, return_predecessors=True)
+        want_d, _ = scipy_dijkstra(patched, directed=True, indices=t, return_predecessors=True)
+        for s in rng.choice(free[np.isfinite(base_d[free])], 25):
+            s = int(s)
+            if slots is None:  # the slot index of this graph's (cell, move)
+                slots = _slots_of(graph)
+            width = 55
+            cells, cost = planner_kernels.astar(patched.data, slots, planner._OPPOSITE,
+                                                planner._MOVE_ARRAY, width, base_d, s, t)
+            if not np.isfinite(want_d[s]):
+                assert len(cells) == 0 and cost == math.inf
+                unreachable += 1
+                continue
+            assert cells[0] == s and cells[-1] == t
+            assert cost == pytest.approx(want_d[s], rel=1e-12, abs=1e-12)
+            assert _path_cost(patched, list(cells)) == pytest.approx(cost, rel=1e-12)
+            found += 1
+    assert found > 20
+
+
+def _slots_of(graph):
+    """(N, 8) data index of each (cell, move slot) of a 55-wide grid graph, -1 if none."""
+    n = graph.shape[0]
+    slots = np.full((n, 8), -1, dtype=np.int32)
+    for v in range(n):
+        for j in range(graph.indptr[v], graph.indptr[v + 1]):
+            dr, dc = divmod(int(graph.indices[j]) - v + 55 + 1, 55)
+            slots[v, planner._MOVES.index((dr - 1, dc - 1))] = j
+    return slots
+
+
+def test_replans_with_overlay_astar_on_slim_blockage_are_cheapest_paths():
+    """cell_path with ``overlay_astar`` on overlays of slim_blockage (robots on cross-map paths):
+    the cost of the whole-map search's path, by a path of the overlay's moves (on these long
+    paths across the open hall, another of the many of equal cost)."""
+    rng = np.random.default_rng(7)
+    cfg = PlannerConfig(overlay_astar=True)
+    base = build_costmap(slim_blockage_map(), CostmapConfig())
+    free = np.argwhere(base.costs == 0)
+    checked = 0
+    while checked < 12:
+        s_rc, t_rc = (tuple(int(v) for v in free[i]) for i in rng.choice(len(free), 2))
+        cells, _ = cell_path(base, s_rc, t_rc, cfg)
+        if len(cells) < 40:
+            continue
+        on_path = base.cell_to_world(np.asarray(cells[10:-10:15]))
+        robots = on_path[rng.choice(len(on_path), min(3, len(on_path)), replace=False)]
+        points = (robots[:, None, :] + 0.15 * np.stack(
+            (np.cos(np.linspace(0, 6.2, 12)), np.sin(np.linspace(0, 6.2, 12))), -1)).reshape(-1, 2)
+        overlay = overlay_obstacles(base, points, CostmapConfig())
+        if overlay.costs[s_rc] >= INSCRIBED or overlay.costs[t_rc] >= INSCRIBED:
+            continue
+        w = base.width
+        s, t = s_rc[0] * w + s_rc[1], t_rc[0] * w + t_rc[1]
+        with planner._search_graph(overlay, cfg) as graph:
+            graph = graph.copy()
+        want_d = scipy_dijkstra(graph, directed=True, indices=t)
+        got_cells, got_cost = cell_path(overlay, s_rc, t_rc, cfg)
+        if np.isfinite(want_d[s]):
+            flat = [r * w + c for r, c in got_cells]
+            assert got_cost == pytest.approx(want_d[s], rel=1e-12)
+            assert _path_cost(graph, flat) == pytest.approx(got_cost, rel=1e-12)
+        else:
+            assert got_cells == [] and got_cost == math.inf
+        checked += 1
