@@ -78,7 +78,7 @@ class PlannerConfig:
                                 check=">0")
     start_escape_radius: float = _p(0.5, "m", "a start inside the inscribed zone escapes to the "
                                     "nearest free cell within this", check=">=0")
-    overlay_astar: bool = _p(False, "-", "replan around the robots seen with A* guided by the "
+    overlay_astar: bool = _p(True, "-", "replan around the robots seen with A* guided by the "
                              "static map's cost-to-go (a cheapest path, not always the one of "
                              "equal cost the whole-map search follows) instead of repairing "
                              "that search")

@@ -85,11 +85,19 @@ def warm_up() -> float:
             core.on_scan(points, now)
         v, w = core.step(pose, v, w, now)
         pose = pose + np.array([v * math.cos(pose[2]) * dt, v * math.sin(pose[2]) * dt, w * dt])
-    # entry points the scene need not reach: the holding pattern's line of sight and the
-    # planner's whole search (an overlay without a patch is searched whole)
+    # entry points the scene need not reach: the holding pattern's line of sight, the
+    # planner's whole search (an overlay without a patch is searched whole), its repair
+    # (planner.overlay_astar false) and its A* (true)
     segment_max_cost(core.costmap, pose[:2], goal[:2])
     planner_kernels.dijkstra(np.zeros(0), np.zeros(0, dtype=np.int32),
                              np.zeros(2, dtype=np.int32), 0, 0, math.inf)
+    planner_kernels.repair_dijkstra(np.zeros(0), np.zeros(0), np.zeros(0, dtype=np.int32),
+                                    np.zeros(2, dtype=np.int32), np.zeros(1),
+                                    np.full(1, -9999, dtype=np.int32), np.zeros(0, dtype=np.int32),
+                                    np.zeros(0, dtype=np.int64), 0, 0, math.inf)
+    planner_kernels.astar(np.zeros(0), np.full((1, 8), -1, dtype=np.int32),
+                          np.zeros(8, dtype=np.int64), np.zeros((8, 2), dtype=np.int64), 1,
+                          np.zeros(1), 0, 0)
     _done = True
     return time.perf_counter() - t0
 

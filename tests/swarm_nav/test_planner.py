@@ -99,7 +99,7 @@ def test_replans_around_overlaid_points_equal_brute_force_dijkstra(seed, penalty
     rng = np.random.default_rng(100 + seed)
     occ = random_grid(rng, 24, 30, 0.08)
     base = build_costmap(occ, SMALL)
-    cfg = PlannerConfig(cost_penalty=penalty)
+    cfg = PlannerConfig(cost_penalty=penalty, overlay_astar=False)  # the repair's paths
     plan_path(base, base.cell_to_world(np.argwhere(base.costs < INSCRIBED)[0]),
               base.cell_to_world(np.argwhere(base.costs < INSCRIBED)[-1]), cfg)  # base graph
     extent = np.array([occ.width, occ.height]) * occ.resolution

@@ -331,7 +331,7 @@ def test_replans_around_robots_on_slim_blockage_keep_the_whole_map_search_paths(
     """cell_path on overlays (robots standing on and beside cross-map paths) gives the path that
     scipy's whole-map search from the goal gives (the definition the navigator was built on)."""
     rng = np.random.default_rng(7)
-    cfg = PlannerConfig()
+    cfg = PlannerConfig(overlay_astar=False)  # the repair (the default searches by A*)
     base = build_costmap(slim_blockage_map(), CostmapConfig())
     free = np.argwhere(base.costs == 0)
     checked = 0
