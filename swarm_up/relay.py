@@ -62,8 +62,8 @@ class StatesRelay:
         self.relayed += 1
 
     def _spin(self) -> None:
-        # A spin_once loop: rclpy 7.1.6's EventsExecutor delivers no cross-process message
-        # (docs/ARCHITECTURE.md "Known limits").
+        # A spin_once loop on a SingleThreadedExecutor: the thread publishes, which rclpy
+        # 7.1.6's EventsExecutor does not bear (docs/ARCHITECTURE.md, "Executors").
         while not self._stop.is_set() and self._context.ok():
             self._executor.spin_once(timeout_sec=0.05)
 
