@@ -9,7 +9,8 @@ simulator, the group processes, swarm-up); a [s] and b [s per robot of a group] 
 least squares (numpy.linalg.lstsq) to the one-host runs given with ``--fit``; w [bytes per remote
 robot per simulated s] and L [bytes/s] price rank 0's link. Runs given with ``--check`` are
 predicted from the fit (with their own s, g, o when they have a cpu_by_role JSON, else those of
-the one-host run of the same size) and set beside their measured RTF; network namespaces on one
+the one-host run of the same size) and set beside their measured RTF (``rtf_from_ready`` where a
+JSON has it, else ``rtf``); network namespaces on one
 machine share its cores (C is then the machine's, and the link term is left out).
 
 Usage::
@@ -109,7 +110,7 @@ def main() -> int:
             n = r["robots"]
             s, g, o = costs(r)
             t, terms = predict(n, [n], a.cores, GROUPS_PER_HOST, s, g, o, ca, cb)
-        pred, meas = 1.0 / t, r["rtf"]
+        pred, meas = 1.0 / t, r.get("rtf_from_ready", r["rtf"])
         err = pred / meas - 1.0
         label = Path(r["_path"]).name
         print(f"{label:52s} {n:5d} {s * 1e3:6.2f} {g * 1e3:6.2f} {o * 1e3:6.2f} {pred:7.3f} "
