@@ -49,9 +49,10 @@ class StatesRelay:
         self._node = Node("states_relay", namespace=f"/swarm/rank{rank}", context=self._context)
         self._executor = SingleThreadedExecutor(context=self._context)
         self._executor.add_node(self._node)
-        self.topic = topics.rank_robot_states(rank).name
+        out = topics.rank_robot_states(rank)
+        self.topic = out.name
         """The rank's topic it writes."""
-        self._pub = publisher(self._node, PointCloud2, topics.rank_robot_states(rank))
+        self._pub = publisher(self._node, PointCloud2, out)
         subscription(self._node, PointCloud2, topics.ROBOT_STATES, self._on_states, raw=True)
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._spin, name="states_relay", daemon=True)

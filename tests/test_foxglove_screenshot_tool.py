@@ -4,7 +4,6 @@ and its bad input. (The screenshot itself needs npm and Chromium: made by hand, 
 from __future__ import annotations
 
 import asyncio
-import importlib.util
 import subprocess
 import sys
 
@@ -13,15 +12,13 @@ import pytest
 from aiohttp import web
 
 from swarm_common.paths import ROOT
+from tests.support.tools import load_tool
 
 SCRIPT = ROOT / "tools" / "foxglove_screenshot.py"
 
 
 def _tool():
-    spec = importlib.util.spec_from_file_location("foxglove_screenshot", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_tool("foxglove_screenshot")
 
 
 def test_the_relay_renames_the_subprotocol_and_passes_frames_unchanged():

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 import struct
 import subprocess
 import sys
@@ -11,6 +10,7 @@ import dpkt
 import pytest
 
 from swarm_common.paths import ROOT
+from tests.support.tools import load_tool
 
 SCRIPT = ROOT / "tools" / "rtps_bytes.py"
 HERE, THERE = "10.0.0.2", "10.0.0.1"
@@ -21,10 +21,7 @@ MTU = 1500
 
 @pytest.fixture(scope="module")
 def tool():
-    spec = importlib.util.spec_from_file_location("rtps_bytes", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_tool("rtps_bytes")
 
 
 def _rtps(prefix: bytes, *subs: bytes) -> bytes:

@@ -2,22 +2,19 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 
 import pytest
 
 from swarm_common.paths import ROOT
+from tests.support.tools import load_tool
 
 SCRIPT = ROOT / "tools" / "scaling_fit.py"
 
 
 @pytest.fixture(scope="module")
 def tool():
-    spec = importlib.util.spec_from_file_location("scaling_fit", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_tool("scaling_fit")
 
 
 def _run(n: int, s: float, g: float, o: float, a: float, b: float) -> dict:

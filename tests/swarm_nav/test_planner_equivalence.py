@@ -168,19 +168,26 @@ def test_cross_map_plans_on_slim_blockage_equal_the_numpy_shortcuts():
 # whose result it must give to the last bit: every distance and predecessor of a whole search,
 # with and without a limit, and the start's path and cost when it stops at the start.
 
-def _random_graphs(seed):
-    """A random costmap's search graph, and an overlay's (its forbidden moves infinite)."""
+def _random_scene(seed):
+    """A random costmap's search graph, an overlay's (its forbidden moves infinite), the graph's
+    slot index of every (cell, move), the free cells and the generator that drew them."""
     rng = np.random.default_rng(seed)
     base = build_costmap(random_grid(rng, 40, 55, 0.1), CostmapConfig(
         robot_radius=0.1, inflation_radius=0.35, cost_scaling_factor=3.0))
     cfg = PlannerConfig(cost_penalty=float(rng.choice([0.0, 3.0])))
-    graph = planner._shared_graph(base, cfg)[0]
+    graph, slots, _ = planner._shared_graph(base, cfg)
     extent = np.array([base.width, base.height]) * base.resolution
     overlay = overlay_obstacles(base, rng.uniform(0.0, 1.0, (4, 2)) * extent, CostmapConfig(
         robot_radius=0.1, inflation_radius=0.35, cost_scaling_factor=3.0))
     with planner._search_graph(overlay, cfg) as patched:
         patched = patched.copy()
     free = np.flatnonzero(base.costs.ravel() < INSCRIBED)
+    return rng, free, graph, patched, slots, base.width
+
+
+def _random_graphs(seed):
+    """:func:`_random_scene`'s generator, free cells and (graph, overlay's graph)."""
+    rng, free, graph, patched, _, _ = _random_scene(seed)
     return rng, free, (graph, patched)
 
 
@@ -327,15 +334,14 @@ def test_compiled_patch_equals_the_numpy_one(seed):
     assert moves > 0
 
 
-def test_replans_around_robots_on_slim_blockage_keep_the_whole_map_search_paths():
-    """cell_path on overlays (robots standing on and beside cross-map paths) gives the path that
-    scipy's whole-map search from the goal gives (the definition the navigator was built on)."""
-    rng = np.random.default_rng(7)
-    cfg = PlannerConfig(overlay_astar=False)  # the repair (the default searches by A*)
+def _slim_blockage_overlays(cfg, count=12, seed=7):
+    """``count`` replans around robots on slim_blockage: ``(overlay, s_rc, t_rc, s, t)``, robots
+    standing on and beside a cross-map path between two free cells that the robots leave free."""
+    rng = np.random.default_rng(seed)
     base = build_costmap(slim_blockage_map(), CostmapConfig())
     free = np.argwhere(base.costs == 0)
-    checked = 0
-    while checked < 12:
+    w, made = base.width, 0
+    while made < count:
         s_rc, t_rc = (tuple(int(v) for v in free[i]) for i in rng.choice(len(free), 2))
         cells, _ = cell_path(base, s_rc, t_rc, cfg)
         if len(cells) < 40:
@@ -347,8 +353,16 @@ def test_replans_around_robots_on_slim_blockage_keep_the_whole_map_search_paths(
         overlay = overlay_obstacles(base, points, CostmapConfig())
         if overlay.costs[s_rc] >= INSCRIBED or overlay.costs[t_rc] >= INSCRIBED:
             continue
-        w = base.width
-        s, t = s_rc[0] * w + s_rc[1], t_rc[0] * w + t_rc[1]
+        yield overlay, s_rc, t_rc, s_rc[0] * w + s_rc[1], t_rc[0] * w + t_rc[1]
+        made += 1
+
+
+def test_replans_around_robots_on_slim_blockage_keep_the_whole_map_search_paths():
+    """cell_path on overlays (robots standing on and beside cross-map paths) gives the path that
+    scipy's whole-map search from the goal gives (the definition the navigator was built on)."""
+    cfg = PlannerConfig(overlay_astar=False)  # the repair (the default searches by A*)
+    for overlay, s_rc, t_rc, s, t in _slim_blockage_overlays(cfg):
+        w = overlay.width
         with planner._search_graph(overlay, cfg) as graph:
             want_d, want_p = scipy_dijkstra(graph, directed=True, indices=t,
                                             return_predecessors=True)
@@ -358,7 +372,6 @@ def test_replans_around_robots_on_slim_blockage_keep_the_whole_map_search_paths(
             assert [r * w + c for r, c in got_cells] == _walk(want_p, s, t)
         else:
             assert got_cells == [] and got_cost == math.inf
-        checked += 1
 
 
 # planner.overlay_astar: A* guided by the base's cost-to-go gives a cheapest path on the overlay
@@ -378,23 +391,18 @@ def _path_cost(graph, cells) -> float:
 
 @pytest.mark.parametrize("seed", range(8))
 def test_astar_on_an_overlay_finds_a_cheapest_path(seed):
-    rng, free, (graph, patched) = _random_graphs(seed)
-    slots = None
-    found = unreachable = 0
+    rng, free, graph, patched, slots, width = _random_scene(seed)
+    found = 0
     for t in rng.choice(free, 4):
         t = int(t)
-        base_d, _ = scipy_dijkstra(graph, directed=True, indices=t, return_predecessors=True)
-        want_d, _ = scipy_dijkstra(patched, directed=True, indices=t, return_predecessors=True)
+        base_d = scipy_dijkstra(graph, directed=True, indices=t)
+        want_d = scipy_dijkstra(patched, directed=True, indices=t)
         for s in rng.choice(free[np.isfinite(base_d[free])], 25):
             s = int(s)
-            if slots is None:  # the slot index of this graph's (cell, move)
-                slots = _slots_of(graph)
-            width = 55
             cells, cost = planner_kernels.astar(patched.data, slots, planner._OPPOSITE,
                                                 planner._MOVE_ARRAY, width, base_d, s, t)
             if not np.isfinite(want_d[s]):
                 assert len(cells) == 0 and cost == math.inf
-                unreachable += 1
                 continue
             assert cells[0] == s and cells[-1] == t
             assert cost == pytest.approx(want_d[s], rel=1e-12, abs=1e-12)
@@ -403,40 +411,13 @@ def test_astar_on_an_overlay_finds_a_cheapest_path(seed):
     assert found > 20
 
 
-def _slots_of(graph):
-    """(N, 8) data index of each (cell, move slot) of a 55-wide grid graph, -1 if none."""
-    n = graph.shape[0]
-    slots = np.full((n, 8), -1, dtype=np.int32)
-    for v in range(n):
-        for j in range(graph.indptr[v], graph.indptr[v + 1]):
-            dr, dc = divmod(int(graph.indices[j]) - v + 55 + 1, 55)
-            slots[v, planner._MOVES.index((dr - 1, dc - 1))] = j
-    return slots
-
-
 def test_replans_with_overlay_astar_on_slim_blockage_are_cheapest_paths():
     """cell_path with ``overlay_astar`` on overlays of slim_blockage (robots on cross-map paths):
     the cost of the whole-map search's path, by a path of the overlay's moves (on these long
     paths across the open hall, another of the many of equal cost)."""
-    rng = np.random.default_rng(7)
     cfg = PlannerConfig(overlay_astar=True)
-    base = build_costmap(slim_blockage_map(), CostmapConfig())
-    free = np.argwhere(base.costs == 0)
-    checked = 0
-    while checked < 12:
-        s_rc, t_rc = (tuple(int(v) for v in free[i]) for i in rng.choice(len(free), 2))
-        cells, _ = cell_path(base, s_rc, t_rc, cfg)
-        if len(cells) < 40:
-            continue
-        on_path = base.cell_to_world(np.asarray(cells[10:-10:15]))
-        robots = on_path[rng.choice(len(on_path), min(3, len(on_path)), replace=False)]
-        points = (robots[:, None, :] + 0.15 * np.stack(
-            (np.cos(np.linspace(0, 6.2, 12)), np.sin(np.linspace(0, 6.2, 12))), -1)).reshape(-1, 2)
-        overlay = overlay_obstacles(base, points, CostmapConfig())
-        if overlay.costs[s_rc] >= INSCRIBED or overlay.costs[t_rc] >= INSCRIBED:
-            continue
-        w = base.width
-        s, t = s_rc[0] * w + s_rc[1], t_rc[0] * w + t_rc[1]
+    for overlay, s_rc, t_rc, s, t in _slim_blockage_overlays(cfg):
+        w = overlay.width
         with planner._search_graph(overlay, cfg) as graph:
             graph = graph.copy()
         want_d = scipy_dijkstra(graph, directed=True, indices=t)
@@ -447,4 +428,3 @@ def test_replans_with_overlay_astar_on_slim_blockage_are_cheapest_paths():
             assert _path_cost(graph, flat) == pytest.approx(got_cost, rel=1e-12)
         else:
             assert got_cells == [] and got_cost == math.inf
-        checked += 1
