@@ -73,6 +73,10 @@ _CONTEXT_PARAMS = {
                                  "has this many readers (swarm-up: the simulator, and its "
                                  "recorder when it records cmd_vel), so that no reader misses "
                                  "the first commands"),
+    "wait_for_plan_readers": (0, "-", "hold the first answer to the simulator until plan has "
+                              "this many readers (swarm-up: its recorder when it records plan): "
+                              "the plan is built only while it has a reader, so a reader matched "
+                              "after the run's last change would get none"),
     "goal_wait_timeout": (0.5, "s", "a commander outside the lockstep (wait_for_commander "
                           "false, e.g. a user's route script): wall time the first tick after "
                           "a goal ended may wait for its next goal; a wait that times out makes "
@@ -351,7 +355,8 @@ class NavigatorNode(Node):
     def _start_gate(self, t: int) -> str:
         """What the first answer still waits for (``""``: nothing): the map; a commander
         (``wait_for_commander``); ``wait_for_status_readers`` readers of ``nav_status``;
-        ``wait_for_cmd_vel_readers`` readers of ``cmd_vel``. Without a wall-clock limit: the
+        ``wait_for_cmd_vel_readers`` readers of ``cmd_vel``; ``wait_for_plan_readers`` readers
+        of ``plan``. Without a wall-clock limit: the
         simulator holds the tick meanwhile, so the wait costs wall time, not reproducibility.
 
         The gate holds even when a goal is already there: a navigator restarted mid-run (a
@@ -371,6 +376,9 @@ class NavigatorNode(Node):
         readers = int(self.get_parameter("wait_for_cmd_vel_readers").value)
         if self.cmd_pub.get_subscription_count() < readers:
             waiting.append(f"{readers} readers of cmd_vel")
+        readers = int(self.get_parameter("wait_for_plan_readers").value)
+        if self.plan_pub.get_subscription_count() < readers:
+            waiting.append(f"{readers} readers of plan")
         return " and ".join(waiting)
 
     def _hold(self, t: int) -> None:

@@ -19,6 +19,7 @@ from swarm_up.run_config import RunConfig
 # in navigator_params.  tests/swarm_up/test_validate.py holds this list to the node's.
 CONTEXT_KEYS = frozenset({"use_sim_time", "robot", "poi_file", "map_yaml_path", "robot_name",
                           "wait_for_commander", "hold_goal_end", "wait_for_status_readers",
+                          "wait_for_plan_readers",
                           "wait_for_cmd_vel_readers", "goal_wait_timeout"})
 
 
@@ -176,6 +177,8 @@ def navigator_params(template: dict, ns: str, index: int, cfg: RunConfig,
         # navigator restarted by a fault) waits for them
         wait_for_status_readers=1 + int(bool(cfg.commanders)) + int("nav_status" in recorded),
         wait_for_cmd_vel_readers=1 + int("cmd_vel" in recorded),
+        # the plan is built only while it has a reader: the recorder's must be there from the start
+        wait_for_plan_readers=int("plan" in recorded),
     )
     if cfg.coordination == "centralized":
         params.update(CENTRALIZED_OVERRIDES)
