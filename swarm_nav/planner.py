@@ -11,11 +11,12 @@ Cells of cost 253 (inscribed) and 254 (lethal) are impassable; unknown cells (25
 ``allow_unknown``, in which case they cost as much as a cell of cost 126.  Diagonal moves never cut
 between two cells (both orthogonal neighbours must be traversable).
 
-The search is Dijkstra from the goal (``scipy.sparse.csgraph``), which returns the optimal path
-(the cost an A* with an admissible heuristic would find) over all cells whatever the query: an
-A* in plain Python is slower here, since the detour around a blockage defeats the octile
-heuristic, and the cost-to-go is reused by replans to the same goal (measured:
-docs/design/navigator.md#replanning). A replan around the robots seen (an overlay, searched
+The search is Dijkstra from the goal (compiled, :func:`swarm_nav.planner_kernels.settle`: scipy's
+``csgraph.dijkstra`` to the last bit), which returns the optimal path (the cost an A* with an
+admissible heuristic would find): the detour around a blockage defeats the octile heuristic,
+and the cost-to-go is reused by replans to the same goal (measured:
+docs/design/navigator.md#replanning).  It is kept between plans and goes only as far as the
+starts asked about so far (:class:`CostToGo`). A replan around the robots seen (an overlay, searched
 once) starts from the static map's search to the same goal and searches again, compiled, only
 the cells whose path to the goal used a move the overlay made dearer, until the start is settled
 (:func:`swarm_nav.planner_kernels.repair_dijkstra`, scipy's whole-map result to the last bit).
@@ -34,7 +35,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import dijkstra
 
 from swarm_common.geometry import Path2D
 from swarm_nav import planner_kernels as kernels
@@ -156,11 +156,11 @@ def cell_path(costmap: Costmap, start_rc: tuple[int, int], goal_rc: tuple[int, i
               cfg: PlannerConfig) -> tuple[list[tuple[int, int]], float]:
     """The cheapest 8-connected cell path between two traversable cells.
 
-    Dijkstra from the goal over the reversed cell graph (``scipy.sparse.csgraph``) gives every
-    cell's cost-to-go; the path follows the predecessors from the start.  The graph is built once
-    per costmap and the cost-to-go once per goal cell, both shared by all the robots of a process
-    that use the same map, so a replan to the same goal (the robot left its path) only walks the
-    predecessors.  On an overlay of a shareable costmap (a replan around robots seen, used once)
+    Dijkstra from the goal over the reversed cell graph gives the cells' cost-to-go up to the
+    start (:class:`CostToGo`); the path follows the predecessors from the start.  The graph is
+    built once per costmap and the cost-to-go searched once per goal cell, both shared by all the
+    robots of a process that use the same map, so a replan to the same goal from no farther away
+    (the robot left its path) only walks the predecessors.  On an overlay of a shareable costmap (a replan around robots seen, used once)
     the base's cost-to-go is repaired where the overlay's rises change it, and the repair stops
     once it has settled the start (:func:`swarm_nav.planner_kernels.repair_dijkstra`): the
     start's path is the same, to the last bit, as the whole-map search's on the overlay. With
@@ -187,7 +187,8 @@ def cell_path(costmap: Costmap, start_rc: tuple[int, int], goal_rc: tuple[int, i
             return [(int(c) // w, int(c) % w) for c in cells], cost
     togo, nxt = _overlay_cost_to_go(costmap, s, t, cfg)
     if togo is None:
-        togo, nxt = _cost_to_go(costmap, t, cfg)
+        field = _cost_to_go(costmap, t, cfg).reach(s)
+        togo, nxt = field.dist, field.pred
     if not np.isfinite(togo[s]):
         return [], math.inf
     cells = [s]
@@ -208,6 +209,9 @@ _GRAPHS_MAX = 2
 # docs/design/navigator.md#replanning).
 _REPAIR_BOUND = (1.5, 2.0)
 _TOGO_MIN = 16
+# An overlay's A* first settles the static cost-to-go up to 1.5 x the start's + 2 m: enough for
+# the detours around robots seen, most of the time (a longer one searches once more).
+_ASTAR_BOUND = (1.5, 2.0)
 _togo_max = _TOGO_MIN
 
 
@@ -260,7 +264,8 @@ def _overlay_cost_to_go(costmap: Costmap, s: int, t: int, cfg: PlannerConfig
     base = costmap.base
     if costmap.shareable or base is None or not base.shareable:
         return None, None
-    static = _cost_to_go(base, t, cfg)
+    field = _cost_to_go(base, t, cfg).reach(s)
+    static = field.dist, field.pred
     if not math.isfinite(float(static[0][s])):
         return static
     key = ("togo-to", s, t, cfg.cost_penalty, cfg.allow_unknown)
@@ -271,6 +276,7 @@ def _overlay_cost_to_go(costmap: Costmap, s: int, t: int, cfg: PlannerConfig
                 costmap._cache[key] = kernels.dijkstra(graph.data, graph.indices, graph.indptr,
                                                        t, s, math.inf)
             else:
+                field.reach(bound=math.inf)  # the repair reads the whole base search
                 costmap._cache[key] = kernels.repair_dijkstra(
                     graph.data, _shared_graph(base, cfg)[0].data, graph.indices, graph.indptr,
                     static[0], static[1], patch[0], patch[2], t, s,
@@ -296,20 +302,95 @@ def _overlay_astar(costmap: Costmap, s: int, t: int, cfg: PlannerConfig
         return None
     key = ("astar-to", s, t, cfg.cost_penalty, cfg.allow_unknown)
     if key not in costmap._cache:
-        static = _cost_to_go(base, t, cfg)[0]
+        field = _cost_to_go(base, t, cfg)
         slots = _shared_graph(base, cfg)[1]
         with _search_graph(costmap, cfg) as graph:
-            costmap._cache[key] = kernels.astar(graph.data, slots, _OPPOSITE, _MOVE_ARRAY,
-                                                costmap.width, static, s, t)
+            costmap._cache[key] = astar_on_field(graph.data, slots, costmap.width, field, s, t)
     cells, cost = costmap._cache[key]
     return cells, float(cost)
 
 
-def _cost_to_go(costmap: Costmap, t: int, cfg: PlannerConfig) -> tuple[np.ndarray, np.ndarray]:
-    """(H*W,) cost-to-go [m] to flat cell ``t`` and (H*W,) next cell toward it (cached)."""
+def astar_on_field(data: np.ndarray, slots: np.ndarray, width: int, field: CostToGo, s: int,
+                   t: int) -> tuple[np.ndarray, float]:
+    """:func:`swarm_nav.planner_kernels.astar` from ``s`` to ``t`` guided by a static cost-to-go
+    to ``t`` settled only as far as needed: the same path and cost as with the whole field.
+
+    The field is first settled up to ``_ASTAR_BOUND`` of the start's cost-to-go. A search that
+    returns a cost below the field's :attr:`CostToGo.radius` read only final values where it
+    mattered: every entry it popped has f <= cost, and an unsettled cell's value (an upper bound
+    or ``inf``) is at least the radius, so such a cell pops no earlier with its final value; the
+    pops, and so the path, are those of the search on the whole field.  Otherwise the field is
+    settled up to that cost (to the end when there is none) and the search runs again, once.
+
+    Args:
+        data: (E,) the overlay graph's move costs; ``slots``, ``width``: as for the kernel.
+        field: the base's cost-to-go to ``t`` (settled further here).
+        s, t: flat start and goal cells.
+
+    Returns:
+        ``(cells, cost)``: (K,) int64 the cells from ``s`` to ``t`` and the cost [m]; an empty
+        path and ``inf`` when ``t`` cannot be reached.
+    """
+    field.reach(s)
+    field.reach(bound=_ASTAR_BOUND[0] * float(field.dist[s]) + _ASTAR_BOUND[1])
+    while True:
+        cells, cost = kernels.astar(data, slots, _OPPOSITE, _MOVE_ARRAY, width, field.dist, s, t)
+        if cost < field.radius or field.radius == math.inf:
+            return cells, cost
+        field.reach(bound=cost)
+
+
+class CostToGo:
+    """The static cost-to-go to one goal cell, searched only as far as it has been asked for.
+
+    Dijkstra's search from the goal over the reversed cell graph, kept between the questions
+    (:func:`swarm_nav.planner_kernels.settle`): a plan from a start settles the cells up to the
+    start, a later plan from farther away goes on from there, so a goal planned to from nearby
+    (a holding spot, a retreat place) costs a small disc of the map, not the whole map. The
+    settled cells' values are scipy's whole-map search's to the last bit
+    (``tests/swarm_nav/test_planner_equivalence.py``).
+
+    Attributes:
+        dist: (H*W,) cost-to-go [m]; final where settled, an upper bound or ``inf`` elsewhere.
+        pred: (H*W,) int32 next cell toward the goal (final where settled).
+    """
+
+    __slots__ = ("dist", "pred", "_graph", "_heap", "_size")
+
+    def __init__(self, graph: csr_matrix, t: int):
+        n = graph.shape[0]
+        self._graph = graph
+        self.dist = np.full(n, np.inf)
+        self.pred = np.full(n, kernels.NO_PREDECESSOR, dtype=np.int32)
+        self.dist[t] = 0.0
+        self._heap = np.empty((4096, 2))
+        self._heap[0] = (0.0, t)
+        self._size = 1
+
+    @property
+    def radius(self) -> float:
+        """[m] every cell whose cost-to-go is below this is settled (``inf``: all are)."""
+        return float(self._heap[0, 0]) if self._size else math.inf
+
+    def reach(self, stop: int = -1, bound: float = -math.inf) -> CostToGo:
+        """Settle cell ``stop`` (-1: none) and every cell within ``bound`` [m] (``inf``: all)."""
+        if self._size and (bound >= self.radius or (stop >= 0 and not
+                                                    self.dist[stop] < self.radius)):
+            g = self._graph
+            self._heap, self._size = kernels.settle(g.data, g.indices, g.indptr, self.dist,
+                                                    self.pred, self._heap, self._size, stop,
+                                                    bound)
+        return self
+
+
+def _cost_to_go(costmap: Costmap, t: int, cfg: PlannerConfig) -> CostToGo:
+    """The static cost-to-go to flat cell ``t`` (cached; settled as far as asked before)."""
     def make():
         with _search_graph(costmap, cfg) as graph:
-            return dijkstra(graph, directed=True, indices=t, return_predecessors=True)
+            field = CostToGo(graph, t)
+            if not costmap.shareable:  # searched whole while its graph is the one yielded
+                field.reach(bound=math.inf)
+            return field
 
     if costmap.shareable:
         key = (costmap.key, t, cfg.cost_penalty, cfg.allow_unknown)

@@ -235,6 +235,49 @@ def dijkstra(data, indices, indptr, source, stop, limit):
 
 
 @njit(cache=True, nogil=True)
+def settle(data, indices, indptr, dist, pred, heap, size, stop, bound):
+    """Go on with a :func:`dijkstra` search from where it stands until vertex ``stop`` is
+    settled and every vertex up to distance ``bound`` is: a search whose every step is one of
+    the whole search's, in its order, so each settled vertex has scipy's whole-map distance and
+    predecessor to the last bit, however many calls it took to get there (no ``limit``).
+
+    The search's state is ``dist``, ``pred`` (updated in place) and its heap: a vertex whose
+    ``dist`` is below the heap's first distance is settled (no later pop can lower it); an
+    empty heap means the search is complete (what is still ``inf`` cannot be reached).
+
+    Args:
+        data, indices, indptr: the CSR graph, as for :func:`dijkstra`.
+        dist: (N,) float64 the distances so far ([0] at the source, ``inf`` elsewhere to start).
+        pred: (N,) int32 the predecessors so far (:data:`NO_PREDECESSOR` to start).
+        heap: (M, 2) the heap's rows ``(distance, vertex)`` (to start: the source at 0).
+        size: the heap's entries (1 to start).
+        stop: the vertex to settle; -1 for none.
+        bound: settle every vertex within this distance too (``inf``: complete the search;
+            ``-inf``: none but ``stop``).
+
+    Returns:
+        ``(heap, size)``: the heap (grown when it was full) and its entries.
+    """
+    while size > 0:
+        top = heap[0, 0]
+        if top > bound and (stop < 0 or dist[stop] < top):
+            break
+        d, v = _pop(heap, size)
+        size -= 1
+        if dist[v] < d:
+            continue  # lowered since this pair was pushed
+        for j in range(indptr[v], indptr[v + 1]):
+            u = indices[j]
+            nd = d + data[j]
+            if dist[u] > nd:
+                dist[u] = nd
+                pred[u] = v
+                heap = _push(heap, size, nd, u)
+                size += 1
+    return heap, size
+
+
+@njit(cache=True, nogil=True)
 def _rose(data, base_data, indices, indptr, v, p):
     """Whether the move entry ``(p, v)`` (row ``p``, column ``v``) weighs more than the base's."""
     for j in range(indptr[p], indptr[p + 1]):

@@ -233,6 +233,40 @@ def test_compiled_dijkstra_stopped_at_the_start_has_its_whole_search_path(seed):
             assert got_d[unreached[0]] == np.inf
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_cost_to_go_settled_in_steps_is_scipys_whole_search_where_settled(seed):
+    """planner.CostToGo (planner_kernels.settle, the static cost-to-go kept between plans):
+    asked for starts and bounds in any order, every cell below its radius has scipy's whole-map
+    distance and predecessor, every start asked for is settled, and settled to the end it is
+    scipy's whole result."""
+    rng, free, graphs = _random_graphs(seed)
+    for graph in graphs:
+        t = int(rng.choice(free))
+        want_d, want_p = scipy_dijkstra(graph, directed=True, indices=t,
+                                        return_predecessors=True)
+        field = planner.CostToGo(graph, t)
+        radii = []
+        for _ in range(12):
+            if rng.uniform() < 0.7:
+                s = int(rng.choice(free))
+                field.reach(s)
+                assert field.dist[s] == want_d[s]
+                if np.isfinite(want_d[s]):
+                    assert _walk(field.pred, s, t) == _walk(want_p, s, t)
+            else:
+                field.reach(bound=float(rng.uniform(0.0, 3.0)))
+            radii.append(field.radius)
+            settled = field.dist < field.radius
+            assert settled.sum() > 0
+            np.testing.assert_array_equal(field.dist[settled], want_d[settled])
+            np.testing.assert_array_equal(field.pred[settled], want_p[settled])
+        assert radii == sorted(radii)  # a field only grows
+        field.reach(bound=np.inf)
+        assert field.radius == np.inf
+        np.testing.assert_array_equal(field.dist, want_d)
+        np.testing.assert_array_equal(field.pred, want_p)
+
+
 @pytest.mark.parametrize("bound", [None, 1.0, 1.2, 2.0])
 @pytest.mark.parametrize("seed", range(8))
 def test_repaired_search_gives_the_whole_search_path_of_every_start(seed, bound):
@@ -409,6 +443,42 @@ def test_astar_on_an_overlay_finds_a_cheapest_path(seed):
             assert _path_cost(patched, list(cells)) == pytest.approx(cost, rel=1e-12)
             found += 1
     assert found > 20
+
+
+@pytest.mark.parametrize("first_bound", [(1.5, 2.0), (1.0, 0.0)])
+@pytest.mark.parametrize("shared", [False, True])
+@pytest.mark.parametrize("seed", range(8))
+def test_astar_on_a_field_settled_as_needed_equals_astar_on_the_whole_field(
+        seed, shared, first_bound, monkeypatch):
+    """planner.astar_on_field (the overlay's A* guided by a static cost-to-go settled only as far
+    as it needs) returns the cells and cost, to the last bit, of the A* guided by scipy's whole
+    search, on a field fresh for each start or shared by the starts in turn; with the first
+    bound at the start's own cost-to-go, some searches outrun it and search again."""
+    rng, free, graph, patched, slots, width = _random_scene(seed)
+    monkeypatch.setattr(planner, "_ASTAR_BOUND", first_bound)
+    searches = []
+    astar = planner_kernels.astar
+    monkeypatch.setattr(planner_kernels, "astar",
+                        lambda *args: searches.append(1) or astar(*args))
+    retried = 0
+    for t in rng.choice(free, 4):
+        t = int(t)
+        base_d = scipy_dijkstra(graph, directed=True, indices=t)
+        field = planner.CostToGo(graph, t)
+        for s in rng.choice(free, 25):
+            s = int(s)
+            want_cells, want_cost = planner_kernels.astar(
+                patched.data, slots, planner._OPPOSITE, planner._MOVE_ARRAY, width, base_d, s, t)
+            if not shared:
+                field = planner.CostToGo(graph, t)
+            searches.clear()
+            got_cells, got_cost = planner.astar_on_field(patched.data, slots, width, field, s, t)
+            np.testing.assert_array_equal(got_cells, want_cells)
+            assert got_cost == want_cost
+            assert len(searches) <= 2
+            retried += len(searches) == 2
+    if first_bound == (1.0, 0.0) and not shared:
+        assert retried > 0
 
 
 def test_replans_with_overlay_astar_on_slim_blockage_are_cheapest_paths():
