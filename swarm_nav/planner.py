@@ -16,8 +16,9 @@ The search is Dijkstra from the goal (compiled, :func:`swarm_nav.planner_kernels
 admissible heuristic would find): the detour around a blockage defeats the octile heuristic,
 and the cost-to-go is reused by replans to the same goal (measured:
 docs/design/navigator.md#replanning).  It is kept between plans and goes only as far as the
-starts asked about so far (:class:`CostToGo`). A replan around the robots seen (an overlay, searched
-once) starts from the static map's search to the same goal and searches again, compiled, only
+starts asked about so far (:class:`CostToGo`). A replan around the robots seen (an overlay,
+searched once) is an A* from the start guided by the static search to the same goal
+(``overlay_astar``, the default), or starts from that search and searches again, compiled, only
 the cells whose path to the goal used a move the overlay made dearer, until the start is settled
 (:func:`swarm_nav.planner_kernels.repair_dijkstra`, scipy's whole-map result to the last bit).
 Reachability is decided before any search from the 4-connected components of the traversable
@@ -160,13 +161,14 @@ def cell_path(costmap: Costmap, start_rc: tuple[int, int], goal_rc: tuple[int, i
     start (:class:`CostToGo`); the path follows the predecessors from the start.  The graph is
     built once per costmap and the cost-to-go searched once per goal cell, both shared by all the
     robots of a process that use the same map, so a replan to the same goal from no farther away
-    (the robot left its path) only walks the predecessors.  On an overlay of a shareable costmap (a replan around robots seen, used once)
-    the base's cost-to-go is repaired where the overlay's rises change it, and the repair stops
-    once it has settled the start (:func:`swarm_nav.planner_kernels.repair_dijkstra`): the
-    start's path is the same, to the last bit, as the whole-map search's on the overlay. With
-    ``cfg.overlay_astar`` an overlay is searched by A* from the start instead, guided by the
-    base's cost-to-go (:func:`_overlay_astar`): a path of the same cost, not always the same
-    path among those of equal cost.
+    (the robot left its path) only walks the predecessors.  On an overlay of a shareable
+    costmap (a replan around robots seen, used once) the base's cost-to-go is repaired where the
+    overlay's rises change it, and the repair stops once it has settled the start
+    (:func:`swarm_nav.planner_kernels.repair_dijkstra`): the start's path is the same, to the
+    last bit, as the whole-map search's on the overlay. With ``cfg.overlay_astar`` an overlay
+    is searched by A* from the start instead, guided by the base's cost-to-go
+    (:func:`_overlay_astar`): a path of the same cost, not always the same path among those of
+    equal cost.
 
     Args:
         costmap: the costmap.
