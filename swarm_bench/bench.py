@@ -261,20 +261,30 @@ def validate(args: argparse.Namespace) -> BenchConfig:
 
 # -------------------------------------------------------------------------------------- context
 def git_commit() -> dict:
-    """``{"commit": sha or None, "dirty": bool or None}`` of the code's repository."""
+    """``{"commit": sha or None, "dirty": bool or None, "diff_sha256": hex or None}`` of the
+    code's repository: ``dirty`` when a tracked file differs from the commit, and then the
+    SHA-256 of ``git diff HEAD --binary`` (the changes the runs were made with, to tell two
+    dirty trees apart)."""
+    import hashlib
+
     from swarm_common import paths
 
-    def git(*args: str) -> str | None:
+    def git(*args: str, strip: bool = True) -> str | None:
         try:
             res = subprocess.run(["git", "-C", str(paths.ROOT), *args], capture_output=True,
-                                 text=True, timeout=10)
+                                 text=True, timeout=30)
         except (OSError, subprocess.TimeoutExpired):
             return None
-        return res.stdout.strip() if res.returncode == 0 else None
+        if res.returncode != 0:
+            return None
+        return res.stdout.strip() if strip else res.stdout
 
     sha = git("rev-parse", "HEAD")
     status = git("status", "--porcelain", "--untracked-files=no") if sha else None
-    return {"commit": sha, "dirty": None if status is None else bool(status)}
+    dirty = None if status is None else bool(status)
+    diff = git("diff", "HEAD", "--binary", strip=False) if dirty else None
+    return {"commit": sha, "dirty": dirty,
+            "diff_sha256": None if diff is None else hashlib.sha256(diff.encode()).hexdigest()}
 
 
 def machine_info() -> dict:

@@ -140,6 +140,9 @@ def build_parser() -> argparse.ArgumentParser:
                    f"'{PROG} report' (default: 1/1)")
     p.add_argument("--swarm-up", type=Path, default=None, metavar="PATH",
                    help="the swarm-up executable (default: the one beside this Python)")
+    p.add_argument("--allow-dirty", action="store_true",
+                   help="run although a tracked file differs from the commit (refused "
+                   "otherwise); every record keeps the SHA-256 of 'git diff HEAD'")
     return p
 
 
@@ -176,7 +179,7 @@ def validate(args: argparse.Namespace) -> ExperimentConfig:
     Raises:
         InputError: the first bad flag (one line naming it).
     """
-    from swarm_bench.bench import swarm_up_path, world_arg
+    from swarm_bench.bench import git_commit, swarm_up_path, world_arg
 
     world = world_arg(args.world)
     if args.warmup >= args.duration:
@@ -221,9 +224,13 @@ def validate(args: argparse.Namespace) -> ExperimentConfig:
         if diff:
             raise InputError(f"--resume: '{args.resume}' was planned with other settings "
                              f"({', '.join(diff)}); give the same flags")
+    swarm_up = swarm_up_path(args.swarm_up)
+    if not args.allow_dirty and git_commit().get("dirty"):
+        raise InputError("--allow-dirty: the working tree differs from its commit; commit the "
+                         "changes (every run from a clean commit) or give --allow-dirty")
     return ExperimentConfig(plan=plan, output=out.expanduser().resolve(),
                             resume=args.resume is not None, shard=args.shard,
-                            processes=args.processes, swarm_up=swarm_up_path(args.swarm_up))
+                            processes=args.processes, swarm_up=swarm_up)
 
 
 def _parse_spec(spec: str, size: int, duration: float):

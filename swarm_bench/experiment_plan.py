@@ -209,7 +209,8 @@ def slim_record(rec: dict, cell: Cell, seed: int, git: dict, machine: dict) -> d
     return {"label": cell.label, "variant": cell.variant, "mode": cell.mode,
             "size": cell.size, "fault": cell.fault, "role": cell.role, "seed": seed,
             **{k: rec.get(k) for k in keep}, "commit": git.get("commit"),
-            "dirty": git.get("dirty"), "machine": machine, "started": rec.get("started"),
+            "dirty": git.get("dirty"), "diff_sha256": git.get("diff_sha256"),
+            "machine": machine, "started": rec.get("started"),
             "finished": rec.get("finished"), "metrics": slim}
 
 

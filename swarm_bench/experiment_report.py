@@ -508,8 +508,9 @@ def _cmd(argv) -> str:
 
 
 def _header(plan: Plan, settings: dict, records: list[dict]) -> list[str]:
-    commits = sorted({(r.get("commit") or "?") + (" (dirty)" if r.get("dirty") else "")
-                      for r in records})
+    commits = sorted({(r.get("commit") or "?") + (
+        (f" (dirty, diff sha256 {r['diff_sha256'][:12]})" if r.get("diff_sha256") else " (dirty)")
+        if r.get("dirty") else "") for r in records})
     machines = {}
     for r in records:
         m = r.get("machine") or {}

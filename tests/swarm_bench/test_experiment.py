@@ -33,6 +33,41 @@ SWARM_EXPERIMENT = Path(sys.executable).parent / "swarm-experiment"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 
+@pytest.fixture(autouse=True)
+def clean_tree(monkeypatch):
+    """The code's repository as a clean commit, whatever the tree these tests run from (a test
+    of the refusal makes it dirty)."""
+    import swarm_bench.bench as bench
+
+    state = {"commit": "0" * 40, "dirty": False, "diff_sha256": None}
+    monkeypatch.setattr(bench, "git_commit", lambda: dict(state))
+    return state
+
+
+def test_a_dirty_tree_is_refused_unless_allowed_and_then_its_diff_is_recorded(
+        clean_tree, tmp_path, monkeypatch, capsys):
+    """Every run from a clean commit: a tracked file that differs from the commit refuses the
+    sweep (exit 2, one line naming --allow-dirty, nothing written); --allow-dirty runs it and
+    every record keeps the diff's SHA-256, which the report names."""
+    import swarm_bench.bench as bench
+    from swarm_bench import experiment
+
+    clean_tree.update(dirty=True, diff_sha256="ab" * 32)
+    out = tmp_path / "x"
+    argv = ["--output", str(out), "--sizes", "20", "--runs", "1", "--no-faults",
+            "--no-ablations"]
+    assert experiment.main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--allow-dirty" in err[0] and "Traceback" not in err[0]
+    assert not out.exists()
+    monkeypatch.setattr(bench, "run_swarm_up", lambda bcfg, n, r, stop, view: {
+        **fake_record("?", "?", bcfg.coordination, n, bcfg.seed, 2.0), "interrupted": False})
+    assert experiment.main([*argv, "--allow-dirty"]) == 0
+    records = [json.loads(p.read_text()) for p in sorted((out / "records").glob("*.json"))]
+    assert records and all(r["dirty"] and r["diff_sha256"] == "ab" * 32 for r in records)
+    assert f"{'0' * 40} (dirty, diff sha256 {'ab' * 6})" in (out / "report.md").read_text()
+
+
 def test_t_interval_matches_the_student_t_table():
     mean, half = t_interval([10.0, 12.0, 14.0])
     # s = 2, n = 3, t(0.975, 2) = 4.3027: 4.3027 * 2 / sqrt(3) = 4.968
@@ -416,7 +451,7 @@ def test_tiny_sweep_writes_the_report(tmp_path):
     out = tmp_path / "report"
     # one size (several sizes in one report: the fake sweeps above), both modes, a fault
     argv = [str(SWARM_EXPERIMENT), "--sizes", "2", "--duration", "12", "--runs", "2",
-            "--warmup", "5", "--output", str(out), "--no-ablations",
+            "--warmup", "5", "--output", str(out), "--no-ablations", "--allow-dirty",
             "--fault-spec", "kill-coordinator@8+3", "--fault-size", "2"]
     res = subprocess.run(argv, capture_output=True, text=True, cwd=tmp_path, timeout=1500)
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
