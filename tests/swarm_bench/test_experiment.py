@@ -489,8 +489,9 @@ def test_the_committed_experiments_include_the_default_world():
 
 @pytest.mark.parametrize("world", COMMITTED_WORLDS)
 def test_the_committed_report_is_rebuilt_from_its_json(world, tmp_path):
-    """docs/experiments/<world>/: report.md and experiment.json are what ``swarm-experiment
-    report`` makes of the committed experiment.json, byte for byte."""
+    """docs/experiments/<world>/: report.md, experiment.json and every figure (PNG and SVG)
+    are what ``swarm-experiment report`` makes of the committed experiment.json, byte for byte
+    (the test extra pins the matplotlib that drew them)."""
     from swarm_bench.experiment_report import write_report
 
     committed = Path(__file__).resolve().parents[2] / "docs" / "experiments" / world
@@ -500,5 +501,8 @@ def test_the_committed_report_is_rebuilt_from_its_json(world, tmp_path):
     write_report([tmp_path / "in"], tmp_path / "out")
     for name in ("report.md", "experiment.json"):
         assert (tmp_path / "out" / name).read_bytes() == (committed / name).read_bytes(), name
-    for fig in json.loads((committed / "experiment.json").read_text())["figures"].values():
-        assert (committed / fig).is_file() and (committed / fig).with_suffix(".svg").is_file()
+    figures = json.loads((committed / "experiment.json").read_text())["figures"].values()
+    assert figures
+    for fig in figures:
+        for name in (fig, str(Path(fig).with_suffix(".svg"))):
+            assert (tmp_path / "out" / name).read_bytes() == (committed / name).read_bytes(), name
