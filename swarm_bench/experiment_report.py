@@ -54,7 +54,10 @@ STYLE = {  # variant -> (colour, marker): fixed, so every figure reads alike
     "centralized-fifo-hall": ("#7f7f7f", "^"),
 }
 PRIMARY = "throughput"
-SECONDARY = ("ttt_mean", "ttt_p95", "holding_per_robot", "idle_robots", "comm_bytes")
+CO_PRIMARY = ("jain", "idle_robots")
+"""Fairness beside throughput: tested for the main pair in the same Holm family and shown in
+the primary section (how evenly the tasks are shared, and the robots that finish none)."""
+SECONDARY = ("ttt_mean", "ttt_p95", "holding_per_robot", "comm_bytes")
 ALPHA = 0.05
 ABLATION_PAIRS = (  # (A, B, what B differs from A in): a chain from decentralized to the
     # centralized scheduler, so the differences A - B add up to the whole gap
@@ -198,7 +201,7 @@ def comparisons(plan: Plan, figs: dict) -> list[dict]:
     for a, b, n, role, what in pairs:
         if a not in figs or b not in figs:
             continue
-        measures = (PRIMARY, *SECONDARY) if role == "main" else (PRIMARY,)
+        measures = (PRIMARY, *CO_PRIMARY, *SECONDARY) if role == "main" else (PRIMARY,)
         for key in measures:
             st = paired({s: f[key] for s, f in figs[a].items()},
                         {s: f[key] for s, f in figs[b].items()})
@@ -584,7 +587,7 @@ def _primary_section(plan: Plan, plain: list[dict], stats: list[dict],
                      figures: dict[str, str]) -> list[str]:
     """Throughput after the warm-up: the table, its figures, the paired tests, the ablations'
     shares and the horizons."""
-    lines = ["## Primary measure: throughput after the warm-up", "",
+    lines = ["## Primary measures: throughput after the warm-up, and fairness", "",
              f"Tasks completed per simulated hour after the first {plan.warmup_s:g} s (the "
              "warm-up: the tasks-over-time figure shows the rate settled by then). Mean ± "
              "half-width of the 95 % interval across seeds (Student's t).", ""]
@@ -599,9 +602,22 @@ def _primary_section(plan: Plan, plain: list[dict], stats: list[dict],
             for n in sizes) + " |")
     lines += ["", "(in brackets: seeds)", "", f"![throughput]({figures['throughput']})", "",
               f"![tasks over time]({figures['tasks_over_time']})", ""]
-    lines += _stats_table(stats, "main", "Paired differences, main variants", PRIMARY)
+    lines += ["Fairness beside it: Jain's index of the tasks per robot over the whole run "
+              "(1: every robot completed as many; 1/N: one robot completed them all) and the "
+              "robots that completed no task, mean ± 95 % interval across seeds.", "",
+              "| variant | " + " | ".join(f"{n} robots: Jain's index, without a task"
+                                         for n in sizes) + " |",
+              "|---|" + "---|" * len(sizes)]
+    for v in vs:
+        cells = {s["size"]: s for s in plain if s["variant"] == v}
+        lines.append(f"| {v} | " + " | ".join(
+            f"{_fmt(cells[n]['jain'], 3)}, {_fmt(cells[n]['idle_robots'], 1)}"
+            if n in cells else "" for n in sizes) + " |")
+    lines += [""]
+    lines += _stats_table(stats, "main", "Paired differences, main variants",
+                          (PRIMARY, *CO_PRIMARY))
     lines += _stats_table(stats, "ablation", "Ablations: how much of the gap each factor "
-                          f"explains ({plan.ablation_size} robots)", PRIMARY)
+                          f"explains ({plan.ablation_size} robots)", (PRIMARY,))
     lines += _shares(stats)
     lines += _horizons(plan, plain)
     return lines
@@ -683,12 +699,17 @@ def _threats(plan: Plan) -> list[str]:
             "acknowledgements.", ""]
 
 
-def _stats_table(stats: list[dict], role: str, title: str, measure: str | None) -> list[str]:
+def _stats_table(stats: list[dict], role: str, title: str,
+                 measures: tuple[str, ...] | None) -> list[str]:
+    """The paired tests of ``role`` for ``measures`` (None: every measure but the primary and
+    co-primary ones)."""
     rows = [r for r in stats if r["role"] == role
-            and (r["measure"] == measure if measure else r["measure"] != PRIMARY)]
+            and (r["measure"] in measures if measures else
+                 r["measure"] not in (PRIMARY, *CO_PRIMARY))]
     if not rows:
         return []
     label = {k: lab for k, lab, _ in MEASURES}
+    places = {k: d for k, _, d in MEASURES}
     out = [f"### {title}", "",
            "A − B per seed: mean and 95 % interval; p: paired t-test (two-sided; the primary "
            "test), Wilcoxon signed-rank (a check: with 5 seeds it cannot go below 0.0625), "
@@ -697,7 +718,8 @@ def _stats_table(stats: list[dict], role: str, title: str, measure: str | None) 
            "| A | B | measure | seeds | A − B | B vs A | p (t) | p (Wilcoxon) | p (Holm) | "
            "claim |", "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        digits = 0 if r["measure"] in ("throughput", "comm_bytes") else 1
+        digits = 0 if r["measure"] in ("throughput", "comm_bytes") else max(
+            1, places.get(r["measure"], 1))
         diff = _fmt({"mean": r["diff"], "ci95": r["ci95"]}, digits)
         rel = "-" if r["rel"] is None else f"{100 * r['rel']:+.0f} %"
         claim = (("**yes**" if r["claim"] else "no") if r["n"] >= MIN_CLAIM_SEEDS

@@ -43,6 +43,14 @@ def t_interval(values: list[float], level: float = 0.95) -> tuple[float | None, 
     return mean, float(student.ppf(0.5 + level / 2, n - 1)) * sd / math.sqrt(n)
 
 
+def jain(counts: list[int]) -> float | None:
+    """Jain's fairness index of ``counts`` (Jain, Chiu and Hawe 1984): ``(sum x)^2 / (n * sum
+    x^2)`` over the n robots' task counts x; 1 when every robot completed as many tasks, 1/n when
+    one robot completed them all; None when no robot completed a task."""
+    total = sum(counts)
+    return total * total / (len(counts) * sum(c * c for c in counts)) if total else None
+
+
 def run_figures(record: dict, warmup_s: float) -> dict | None:
     """The protocol's figures of one swarm-up run (None if it did not end well).
 
@@ -52,7 +60,8 @@ def run_figures(record: dict, warmup_s: float) -> dict | None:
 
     Returns:
         ``throughput`` [tasks/h after the warm-up], ``ttt_mean``/``ttt_p95`` [s],
-        ``holding_per_robot`` [s], ``idle_robots`` (robots that completed no task) and
+        ``holding_per_robot`` [s], ``jain`` (:func:`jain` of the tasks per robot, the whole
+        run), ``idle_robots`` (robots that completed no task) and
         ``min_tasks`` (the fewest tasks of a robot), ``collisions``, ``late_ticks``,
         ``cpu_per_robot_ms``
         [ms per simulated s], ``comm_msgs``/``comm_bytes`` [per simulated s, total],
@@ -82,6 +91,7 @@ def run_figures(record: dict, warmup_s: float) -> dict | None:
         "ttt_mean": m.get("time_to_task_mean_s"),
         "ttt_p95": m.get("time_to_task_p95_s"),
         "holding_per_robot": holding / n,
+        "jain": jain([int(v) for v in m.get("robot_tasks") or []]),
         "idle_robots": spread.get("without_task"),
         "min_tasks": spread.get("min"),
         "collisions": (col.get("robot_robot") or 0) + (col.get("robot_wall") or 0),
@@ -111,6 +121,7 @@ MEASURES = (
     ("ttt_mean", "time to task, mean [s]", 1),
     ("ttt_p95", "time to task, 95th percentile [s]", 1),
     ("holding_per_robot", "holding + waiting per robot [s]", 1),
+    ("jain", "Jain's index of tasks per robot", 3),
     ("idle_robots", "robots without a task", 1),
     ("min_tasks", "tasks of the robot with the fewest", 1),
     ("collisions", "collisions (robot-robot + wall)", 1),

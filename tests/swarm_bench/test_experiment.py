@@ -284,6 +284,50 @@ def test_a_comparison_over_fewer_than_five_seeds_claims_nothing(tmp_path):
     assert "| no (< 5 seeds) |" in (tmp_path / "a" / "report.md").read_text()
 
 
+def test_jains_index_by_hand():
+    from swarm_bench.experiment_stats import jain
+
+    assert jain([3, 3, 3, 3]) == 1.0
+    assert jain([4, 0, 0, 0]) == 0.25  # one robot did everything: 1/n
+    assert jain([1, 2, 3]) == pytest.approx(36 / (3 * 14))
+    assert jain([0, 0]) is None
+
+
+def test_fairness_is_co_primary_in_the_holm_family(tmp_path, monkeypatch):
+    """Jain's index of the tasks per robot and the robots without a task are tested for the
+    main pair beside throughput, adjusted with every other comparison (Holm), and shown in the
+    primary section with their values."""
+    import tests.swarm_bench.test_experiment as me
+    from swarm_bench.experiment_report import write_report
+
+    def uneven(label, variant, mode, size, seed, rate, make=fake_record, **kw):
+        rec = make(label, variant, mode, size, seed, rate, **kw)
+        if mode == "decentralized":  # half the robots do all the work, the others none
+            counts = [2] * (size // 2) + [0] * (size - size // 2)
+        else:
+            counts = [1] * size
+        rec["metrics"]["robot_tasks"] = counts
+        rec["metrics"]["tasks_per_robot"] = {**rec["metrics"]["tasks_per_robot"],
+                                             "without_task": counts.count(0)}
+        return rec
+
+    monkeypatch.setattr(me, "fake_record", uneven)
+    write_fake_sweep(tmp_path / "a")
+    write_report([tmp_path / "a"], tmp_path / "a")
+    doc = json.loads((tmp_path / "a" / "experiment.json").read_text())
+    rows = {r["measure"]: r for r in doc["statistics"] if r["role"] == "main"}
+    assert {"throughput", "jain", "idle_robots"} <= set(rows)
+    assert rows["jain"]["diff"] == pytest.approx(0.5 - 1.0)  # half the robots: 1/2 against 1
+    assert rows["idle_robots"]["diff"] == 10.0
+    ps = [r["p_t"] for r in doc["statistics"]]
+    assert rows["jain"]["p_holm"] >= rows["jain"]["p_t"] and len(ps) >= 6
+    report = (tmp_path / "a" / "report.md").read_text()
+    primary = report.split("## Primary measures")[1].split("## Secondary")[0]
+    assert "| decentralized | 0.500 ± 0.000, 10.0 ± 0.0 |" in primary
+    assert "| Jain's index of tasks per robot | 5 |" in primary
+    assert "| robots without a task | 5 |" in primary
+
+
 def test_the_ablation_chain_adds_up_to_the_whole_gap(tmp_path):
     from swarm_bench.experiment_report import write_report
 
