@@ -203,8 +203,12 @@ def slim_record(rec: dict, cell: Cell, seed: int, git: dict, machine: dict) -> d
         slim["comm"] = {k: comm.get(k) for k in ("messages", "bytes", "messages_per_s",
                                                  "bytes_per_s", "by_topic")}
         per = m.get("per_robot") or {}
-        slim["robot_tasks"] = [int((per.get(ns) or {}).get("tasks") or 0) for ns in sorted(
-            per, key=lambda ns: (len(ns), ns))]
+        robots = [per.get(ns) or {} for ns in sorted(per, key=lambda ns: (len(ns), ns))]
+        slim["robot_tasks"] = [int(r.get("tasks") or 0) for r in robots]
+        # per robot, in robot order: when each of its tasks was completed [s] simulated, and
+        # the distance it drove [m] (the simulator's; None where unknown)
+        slim["robot_task_times"] = [list(r.get("task_times_s") or []) for r in robots]
+        slim["robot_distance_m"] = [r.get("distance_m") for r in robots]
     keep = ("command", "exit_code", "error", "cpu_s", "cpu_per_robot")
     return {"label": cell.label, "variant": cell.variant, "mode": cell.mode,
             "size": cell.size, "fault": cell.fault, "role": cell.role, "seed": seed,

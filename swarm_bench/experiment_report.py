@@ -636,7 +636,9 @@ def _secondary_section(plan: Plan, plain: list[dict], stats: list[dict],
               "|---|" + "---|" * len(cols)]
     for key, label, digits in MEASURES:
         vals = [s[key]["mean"] for s in cols if s[key]["mean"] is not None]
-        if vals and all(v == 0 for v in vals):
+        if not vals:
+            continue  # no run measured it (records from before the measure)
+        if all(v == 0 for v in vals):
             zero.append(label)
         lines.append(f"| {label} | " + " | ".join(_fmt(s[key], digits) for s in cols) + " |")
     lines += [""]

@@ -68,8 +68,9 @@ def run_figures(record: dict, warmup_s: float) -> dict | None:
         ``coord_msgs``/``coord_bytes`` (without the map), ``comm_bytes_per_robot``, ``rtf``,
         ``tasks``, ``reproducible``, ``reservation_conflicts``, ``task_times`` and
         ``task_durations`` [s] (per task, in completion order), ``robot_tasks`` (tasks of each
-        robot), ``standstills`` (the simulator's episodes of >= 60 s), ``min_separation`` [m],
-        ``sim_time``, ``robots``.
+        robot), ``distance_per_task`` [m] (all robots' distance driven over the tasks
+        completed; None for records without the robots' distances), ``standstills`` (the
+        simulator's episodes of >= 60 s), ``min_separation`` [m], ``sim_time``, ``robots``.
     """
     m = record.get("metrics")
     if record.get("exit_code") != EXIT_OK or not isinstance(m, dict):
@@ -86,6 +87,10 @@ def run_figures(record: dict, warmup_s: float) -> dict | None:
     holding = (m.get("holding_time_s") or 0.0) + (m.get("coordinator_wait_s") or 0.0)
     cpu = record.get("cpu_per_robot")
     spread = m.get("tasks_per_robot") or {}
+    dist = m.get("robot_distance_m")
+    tasks = m.get("tasks_completed")
+    per_task = (sum(dist) / tasks if dist and tasks and all(d is not None for d in dist)
+                else None)
     return {
         "throughput": thr,
         "ttt_mean": m.get("time_to_task_mean_s"),
@@ -102,6 +107,7 @@ def run_figures(record: dict, warmup_s: float) -> dict | None:
         "coord_msgs": sum(v["messages"] for v in coord) / sim if sim else None,
         "coord_bytes": sum(v["bytes"] for v in coord) / sim if sim else None,
         "comm_bytes_per_robot": (comm.get("bytes_per_s") or 0.0) / n,
+        "distance_per_task": per_task,
         "rtf": m.get("rtf"),
         "tasks": m.get("tasks_completed"),
         "reproducible": m.get("reproducible"),
@@ -132,6 +138,7 @@ MEASURES = (
     ("coord_msgs", "coordinator traffic [msg per sim s]", 2),
     ("coord_bytes", "coordinator traffic [bytes per sim s]", 0),
     ("comm_bytes_per_robot", "communication per robot [bytes per sim s]", 0),
+    ("distance_per_task", "distance driven per task [m]", 1),
     ("rtf", "real-time factor", 2),
 )
 

@@ -104,7 +104,32 @@ def test_run_figures_of_a_record():
     assert f["collisions"] == 1 and f["cpu_per_robot_ms"] == pytest.approx(20.0)
     assert f["coord_msgs"] == pytest.approx(90 / 300) and f["coord_bytes"] == 60.0
     assert f["comm_bytes_per_robot"] == 250.0
+    assert f["jain"] is None  # no robot_tasks in this record
+    assert f["distance_per_task"] is None  # nor the robots' distances
+    f = run_figures({"exit_code": 0, "metrics": {**m, "robot_tasks": [2, 1, 1, 0],
+                                                 "robot_distance_m": [30.0, 20.0, 25.0, 5.0]}},
+                    warmup_s=120.0)
+    assert f["distance_per_task"] == pytest.approx(80.0 / 4)
+    assert f["jain"] == pytest.approx(16 / (4 * 6))
     assert run_figures({"exit_code": 1, "metrics": m}, 120.0) is None
+
+
+def test_a_record_keeps_each_robots_task_times_and_distance():
+    """records/<cell>-s<seed>.json keeps, per robot in robot order (Srobot2 before Srobot10),
+    its tasks, when each was completed and the distance it drove."""
+    from swarm_bench.experiment_plan import slim_record
+
+    per = {"Srobot10": {"tasks": 1, "task_times_s": [70.5], "distance_m": 12.5},
+           "Srobot2": {"tasks": 2, "task_times_s": [10.0, 40.25], "distance_m": 30.0}}
+    plan = validate(build_parser().parse_args(
+        ["--output", "unused", "--sizes", "20", "--no-faults", "--no-ablations"])).plan
+    cell = plan.cells()[0]
+    rec = slim_record({"exit_code": 0, "metrics": {"per_robot": per}}, cell, 0,
+                      {"commit": "abc", "dirty": False, "diff_sha256": None}, {})
+    m = rec["metrics"]
+    assert m["robot_tasks"] == [2, 1]
+    assert m["robot_task_times"] == [[10.0, 40.25], [70.5]]
+    assert m["robot_distance_m"] == [30.0, 12.5]
 
 
 def test_paired_statistics_match_a_hand_computed_example():
