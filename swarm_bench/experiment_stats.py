@@ -51,6 +51,53 @@ def jain(counts: list[int]) -> float | None:
     return total * total / (len(counts) * sum(c * c for c in counts)) if total else None
 
 
+def task_intervals(robot_task_times: list[list[float]], sim_time_s: float,
+                   warmup_s: float) -> tuple[list[float], list[float]]:
+    """Each robot's tasks as intervals from one completion to its next (its first from the
+    run's start), both modes alike, and the task each robot still had open at the end.
+
+    Counted are the intervals that end after the warm-up, wherever they began (a robot that
+    completes nothing after it still counts, with its one open interval).
+
+    Args:
+        robot_task_times: per robot, the simulated times [s] its tasks were completed.
+        sim_time_s: [s] the run's end; warmup_s: [s] the warm-up.
+
+    Returns:
+        ``(completed, still_open)``: durations [s] of the completed tasks, and the ages [s] at
+        the end of the open ones (right-censored observations).
+    """
+    completed, still_open = [], []
+    for times in robot_task_times:
+        start = 0.0
+        for t in sorted(float(v) for v in times):
+            if t > warmup_s:
+                completed.append(t - start)
+            start = t
+        if sim_time_s > start and sim_time_s > warmup_s:
+            still_open.append(sim_time_s - start)
+    return completed, still_open
+
+
+def km_quantiles(completed: list[float], still_open: list[float],
+                 levels: tuple[float, ...] = (0.5, 0.95)) -> list[float | None]:
+    """Quantiles of the time to task with the open tasks counted as right-censored: the
+    Kaplan-Meier estimate (``scipy.stats.ecdf`` of ``CensoredData``; Kaplan and Meier 1958),
+    the smallest time whose estimated share of tasks done is at least the level; None where the
+    estimate never reaches it (too many tasks still open) or nothing completed."""
+    if not completed:
+        return [None] * len(levels)
+    from scipy.stats import CensoredData, ecdf
+
+    cdf = ecdf(CensoredData(uncensored=completed, right=still_open)).cdf
+    out = []
+    for level in levels:
+        hit = [q for q, p in zip(cdf.quantiles, cdf.probabilities, strict=True)
+               if p >= level - 1e-12]
+        out.append(float(hit[0]) if hit else None)
+    return out
+
+
 def run_figures(record: dict, warmup_s: float) -> dict | None:
     """The protocol's figures of one swarm-up run (None if it did not end well).
 
@@ -69,7 +116,9 @@ def run_figures(record: dict, warmup_s: float) -> dict | None:
         ``tasks``, ``reproducible``, ``reservation_conflicts``, ``task_times`` and
         ``task_durations`` [s] (per task, in completion order), ``robot_tasks`` (tasks of each
         robot), ``distance_per_task`` [m] (all robots' distance driven over the tasks
-        completed; None for records without the robots' distances), ``standstills`` (the
+        completed; None for records without the robots' distances), ``ttt_km_median`` and
+        ``ttt_km_p95`` [s] (:func:`km_quantiles` of :func:`task_intervals`; None for records
+        without each robot's task times), ``standstills`` (the
         simulator's episodes of >= 60 s), ``min_separation`` [m], ``sim_time``, ``robots``.
     """
     m = record.get("metrics")
@@ -91,6 +140,9 @@ def run_figures(record: dict, warmup_s: float) -> dict | None:
     tasks = m.get("tasks_completed")
     per_task = (sum(dist) / tasks if dist and tasks and all(d is not None for d in dist)
                 else None)
+    robot_times = m.get("robot_task_times")
+    km = (km_quantiles(*task_intervals(robot_times, sim, warmup_s)) if robot_times
+          else [None, None])
     return {
         "throughput": thr,
         "ttt_mean": m.get("time_to_task_mean_s"),
@@ -108,6 +160,8 @@ def run_figures(record: dict, warmup_s: float) -> dict | None:
         "coord_bytes": sum(v["bytes"] for v in coord) / sim if sim else None,
         "comm_bytes_per_robot": (comm.get("bytes_per_s") or 0.0) / n,
         "distance_per_task": per_task,
+        "ttt_km_median": km[0],
+        "ttt_km_p95": km[1],
         "rtf": m.get("rtf"),
         "tasks": m.get("tasks_completed"),
         "reproducible": m.get("reproducible"),
@@ -126,6 +180,8 @@ MEASURES = (
     ("throughput", "throughput after warm-up [tasks/h]", 1),
     ("ttt_mean", "time to task, mean [s]", 1),
     ("ttt_p95", "time to task, 95th percentile [s]", 1),
+    ("ttt_km_median", "time to task after warm-up, open tasks counted: median [s]", 1),
+    ("ttt_km_p95", "time to task after warm-up, open tasks counted: 95th percentile [s]", 1),
     ("holding_per_robot", "holding + waiting per robot [s]", 1),
     ("jain", "Jain's index of tasks per robot", 3),
     ("idle_robots", "robots without a task", 1),

@@ -114,6 +114,23 @@ def test_run_figures_of_a_record():
     assert run_figures({"exit_code": 1, "metrics": m}, 120.0) is None
 
 
+def test_time_to_task_with_the_open_tasks_counted_by_hand():
+    """task_intervals: from one completion to the next (the first from the start), those
+    ending after the warm-up, and every robot's open task at the end; km_quantiles: the
+    Kaplan-Meier estimate worked by hand."""
+    from swarm_bench.experiment_stats import km_quantiles, task_intervals
+
+    done, still_open = task_intervals([[10.0, 50.0, 320.0, 400.0], [], [350.0]], 600.0, 300.0)
+    assert sorted(done) == [80.0, 270.0, 350.0]
+    assert sorted(still_open) == [200.0, 250.0, 600.0]  # the robot with no task counts too
+    # six at risk: 80 done (S = 5/6); 200 and 250 open; 270 done of 3 (S = 5/9); 350 done of
+    # 2 (S = 5/18): the median is 350 s, the 95th percentile never reached
+    assert km_quantiles(done, still_open) == [350.0, None]
+    # nothing open: the plain empirical quantiles
+    assert km_quantiles([1.0, 2.0, 3.0, 4.0], []) == [2.0, 4.0]
+    assert km_quantiles([], [5.0]) == [None, None]
+
+
 def test_a_record_keeps_each_robots_task_times_and_distance():
     """records/<cell>-s<seed>.json keeps, per robot in robot order (Srobot2 before Srobot10),
     its tasks, when each was completed and the distance it drove."""
@@ -130,6 +147,12 @@ def test_a_record_keeps_each_robots_task_times_and_distance():
     assert m["robot_tasks"] == [2, 1]
     assert m["robot_task_times"] == [[10.0, 40.25], [70.5]]
     assert m["robot_distance_m"] == [30.0, 12.5]
+    f = run_figures({**rec, "metrics": {**m, "robots": 2, "sim_time_s": 100.0,
+                                        "tasks_completed": 3}}, warmup_s=20.0)
+    assert f["distance_per_task"] == pytest.approx(42.5 / 3)
+    # tasks ending after 20 s: 10 -> 40.25 (30.25 s) and 0 -> 70.5; open at 100 s: 59.75 and
+    # 29.5 s. At risk 4; 29.5 open; 30.25 done of 3 (S = 2/3); 59.75 open; 70.5 done of 1 (S = 0)
+    assert f["ttt_km_median"] == 70.5 and f["ttt_km_p95"] == 70.5
 
 
 def test_paired_statistics_match_a_hand_computed_example():
