@@ -171,6 +171,9 @@ class ExperimentConfig:
     shard: tuple[int, int]
     processes: str | int | None
     swarm_up: Path
+    git: dict
+    """The code's commit as :func:`swarm_bench.bench.git_commit` read it (every record keeps
+    it)."""
 
 
 def validate(args: argparse.Namespace) -> ExperimentConfig:
@@ -225,12 +228,13 @@ def validate(args: argparse.Namespace) -> ExperimentConfig:
             raise InputError(f"--resume: '{args.resume}' was planned with other settings "
                              f"({', '.join(diff)}); give the same flags")
     swarm_up = swarm_up_path(args.swarm_up)
-    if not args.allow_dirty and git_commit().get("dirty"):
+    git = git_commit()
+    if not args.allow_dirty and git.get("dirty"):
         raise InputError("--allow-dirty: the working tree differs from its commit; commit the "
                          "changes (every run from a clean commit) or give --allow-dirty")
     return ExperimentConfig(plan=plan, output=out.expanduser().resolve(),
                             resume=args.resume is not None, shard=args.shard,
-                            processes=args.processes, swarm_up=swarm_up)
+                            processes=args.processes, swarm_up=swarm_up, git=git)
 
 
 def _parse_spec(spec: str, size: int, duration: float):
@@ -293,7 +297,6 @@ def experiment(cfg: ExperimentConfig, argv: list[str]) -> int:
         BenchConfig,
         BenchView,
         _write_json,
-        git_commit,
         machine_info,
         run_swarm_up,
         say_outcome,
@@ -311,7 +314,7 @@ def experiment(cfg: ExperimentConfig, argv: list[str]) -> int:
     todo = [(k, c, s) for k, c, s in runs
             if not cfg.resume or (load_record(record_path(out, c.label, s)) or {}).get(
                 "exit_code") != EXIT_OK]
-    git, machine = git_commit(), machine_info()
+    git, machine = cfg.git, machine_info()
     failed, finished = False, 0
     with stop_on_signals() as stop:
         view = BenchView(tty=sys.stdout.isatty(), prog=PROG)

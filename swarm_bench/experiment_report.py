@@ -510,10 +510,18 @@ def _cmd(argv) -> str:
     return " ".join(shlex.quote(str(a)) for a in argv)
 
 
+def _commit_label(record: dict) -> str:
+    """A record's commit as the report names it: ``<sha>``, ``<sha> (dirty)`` or, when the
+    record keeps its diff's hash, ``<sha> (dirty, diff sha256 <first 12 digits>)``."""
+    label = record.get("commit") or "?"
+    if not record.get("dirty"):
+        return label
+    digest = record.get("diff_sha256")
+    return f"{label} (dirty, diff sha256 {digest[:12]})" if digest else f"{label} (dirty)"
+
+
 def _header(plan: Plan, settings: dict, records: list[dict]) -> list[str]:
-    commits = sorted({(r.get("commit") or "?") + (
-        (f" (dirty, diff sha256 {r['diff_sha256'][:12]})" if r.get("diff_sha256") else " (dirty)")
-        if r.get("dirty") else "") for r in records})
+    commits = sorted({_commit_label(r) for r in records})
     machines = {}
     for r in records:
         m = r.get("machine") or {}

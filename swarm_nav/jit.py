@@ -93,7 +93,7 @@ def warm_up() -> float:
                              np.zeros(2, dtype=np.int32), 0, 0, math.inf)
     planner_kernels.settle(np.zeros(0), np.zeros(0, dtype=np.int32), np.zeros(2, dtype=np.int32),
                            np.zeros(1), np.full(1, -9999, dtype=np.int32), np.zeros((1, 2)), 0,
-                           -1, math.inf)
+                           -1, math.inf, math.inf)
     planner_kernels.repair_dijkstra(np.zeros(0), np.zeros(0), np.zeros(0, dtype=np.int32),
                                     np.zeros(2, dtype=np.int32), np.zeros(1),
                                     np.full(1, -9999, dtype=np.int32), np.zeros(0, dtype=np.int32),

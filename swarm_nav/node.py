@@ -370,15 +370,12 @@ class NavigatorNode(Node):
         if (self.get_parameter("wait_for_commander").value
                 and self._goal_sub.get_publisher_count() == 0):
             waiting.append(f"a commander on {self._goal_topic}")
-        readers = int(self.get_parameter("wait_for_status_readers").value)
-        if self.status_pub.get_subscription_count() < readers:
-            waiting.append(f"{readers} readers of nav_status")
-        readers = int(self.get_parameter("wait_for_cmd_vel_readers").value)
-        if self.cmd_pub.get_subscription_count() < readers:
-            waiting.append(f"{readers} readers of cmd_vel")
-        readers = int(self.get_parameter("wait_for_plan_readers").value)
-        if self.plan_pub.get_subscription_count() < readers:
-            waiting.append(f"{readers} readers of plan")
+        for param, pub, topic in (("wait_for_status_readers", self.status_pub, "nav_status"),
+                                  ("wait_for_cmd_vel_readers", self.cmd_pub, "cmd_vel"),
+                                  ("wait_for_plan_readers", self.plan_pub, "plan")):
+            readers = int(self.get_parameter(param).value)
+            if pub.get_subscription_count() < readers:
+                waiting.append(f"{readers} readers of {topic}")
         return " and ".join(waiting)
 
     def _hold(self, t: int) -> None:

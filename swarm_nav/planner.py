@@ -381,7 +381,7 @@ class CostToGo:
             g = self._graph
             self._heap, self._size = kernels.settle(g.data, g.indices, g.indptr, self.dist,
                                                     self.pred, self._heap, self._size, stop,
-                                                    bound)
+                                                    bound, math.inf)
         return self
 
 

@@ -215,31 +215,18 @@ def dijkstra(data, indices, indptr, source, stop, limit):
     heap = np.empty((4096, 2))  # rows (distance, vertex); the vertex as a float (exact < 2**53)
     dist[source] = 0.0
     heap[0, 0], heap[0, 1] = 0.0, source
-    size = 1
-    while size > 0:
-        d, v = _pop(heap, size)
-        size -= 1
-        if dist[v] < d:
-            continue  # lowered since this pair was pushed
-        if v == stop:
-            break
-        for j in range(indptr[v], indptr[v + 1]):
-            u = indices[j]
-            nd = d + data[j]
-            if nd <= limit and dist[u] > nd:
-                dist[u] = nd
-                pred[u] = v
-                heap = _push(heap, size, nd, u)
-                size += 1
+    settle(data, indices, indptr, dist, pred, heap, 1, stop, np.inf if stop < 0 else -np.inf,
+           limit)
     return dist, pred
 
 
 @njit(cache=True, nogil=True)
-def settle(data, indices, indptr, dist, pred, heap, size, stop, bound):
+def settle(data, indices, indptr, dist, pred, heap, size, stop, bound, limit):
     """Go on with a :func:`dijkstra` search from where it stands until vertex ``stop`` is
     settled and every vertex up to distance ``bound`` is: a search whose every step is one of
     the whole search's, in its order, so each settled vertex has scipy's whole-map distance and
-    predecessor to the last bit, however many calls it took to get there (no ``limit``).
+    predecessor to the last bit, however many calls it took to get there (with the same
+    ``limit`` in every call).
 
     The search's state is ``dist``, ``pred`` (updated in place) and its heap: a vertex whose
     ``dist`` is below the heap's first distance is settled (no later pop can lower it); an
@@ -254,6 +241,7 @@ def settle(data, indices, indptr, dist, pred, heap, size, stop, bound):
         stop: the vertex to settle; -1 for none.
         bound: settle every vertex within this distance too (``inf``: complete the search;
             ``-inf``: none but ``stop``).
+        limit: the largest distance searched, as :func:`dijkstra`'s (``inf``: no limit).
 
     Returns:
         ``(heap, size)``: the heap (grown when it was full) and its entries.
@@ -269,7 +257,7 @@ def settle(data, indices, indptr, dist, pred, heap, size, stop, bound):
         for j in range(indptr[v], indptr[v + 1]):
             u = indices[j]
             nd = d + data[j]
-            if dist[u] > nd:
+            if nd <= limit and dist[u] > nd:
                 dist[u] = nd
                 pred[u] = v
                 heap = _push(heap, size, nd, u)
