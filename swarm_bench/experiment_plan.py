@@ -184,7 +184,8 @@ METRICS_KEPT = (
     "task_durations_s", "tasks_per_robot", "standstills", "standstill_s", "collisions",
     "min_separation_m", "holding_time_s", "late_ticks", "goal_wait_timeouts", "late_goals",
     "reproducible", "coordinator_wait_s", "reservation_conflicts", "coordinator_starts",
-    "cpu_percent", "peak_rss_mb_per_robot", "restarts", "faults", "fault_log", "ended_by")
+    "cpu_percent", "peak_rss_mb_per_robot", "restarts", "faults", "fault_log", "ended_by",
+    "service_time_s")
 """The metrics a record keeps (``metrics.json`` has more: per-robot details, tables)."""
 
 

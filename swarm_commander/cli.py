@@ -3,7 +3,8 @@
 ::
 
     swarm-commander Srobot3 [--world NAME|PATH] [--route random|PATH.yaml] [--loops N]
-                    [--seed S] [--wait-timeout SEC] [--name-prefix P] [--ros-args ...]
+                    [--seed S] [--wait-timeout SEC] [--service-time SEC] [--name-prefix P]
+                    [--ros-args ...]
 
 It waits for the robot's navigator (its first ``nav_status``), then visits the stops of the
 route, one task per stop, and prints one line per task::
@@ -14,7 +15,9 @@ route, one task per stop, and prints one line per task::
 
 and, at the end or on Ctrl-C, a summary line. A navigator holding for a taken workstation may
 take another free one of its kind instead (its ``swap_range``): the line names the one reached,
-and the next stop is skipped if it is that one (the robot stands on it). ``NS`` may also be a
+and the next stop is skipped if it is that one (the robot stands on it). At a workstation
+reached the robot stays for the service time (``--service-time``, the world's ``service_time``):
+its next goal is stamped that much after the arrival. ``NS`` may also be a
 robot number, joined to ``--name-prefix`` (``3`` → ``Srobot3``). The node is
 ``/<NS>/commander``; it uses simulated time unless ``--ros-args -p use_sim_time:=false`` says
 otherwise.
@@ -43,10 +46,18 @@ from rclpy.task import Future
 from rclpy.utilities import remove_ros_args
 
 from swarm_commander.robot_navigator import BasicNavigator, TaskResult
-from swarm_commander.route import FixedRoute, RandomRoute, RouteStop, build_route, visits
+from swarm_commander.route import (
+    FixedRoute,
+    RandomRoute,
+    RouteStop,
+    build_route,
+    visits,
+    world_service_time,
+)
 from swarm_common import cli
 from swarm_common.errors import EXIT_BAD_INPUT, EXIT_OK, EXIT_RUNTIME, InputError, run_cli
 from swarm_common.geometry import pose2d, yaw_to_quaternion
+from swarm_common.stamps import NS_PER_S
 from swarm_ros.session import node_session
 
 PROG = "swarm-commander"
@@ -65,12 +76,16 @@ class CommanderConfig:
             to send again, a navigator heard but not yet subscribed to ``goal_pose``).
         idle_period: [s] wall: period of the runner's timer otherwise (the first status and a
             task's end come as events; the timer then only checks ``wait_timeout``).
+        service_time: [s] simulated: how long the robot stays at a workstation it has reached
+            (the world's ``service_time``): the next goal is stamped that much after the
+            arrival, and the navigator applies a goal at its first tick after the stamp.
     """
 
     loops: int = 0
     wait_timeout: float = 30.0
     poll_period: float = 0.1
     idle_period: float = 1.0
+    service_time: float = 0.0
 
 
 class CommanderRunner:
@@ -112,6 +127,7 @@ class CommanderRunner:
         self._current: RouteStop | None = None
         self._task_start_ns = 0
         self._first_start_ns: int | None = None
+        self._not_before_ns = 0  # [ns] simulated: the next goal's earliest stamp (service)
         # wait_timeout counts from the first step, when an executor spins the node: a group
         # process makes all its nodes before it spins any (500 commanders: over 2 minutes)
         self._deadline: float | None = None
@@ -211,10 +227,10 @@ class CommanderRunner:
                 self.skipped += 1
                 continue
             self._pending = visit[1]
-        if self.nav.goToPose(_pose_msg(self._pending)):
+        if self.nav.go_to_pose_at(_pose_msg(self._pending), self._not_before_ns):
             self._current, self._pending = self._pending, None
             self.tasks += 1
-            self._task_start_ns = self._now_ns()
+            self._task_start_ns = max(self._now_ns(), self._not_before_ns)
             if self._first_start_ns is None:
                 self._first_start_ns = self._task_start_ns
         # else: the navigator is gone for now; the timer retries
@@ -226,6 +242,10 @@ class CommanderRunner:
         feedback = self.nav.getFeedback()
         if result == TaskResult.SUCCEEDED:
             self.reached += 1
+            # the robot stays docked for the service: the next goal takes effect after it
+            arrived = self.nav.status_stamp_ns
+            if arrived is not None and self.cfg.service_time > 0.0:
+                self._not_before_ns = arrived + round(self.cfg.service_time * NS_PER_S)
             stop = self._reached_stop(feedback)
             self._took = stop.name if stop is not self._current else None
             sent = f", sent to {name} (taken)" if self._took else ""
@@ -314,6 +334,9 @@ def _parser() -> argparse.ArgumentParser:
                    help="seed of the random order, mixed with NS (default: %(default)s)")
     p.add_argument("--wait-timeout", type=cli.positive_float, default=30.0, metavar="SEC",
                    help="wall seconds to wait for the navigator (default: %(default)s)")
+    p.add_argument("--service-time", type=cli.non_negative_float, default=None, metavar="SEC",
+                   help="simulated seconds the robot stays at a workstation it reached before "
+                   "its next goal takes effect (default: the world's service_time, else 0)")
     cli.add_shared(p, "--name-prefix",
                    help="prefix of robot namespaces, for a numeric NS (default: %(default)s)")
     p.add_argument("--coordinated", action="store_true",
@@ -360,7 +383,10 @@ def _run(argv: list[str]) -> int:
     opts = _parser().parse_args(_non_ros_args(argv))
     ns = _namespace(opts.ns, opts.name_prefix)
     route = None if opts.coordinated else build_route(opts.world, opts.seed, ns, opts.route)
-    cfg = CommanderConfig(loops=opts.loops, wait_timeout=opts.wait_timeout)
+    service = (opts.service_time if opts.service_time is not None
+               else world_service_time(opts.world))
+    cfg = CommanderConfig(loops=opts.loops, wait_timeout=opts.wait_timeout,
+                          service_time=service)
 
     runner = None
     code = EXIT_OK

@@ -148,6 +148,23 @@ _ROUTE_KEYS = ("frame_id", "waypoints")
 _WAYPOINT_KEYS = ("name", "x", "y", "yaw")
 
 
+def world_service_time(world: str | Path) -> float:
+    """[s] simulated: the ``service_time`` of a world's points of interest (0 without them).
+
+    Raises:
+        InputError: an unknown world (names ``--world``) or invalid points of interest.
+    """
+    from swarm_scene.poi import poi_for_world
+    from swarm_scene.world import resolve_world
+
+    try:
+        world_path = resolve_world(world)
+    except InputError as exc:
+        raise InputError(f"--world: {exc}") from None
+    poi = poi_for_world(world_path)
+    return poi.service_time if poi is not None else 0.0
+
+
 def build_route(world: str | Path, seed: int, ns: str,
                 route: str | Path = "random") -> RandomRoute | FixedRoute:
     """The route of robot ``ns`` in a world: what ``swarm-commander`` and a group process run.

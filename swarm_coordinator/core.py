@@ -39,6 +39,9 @@ first to ask gets it, later askers are queued and parked at a waiting spot until
   its spot at tick ``t + 2 period``, whatever the wall-clock latency: the node sends the batch's
   answers, which the simulator waits for at ``t + period``, only once that robot's navigator
   has the goal (:mod:`swarm_coordinator.node`).
+- Service time (``service_time_ns``, the world's ``service_time``): a robot that reached its
+  workstation at t stays there until t + service; the workstation is released and handed over
+  then, and the robot's next goal is stamped then (every stamp is known at t: reproducible).
 - A goal that failed or was canceled releases its workstation too; the robot moves on to the next
   stop of its route (as the decentralized commander does).
 - A dead robot loses what it holds: one the ``alive`` predicate of :meth:`CoordinatorCore.handle`
@@ -51,6 +54,26 @@ first to ask gets it, later askers are queued and parked at a waiting spot until
   word: the resources it reports are reserved for it if free; a workstation held by another robot
   meanwhile sends it to a waiting spot instead. What every such robot of a batch holds is taken
   over, and then the waiting ones queued, before any request of the batch is answered.
+
+**Pipelined** (``policy`` :data:`POLICY_PIPELINED`; ``swarm-up --policy pipelined``): what a
+warehouse fleet manager does beyond Open-RMF's reservations (VDA 5050 releases a route piece by
+piece; zones are leased, and released on exit). Nothing is held from dispatch to arrival:
+
+- When a robot asks for its next task at t (leaving at t + service), it is sent at once (``go``)
+  to the workstation of its route's kind where its *time window* would begin first (``nearest-
+  free``; ``route``: its route's workstation): its ETA is t + the path length on the map from
+  where it stands (the workstation it left, or its spawn pose) over ``eta_speed``; a
+  workstation's windows are its booked robots in order of ETA (hand-over by arrival time, not
+  by who asked first), each beginning at its ETA or when the one before ends, and lasting the
+  service time plus ``dock_clear_ns``. Other than the one it has just left, if there is another.
+- Who docks first, and the queue in front of a workstation, are the navigators' own rules (the
+  holding pattern: first come, first served among robots that see each other; the queue moves up
+  into the holding spot and the staging points as a whole). Only ``swap_range`` is off (the
+  coordinator chose the workstation); swarm-up keeps every other navigator rule on.
+- A robot's ``done`` ends its window. No fault schedule is read: a robot that has not spoken for
+  ``lease_ns`` after its window began loses the window (a dead robot no longer delays the
+  others' windows); a task it completes after all still counts.
+- No waiting spots, no reservation events: nothing is exclusive.
 
 Requests of one batch are handled in order of (stamp, robot number), never in arrival order, so
 one batch gives the same answers whatever order its messages came in.
@@ -102,6 +125,9 @@ class Spot:
     yaw: float = 0.0
 
 
+POLICY_RESERVE = "reserve"
+POLICY_PIPELINED = "pipelined"
+POLICIES = (POLICY_RESERVE, POLICY_PIPELINED)
 ASSIGN_ROUTE = "route"
 ASSIGN_NEAREST_FREE = "nearest-free"
 ASSIGNMENTS = (ASSIGN_NEAREST_FREE, ASSIGN_ROUTE)
@@ -109,6 +135,12 @@ SILENCE_TIMEOUT_S = 600.0
 """[s] simulated: a robot that holds a workstation this long without a word has died. Five times
 the longest time to task of a run at 100 robots on slim_blockage (decentralized p95 109 s, 120 s
 run), so a robot stuck in traffic keeps its reservation."""
+ETA_SPEED = 0.2
+"""[m/s] pipelined: the speed of an ETA (see :class:`CoordinatorConfig`)."""
+DOCK_CLEAR_S = 5.0
+"""[s] simulated, pipelined: a window's length beyond the service."""
+LEASE_S = 300.0
+"""[s] simulated, pipelined: a window lapses this long after it began without a ``done``."""
 
 
 @dataclass(frozen=True)
@@ -129,10 +161,19 @@ class CoordinatorConfig:
     handover_ticks: int = 1  # [ticks] a handed-over goal's stamp after the release
     assignment: str = ASSIGN_NEAREST_FREE
     silence_timeout_ns: int = round(SILENCE_TIMEOUT_S * NS_PER_S)
+    service_time_ns: int = 0
+    policy: str = POLICY_RESERVE
+    eta_speed: float = ETA_SPEED
+    dock_clear_ns: int = round(DOCK_CLEAR_S * NS_PER_S)
+    lease_ns: int = round(LEASE_S * NS_PER_S)
 
     def __post_init__(self) -> None:
         if self.assignment not in ASSIGNMENTS:
             raise ValueError(f"assignment must be one of {ASSIGNMENTS}, got {self.assignment!r}")
+        if self.policy not in POLICIES:
+            raise ValueError(f"policy must be one of {POLICIES}, got {self.policy!r}")
+        if not self.eta_speed > 0.0:
+            raise ValueError(f"eta_speed must be > 0 [m/s], got {self.eta_speed!r}")
 
 
 def spots_from_poi(poi, parking: np.ndarray | None = None,
@@ -187,6 +228,8 @@ class _Robot:
     heard_ns: int = 0  # its latest request's stamp
     lapsed: str = ""  # the workstation it lost for silence (its task still counts)
     dead: bool = False  # it lost what it held for good (dead at a batch's time)
+    eta_ns: int = 0  # pipelined: when it is reckoned to reach its workstation
+    dispatched: bool = True  # pipelined: sent to its workstation (not waiting at a spot)
 
 
 @dataclass
@@ -243,6 +286,8 @@ class CoordinatorCore:
         from swarm_nav.holding import workstation_kind
 
         self.kind = {name: workstation_kind(name) for name in self.stations}
+        self.bookings: dict[str, list[str]] = {name: [] for name in self.stations}
+        """Pipelined: the robots sent to each workstation that have not said ``done``."""
         self.expired = 0  # reservations released because their robot fell silent or died
 
     # ------------------------------------------------------------------------------ queries
@@ -257,6 +302,11 @@ class CoordinatorCore:
     def _straight(self, xy: tuple[float, float], name: str) -> float:
         wx, wy = self.stations[name].pose[:2]
         return math.hypot(xy[0] - wx, xy[1] - wy)
+
+    @property
+    def pipelined(self) -> bool:
+        """Whether the policy is :data:`POLICY_PIPELINED`."""
+        return self.cfg.policy == POLICY_PIPELINED
 
     @property
     def heard(self) -> set[str]:
@@ -287,7 +337,8 @@ class CoordinatorCore:
             over to a waiting robot comes before the answer to the robot that freed it.
         """
         out = _Out()
-        self._alive = alive or (lambda ns, t: True)
+        # pipelined: no oracle; a robot that stops talking loses its window by lease
+        self._alive = alive if alive is not None and not self.pipelined else (lambda ns, t: True)
         ordered = self.order(requests)
         self._adopt_batch(ordered, out)
         if ordered:
@@ -308,9 +359,10 @@ class CoordinatorCore:
             if req.kind == "report":
                 continue
             rob.last_seq = req.seq
+            t = req.stamp_ns
             if req.kind == "done":
-                self._done(req, rob, out)
-            self._next_task(req.robot, rob, req.stamp_ns, req.seq, out)
+                t = self._done(req, rob, out)
+            self._next_task(req.robot, rob, t, req.seq, out)
         return out.assignments, out.events
 
     # ------------------------------------------------------------------------------ steps
@@ -341,6 +393,10 @@ class CoordinatorCore:
         # 210 s: loader5 went to a robot parked in the hall since 124.5 s over the one on its
         # holding spot since 105 s).
         t = max((req.stamp_ns for req, _ in waiting), default=0)
+        if self.pipelined:
+            for name in dict.fromkeys(req.waits_for for req, _ in waiting):
+                self._dispatch_head(name, t, out)
+            return
         for name in dict.fromkeys(rob.waits_for for _, rob in waiting):
             if self.queues[name] and self.holder.get(workstation_resource(name)) is None:
                 self._hand_over(name, t, out)
@@ -356,7 +412,12 @@ class CoordinatorCore:
         taken = []
         for res in req.holds:
             kind, _, name = res.partition(":")
-            if kind == "workstation" and name in self.stations:
+            if kind == "workstation" and name in self.stations and self.pipelined:
+                if req.robot not in self.bookings[name]:  # its window: reckoned from now
+                    self.bookings[name].append(req.robot)
+                rob.workstation, rob.held_since_ns, rob.eta_ns = name, t, t
+                rob.dispatched = True
+            elif kind == "workstation" and name in self.stations:
                 if self.holder.get(res) in (None, req.robot):
                     self._reserve(req.robot, res, t, out)
                     rob.workstation, rob.held_since_ns = name, t
@@ -375,15 +436,27 @@ class CoordinatorCore:
             Whether it was queued (:meth:`_adopt_batch` hands free workstations over after).
         """
         want = req.waits_for
+        if self.pipelined:
+            if want in self.stations and req.robot not in self.bookings[want]:
+                self.bookings[want].append(req.robot)  # in line by when it began to wait
+                rob.workstation, rob.eta_ns, rob.dispatched = want, req.since_ns, False
+                return True
+            return False
         if want in self.stations and not rob.workstation and req.robot not in self.queues[want]:
             rob.waits_for, rob.since_ns = want, req.since_ns
             self._enqueue(req.robot, want)
             return True
         return False
 
-    def _done(self, req: Request, rob: _Robot, out: _Out) -> None:
-        """A task's goal ended: count the task, release the workstation, hand it over."""
+    def _done(self, req: Request, rob: _Robot, out: _Out) -> int:
+        """A task's goal ended: count the task, release the workstation, hand it over.
+
+        Returns:
+            [ns] when the robot leaves: the request's stamp, plus the service time after a
+            goal that succeeded (the workstation is released and handed over then).
+        """
         t = req.stamp_ns
+        leave = t + (self.cfg.service_time_ns if req.outcome == "succeeded" else 0)
         name = req.target
         if name in self.stations:
             rob.left, rob.xy = name, tuple(self.stations[name].pose[:2])
@@ -393,22 +466,30 @@ class CoordinatorCore:
                     "workstation": name, "t_start": format_stamp_ns(rob.task_start_ns),
                     "duration_s": f"{(t - rob.task_start_ns) / NS_PER_S:.3f}"}, self.epoch))
             rob.lapsed = ""
-            return
+            return leave
         if rob.workstation and rob.workstation == name:
             if req.outcome == "succeeded":
                 out.events.append(CoordinatorEvent(EVENT_TASK, req.robot, t, {
                     "workstation": name, "t_start": format_stamp_ns(rob.task_start_ns),
                     "duration_s": f"{(t - rob.task_start_ns) / NS_PER_S:.3f}"}, self.epoch))
-            self._release(req.robot, workstation_resource(name), t, out)
             rob.workstation = ""
-            self._hand_over(name, t, out)
+            if self.pipelined:
+                self.bookings[name].remove(req.robot)
+                self._dispatch_head(name, leave, out)
+                return leave
+            self._release(req.robot, workstation_resource(name), leave, out)
+            self._hand_over(name, leave, out)
+        return leave
 
     def _next_task(self, ns: str, rob: _Robot, t: int, reply_to: int, out: _Out) -> None:
         name = self._next_stop(ns)
         if name not in self.stations:
             raise ValueError(f"route of {ns} names an unknown workstation {name!r}")
         rob.task_start_ns = t
-        self._queue_or_go(ns, rob, name, t, reply_to, out)
+        if self.pipelined:
+            self._book(ns, rob, name, t, reply_to, out)
+        else:
+            self._queue_or_go(ns, rob, name, t, reply_to, out)
 
     def _free(self, name: str, ns: str) -> bool:
         """Whether workstation ``name`` may go to robot ``ns`` now: nobody else holds it and
@@ -508,9 +589,151 @@ class CoordinatorCore:
                 self._send(ns, rob, "wait", freed.id, (*freed.xy, freed.yaw), t, 0, name, out)
                 return
 
+    # ------------------------------------------------------------------------------ pipelined
+    def windows(self, name: str, extra: tuple[str, int] | None = None, now: int = 0
+                ) -> list[tuple[int, int, str]]:
+        """Pipelined: the time windows of workstation ``name``, ``(start [ns], end [ns],
+        robot)`` in order of arrival: each robot booked on it in order of its ETA (then robot
+        number), its window beginning at its ETA or when the one before ends, whichever is
+        later, and lasting the service time plus ``dock_clear_ns``. A robot past its ETA that
+        has not said ``done`` is reckoned to arrive at ``now`` at the earliest.
+
+        Args:
+            extra: (robot, ETA [ns]) of a robot not booked, to see where its window would be.
+            now: [ns] simulated: the time of the question.
+        """
+        etas = [(self.robots[ns].eta_ns, self.robots[ns].index, ns) for ns in self.bookings[name]]
+        if extra is not None:
+            etas.append((extra[1], self.robots[extra[0]].index, extra[0]))
+        length = self.cfg.service_time_ns + self.cfg.dock_clear_ns
+        out, free = [], 0
+        for eta, _, ns in sorted(etas):
+            start = max(eta, free, now)
+            free = start + length
+            out.append((start, free, ns))
+        return out
+
+    def _eta(self, xy: tuple[float, float], name: str, t: int) -> int:
+        """[ns] when a robot at ``xy`` leaving at ``t`` is reckoned to reach ``name``."""
+        return t + round(self._distance(xy, name) / self.cfg.eta_speed * NS_PER_S)
+
+    def choose_window(self, ns: str, name: str, t: int) -> tuple[str, int, int]:
+        """Pipelined: the workstation robot ``ns`` is sent to when its route says ``name`` and
+        it leaves at ``t`` [ns]: ``name`` if its window there would begin on its arrival (and
+        it has not just left it), else (``nearest-free``) of ``name`` and the other
+        workstations of its kind but the one it has just left, the one where its window would
+        begin first (ties: ``name``, then the world's order). As the reserve policy's
+        :meth:`choose` keeps to the route where it can.
+
+        Returns:
+            (workstation, ETA [ns], window start [ns]).
+        """
+        rob = self.robots[ns]
+        cands = [name]
+        if self.cfg.assignment != ASSIGN_ROUTE:
+            cands = [w for w in self.stations if self.kind[w] == self.kind[name]
+                     and w != rob.left] or [name]
+        xy = rob.xy if rob.xy is not None else tuple(self.stations[name].pose[:2])
+        order = {w: i for i, w in enumerate(self.stations)}
+        best = None
+        tried = ([name] if name != rob.left else []) + [w for w in cands if w != name]
+        for w in tried or [name]:
+            eta = self._eta(xy, w, t)
+            start = next(s for s, _, r in self.windows(w, (ns, eta), t) if r == ns)
+            if w == name and start <= eta:
+                return w, eta, start
+            key = (start, w != name, order[w])
+            if best is None or key < best[0]:
+                best = (key, w, eta, start)
+        return best[1], best[2], best[3]
+
+    def _book(self, ns: str, rob: _Robot, name: str, t: int, reply_to: int,
+              out: _Out) -> None:
+        """Pipelined: book the robot on the workstation of :meth:`choose_window`; send it
+        there at once when its window begins on its arrival (nobody is reckoned to be there
+        then, and no robot ahead of it in line is past its own ETA) or it is first in line, else
+        to a waiting spot near it (its holding spot first) until it is first in line."""
+        w, eta, start = self.choose_window(ns, name, t)
+        rob.workstation, rob.eta_ns = w, eta
+        self.bookings[w].append(ns)
+        line = [r for _, _, r in self.windows(w)]
+        ahead = line[:line.index(ns)]
+        # no overtaking a robot in line that is past its ETA: where it is, nobody knows
+        late = any(self.robots[r].eta_ns <= t for r in ahead)
+        if not ahead or (start <= eta and not late):
+            self._dispatch(ns, rob, t, reply_to, out)
+            return
+        rob.dispatched = False
+        spot = self._free_spot(w)
+        if spot is None:  # no spot left: it waits where it stands (no goal)
+            rob.last_answer = None
+            return
+        self._reserve(ns, spot_resource(spot.id), t, out)
+        rob.spot, rob.xy = spot.id, spot.xy
+        self._send(ns, rob, "wait", spot.id, (*spot.xy, spot.yaw), t, reply_to, w, out)
+
+    def _dispatch(self, ns: str, rob: _Robot, t: int, reply_to: int, out: _Out) -> None:
+        """Pipelined: send a booked robot to its workstation (from its spot, if it waits)."""
+        freed = self.spots.get(rob.spot)
+        if rob.spot:
+            self._release(ns, spot_resource(rob.spot), t, out)
+            rob.spot = ""
+        rob.dispatched, rob.held_since_ns = True, t
+        name = rob.workstation
+        self._send(ns, rob, "go", name, self.stations[name].pose, t, reply_to, "", out)
+        if freed is not None and freed.near:
+            self._move_up_window(freed.near, freed, t, out)
+
+    def _dispatch_head(self, name: str, t: int, out: _Out) -> None:
+        """Pipelined: the first in line of ``name``, if it waits at a spot, goes now (a goal
+        stamped one hand-over after ``t``)."""
+        line = self.windows(name)
+        if not line:
+            return
+        ns = line[0][2]
+        rob = self.robots[ns]
+        if not rob.dispatched:
+            self._dispatch(ns, rob, t + self.cfg.handover_ticks * self.cfg.period_ns, 0, out)
+
+    def _move_up_window(self, name: str, freed: Spot, t: int, out: _Out) -> None:
+        """Pipelined: the first in line of ``name`` that waits farther away moves up to its
+        freed holding spot."""
+        for _, _, ns in self.windows(name):
+            rob = self.robots[ns]
+            if not rob.dispatched and rob.spot and self.spots[rob.spot].near != name:
+                self._release(ns, spot_resource(rob.spot), t, out)
+                self._reserve(ns, spot_resource(freed.id), t, out)
+                rob.spot, rob.xy = freed.id, freed.xy
+                self._send(ns, rob, "wait", freed.id, (*freed.xy, freed.yaw), t, 0, name, out)
+                return
+
+    def _expire_windows(self, t: int, speaking: set[str], out: _Out) -> None:
+        """Pipelined: a robot sent to its workstation whose window began ``lease_ns`` before
+        ``t`` and that has not spoken since loses it (its task still counts if it gets there
+        after all); the next in line goes."""
+        if self.cfg.lease_ns <= 0:
+            return
+        for name, booked in self.bookings.items():
+            starts = {r: s for s, _, r in self.windows(name)}
+            lapsed = False
+            for ns in list(booked):
+                rob = self.robots[ns]
+                if ns in speaking or not rob.dispatched or t - max(
+                        starts[ns], rob.heard_ns, rob.held_since_ns) < self.cfg.lease_ns:
+                    continue
+                booked.remove(ns)
+                rob.lapsed, rob.workstation = name, ""
+                self.expired += 1
+                lapsed = True
+            if lapsed:
+                self._dispatch_head(name, t, out)
+
     def _expire(self, t: int, speaking: set[str], out: _Out) -> None:
         """Release what dead and silent robots hold at simulated time ``t`` [ns] (the module
         doc), then hand the freed workstations over; ``speaking``: the robots of this batch."""
+        if self.pipelined:
+            self._expire_windows(t, speaking, out)
+            return
         freed = []
         for ns, rob in self.robots.items():
             if rob.dead or not (rob.workstation or rob.spot or rob.waits_for):

@@ -329,6 +329,10 @@ def build_parser() -> cli.ArgumentParser:
                    help="the run's fault schedule (swarm-up's --faults, inline or a YAML file): "
                    "robots a kill-robot fault kills are not waited for (default: none)")
     add_policy_args(p)
+    p.add_argument("--service-time", type=cli.non_negative_float, default=None, metavar="SEC",
+                   help="simulated seconds a robot stays at a workstation it reached before it "
+                   "leaves and the workstation is handed over (default: the world's "
+                   "service_time, else 0)")
     p.add_argument("--stall-report", type=cli.positive_float, default=10.0, metavar="SEC",
                    help="wall seconds the first answers (every robot's first word) or a "
                    "hand-over's delivery may wait before it is reported; it goes on waiting, "
@@ -339,14 +343,30 @@ def build_parser() -> cli.ArgumentParser:
 WAITING_SPOTS = ("near", "hall")
 
 
-POLICY_FLAGS = ("assignment", "waiting_spots", "silence_timeout")
+POLICY_FLAGS = ("policy", "assignment", "waiting_spots", "silence_timeout", "eta_speed",
+                "dock_clear", "lease")
 
 
 def add_policy_args(p, defaults: bool = True) -> None:
     """The coordinator's policy flags (``swarm-coordinator``'s, and ``swarm-up``'s, which passes
-    them on: ``defaults=False`` leaves them None when not given): ``--assignment``,
-    ``--waiting-spots``, ``--silence-timeout`` (attributes :data:`POLICY_FLAGS`)."""
-    from swarm_coordinator.core import ASSIGNMENTS, SILENCE_TIMEOUT_S
+    them on: ``defaults=False`` leaves them None when not given): ``--policy``,
+    ``--assignment``, ``--waiting-spots``, ``--silence-timeout``, ``--eta-speed``,
+    ``--dock-clear``, ``--lease`` (attributes :data:`POLICY_FLAGS`)."""
+    from swarm_coordinator.core import (
+        ASSIGNMENTS,
+        DOCK_CLEAR_S,
+        ETA_SPEED,
+        LEASE_S,
+        POLICIES,
+        SILENCE_TIMEOUT_S,
+    )
+
+    p.add_argument("--policy", choices=POLICIES, default=POLICIES[0] if defaults else None,
+                   help="centralized: reserve (default; Open-RMF-like) holds a workstation from "
+                   "dispatch until its robot is done there, queueing the others at waiting "
+                   "spots; pipelined sends every robot at once to the workstation where its "
+                   "time window from ETAs begins first, holds nothing, and leaves the queue "
+                   "at the workstation to the navigators' holding pattern")
 
     p.add_argument("--assignment", choices=ASSIGNMENTS,
                    default=ASSIGNMENTS[0] if defaults else None,
@@ -364,6 +384,18 @@ def add_policy_args(p, defaults: bool = True) -> None:
                    metavar="SEC", help="centralized: simulated seconds a robot may hold a "
                    "workstation without a word before the coordinator frees it (0: never) "
                    f"(default: {SILENCE_TIMEOUT_S:g})")
+    p.add_argument("--eta-speed", type=cli.positive_float,
+                   default=ETA_SPEED if defaults else None, metavar="M_PER_S",
+                   help="pipelined: the speed a robot's ETA is reckoned with: path length on "
+                   f"the map over it (default: {ETA_SPEED:g})")
+    p.add_argument("--dock-clear", type=cli.non_negative_float,
+                   default=DOCK_CLEAR_S if defaults else None, metavar="SEC",
+                   help="pipelined: simulated seconds a workstation's time window lasts beyond "
+                   f"the service time (default: {DOCK_CLEAR_S:g})")
+    p.add_argument("--lease", type=cli.non_negative_float,
+                   default=LEASE_S if defaults else None, metavar="SEC",
+                   help="pipelined: simulated seconds after its window began that a silent "
+                   f"robot keeps it (0: for ever) (default: {LEASE_S:g})")
 
 
 def policy_argv(args) -> tuple[str, ...]:
@@ -407,12 +439,14 @@ def path_lengths(world_path, stations) -> Callable[[tuple[float, float], str], f
 
 def build_core(world: str, seed: int, robots: tuple[str, ...], robot_model: str,
                control_period: float, epoch: str, assignment: str = "nearest-free",
-               waiting_spots: str = "near", silence_timeout: float | None = None
-               ) -> CoordinatorCore:
+               waiting_spots: str = "near", silence_timeout: float | None = None,
+               service_time: float | None = None, policy: str = "reserve",
+               eta_speed: float | None = None, dock_clear: float | None = None,
+               lease: float | None = None) -> CoordinatorCore:
     """The core for a world: its workstations, holding spots, its waiting spots (``near``),
     parking on the spawn grid, each robot's route (:func:`swarm_commander.route.build_route`,
     as the commanders') and start (the spawn grid's pose of its number), and path lengths on
-    the map (:func:`path_lengths`).
+    the map (:func:`path_lengths`). ``service_time`` [s] simulated: None takes the world's.
 
     Raises:
         InputError: the world is unknown or has no workstations (names ``--world``).
@@ -450,8 +484,15 @@ def build_core(world: str, seed: int, robots: tuple[str, ...], robot_model: str,
     from swarm_coordinator.core import SILENCE_TIMEOUT_S
 
     timeout = SILENCE_TIMEOUT_S if silence_timeout is None else silence_timeout
-    cfg = CoordinatorConfig(period_ns=round(control_period * NS_PER_S), assignment=assignment,
-                            silence_timeout_ns=round(timeout * NS_PER_S))
+    from swarm_coordinator.core import DOCK_CLEAR_S, ETA_SPEED, LEASE_S
+
+    service = poi.service_time if service_time is None else service_time
+    cfg = CoordinatorConfig(
+        period_ns=round(control_period * NS_PER_S), assignment=assignment,
+        silence_timeout_ns=round(timeout * NS_PER_S), service_time_ns=round(service * NS_PER_S),
+        policy=policy, eta_speed=ETA_SPEED if eta_speed is None else eta_speed,
+        dock_clear_ns=round((DOCK_CLEAR_S if dock_clear is None else dock_clear) * NS_PER_S),
+        lease_ns=round((LEASE_S if lease is None else lease) * NS_PER_S))
     start = ({ns: (float(p[0]), float(p[1])) for ns, p in zip(robots, parking, strict=False)}
              if parking is not None else None)
     distance = path_lengths(path, stations) if assignment != "route" else None
@@ -469,7 +510,9 @@ def _run(argv: list[str]) -> int:
     robots = tuple(f"{opts.name_prefix}{i}" for i in range(1, opts.swarm_size + 1))
     epoch = uuid.uuid4().hex[:12]  # fixed length: message sizes do not depend on it
     core = build_core(opts.world, opts.seed, robots, opts.robot, opts.control_period, epoch,
-                      opts.assignment, opts.waiting_spots, opts.silence_timeout)
+                      opts.assignment, opts.waiting_spots, opts.silence_timeout,
+                      opts.service_time, opts.policy, opts.eta_speed, opts.dock_clear,
+                      opts.lease)
     dead = {}
     if opts.faults:
         from swarm_common.faults import KILL_ROBOT, parse_faults
@@ -483,8 +526,10 @@ def _run(argv: list[str]) -> int:
         node = CoordinatorNode(core, dead, opts.stall_report)
         nodes.append(node)
         print(f"{PROG}: up (epoch {epoch}): {len(robots)} robots, {len(core.stations)} "
-              f"workstations, {len(core.spots)} waiting spots; assignment {opts.assignment}, "
-              f"waiting spots {opts.waiting_spots}", flush=True)
+              f"workstations, {len(core.spots)} waiting spots; policy {opts.policy}, "
+              f"assignment {opts.assignment}, "
+              f"waiting spots {opts.waiting_spots}, service time "
+              f"{core.cfg.service_time_ns / NS_PER_S:g} s", flush=True)
         executor = EventsExecutor()
         executor.add_node(node)
         spin_forever(executor, node.context)

@@ -19,6 +19,8 @@ schema (all coordinates in ``map``, metres and radians)::
       area: [-3.0, -1.0, 8.5, 8.6]  # required [m]: xmin, ymin, xmax, ymax
     points:                       # optional named points: [x, y] or [x, y, yaw]
       unload: [5.0, 5.0]
+    service_time: 0.0             # optional [s] simulated, >= 0, default 0: how long a robot
+                                  #   stays docked at a workstation once it has reached it
     waiting:                      # optional: the coordinator's waiting spots near the
       - [-5.7, -2.4]              #   workstations, out of the lane: [x, y] or [x, y, yaw] [m]
 
@@ -39,7 +41,7 @@ import yaml
 
 from swarm_common.errors import InputError, did_you_mean
 
-TOP_KEYS = ("frame_id", "workstations", "spawn", "points", "waiting")
+TOP_KEYS = ("frame_id", "workstations", "spawn", "points", "waiting", "service_time")
 WORKSTATION_KEYS = ("name", "x", "y", "yaw", "holding")
 SPAWN_KEYS = ("origin", "spacing", "yaw", "area")
 
@@ -113,6 +115,10 @@ class PointsOfInterest:
         points: name → (2,) x, y [m] or (3,) x, y [m], yaw [rad], read-only, in ``map``.
         waiting: (K, 3) read-only waiting spots x, y [m], yaw [rad] in ``map`` for the central
             coordinator's queues (yaw 0 where the file gives none); (0, 3) when none.
+        service_time: [s] simulated: how long a robot stays docked at a workstation it has
+            reached (the workstation's service, the robot occupying it) before its next goal
+            takes effect; 0 (the default): it leaves at once. ``swarm-up --service-time``
+            overrides it (docs/guides/coordination.md, "Service time").
         source: the file read, or None.
     """
 
@@ -120,6 +126,7 @@ class PointsOfInterest:
     spawn: SpawnArea | None = None
     points: dict[str, np.ndarray] = field(default_factory=dict)
     waiting: np.ndarray = field(default_factory=lambda: _frozen(np.zeros((0, 3))))
+    service_time: float = 0.0
     source: Path | None = None
 
     def workstation(self, name: str) -> Workstation:
@@ -301,8 +308,11 @@ def _parse_poi(path: Path, text: str) -> PointsOfInterest:
                for i, v in enumerate(raw_waiting)]
     waiting = np.array([[*w[:2], w[2] if len(w) > 2 else 0.0] for w in waiting],
                        float).reshape(-1, 3)
+    service = check.number(doc.get("service_time", 0.0), "service_time")
+    if service < 0.0:
+        raise check.fail(f"service_time must be >= 0 [s], got {service:g}")
     return PointsOfInterest(workstations=workstations, spawn=spawn, points=points,
-                            waiting=_frozen(waiting), source=path)
+                            waiting=_frozen(waiting), service_time=float(service), source=path)
 
 
 def poi_for_world(world_path: str | Path) -> PointsOfInterest | None:

@@ -110,6 +110,10 @@ def _add_run_flags(p: argparse.ArgumentParser) -> None:
                    help="simulated seconds to run (default: until Ctrl-C)")
     p.add_argument("--commanders", action="store_true",
                    help="start a commander for every robot (visits the workstations)")
+    p.add_argument("--service-time", type=cli.non_negative_float, default=None, metavar="SEC",
+                   help="with --commanders: simulated seconds a robot stays docked at a "
+                   "workstation it reached before it leaves (default: the world's "
+                   "service_time, else 0)")
     p.add_argument("--coordination", choices=("decentralized", "centralized"),
                    default="decentralized",
                    help="decentralized (default): every robot chooses its tasks; centralized: "
@@ -451,6 +455,8 @@ def validate(args: argparse.Namespace) -> RunConfig:
         commanders=args.commanders,
         coordination=args.coordination,
         coordinator_args=policy,
+        service_time=(args.service_time if args.service_time is not None
+                      else poi.service_time if poi is not None else 0.0),
         metrics_path=args.metrics.expanduser().resolve() if args.metrics else None,
         groups=groups,
         gui=args.gui,
@@ -480,8 +486,8 @@ def _check_modes(args: argparse.Namespace) -> list[str]:
     """The coordination flags agree; returns the coordinator's policy argv.
 
     Raises:
-        InputError: a policy flag without centralized coordination, or centralized without
-            commanders.
+        InputError: a policy flag without centralized coordination, centralized or
+            ``--service-time`` without commanders.
     """
     from swarm_coordinator.node import policy_argv
 
@@ -492,6 +498,14 @@ def _check_modes(args: argparse.Namespace) -> list[str]:
     if args.coordination == "centralized" and not args.commanders:
         raise InputError("--coordination: centralized needs --commanders (the coordinator "
                          "assigns the commanders' tasks)")
+    pipelined_only = [f"--{k.replace('_', '-')}" for k in ("eta_speed", "dock_clear", "lease")
+                      if getattr(args, k, None) is not None]
+    if pipelined_only and getattr(args, "policy", None) != "pipelined":
+        raise InputError(f"{pipelined_only[0]}: needs --policy pipelined (the reserve policy "
+                         "has no time windows)")
+    if args.service_time is not None and not args.commanders:
+        raise InputError("--service-time: needs --commanders (a robot stays at a workstation "
+                         "its commander sent it to)")
     return policy
 
 

@@ -241,7 +241,7 @@ def child_specs(cfg: RunConfig):
             if relays_states(cfg):
                 argv += ["--states-rank", str(cfg.rank)]
             if cfg.commanders:
-                argv += ["--commanders"]
+                argv += ["--commanders", "--service-time", repr(cfg.service_time)]
                 if coordinated:
                     argv += ["--coordinated", "--coordinator-timeout", repr(cfg.ready_timeout)]
             if cfg.faults:
@@ -307,7 +307,8 @@ def _per_robot_specs(cfg: RunConfig, env: dict[str, str]) -> list:
         cmd = command("swarm-commander", "swarm_commander.cli")
         for ns in cfg.local_robots:
             argv = cmd + [ns, "--world", str(cfg.world_path), "--seed", str(cfg.seed),
-                          "--wait-timeout", repr(cfg.ready_timeout)]
+                          "--wait-timeout", repr(cfg.ready_timeout),
+                          "--service-time", repr(cfg.service_time)]
             if cfg.coordination == "centralized":
                 argv.append("--coordinated")
                 if cfg.faults:
@@ -397,7 +398,7 @@ def coordinator_spec(cfg: RunConfig, env: dict):
     argv = command("swarm-coordinator", "swarm_coordinator.node") + [
         "--swarm-size", str(len(cfg.robots)), "--name-prefix", cfg.name_prefix,
         "--world", str(cfg.world_path), "--seed", str(cfg.seed), "--robot", cfg.robot,
-        *cfg.coordinator_args]
+        "--service-time", repr(cfg.service_time), *cfg.coordinator_args]
     if cfg.faults:
         argv += ["--faults", str(faults_file(cfg))]
     return ChildSpec(COORDINATOR, tuple(argv), cfg.run_dir / "logs" / f"{COORDINATOR}.log",

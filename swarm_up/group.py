@@ -54,6 +54,9 @@ def build_parser() -> cli.ArgumentParser:
     cli.add_shared(p, "--seed", help="seed of the commanders' routes")
     p.add_argument("--loops", type=cli.non_negative_int, default=0,
                    help="commander route loops, 0 = forever")
+    p.add_argument("--service-time", type=cli.non_negative_float, default=None, metavar="SEC",
+                   help="simulated seconds a robot stays at a workstation it reached (the "
+                   "commanders' --service-time; default: the world's service_time, else 0)")
     p.add_argument("--faults", default=None, metavar="FILE",
                    help="the run's fault schedule: carry out the kill-nav and kill-robot faults "
                    "of /swarm/events for these robots in-process (swarm_up.faults.GroupFaults); "
@@ -89,11 +92,13 @@ def _run(argv: list[str]) -> int:
     missing = [str(f) for f in files.values() if not f.is_file()]
     if missing:
         raise InputError(f"--params-dir: no params file {missing[0]}")
-    routes = {}
+    routes, service = {}, 0.0
     if opts.commanders and not opts.coordinated:
-        from swarm_commander.route import build_route
+        from swarm_commander.route import build_route, world_service_time
 
         routes = {ns: build_route(opts.world, opts.seed, ns) for ns in names}
+        service = (opts.service_time if opts.service_time is not None
+                   else world_service_time(opts.world))
 
     clock = None  # a SharedClock when this process holds more than one node
     batch = None  # the navigators' answers in one message a tick (with the clock's node)
@@ -146,7 +151,8 @@ def _run(argv: list[str]) -> int:
                     nav = commander_node(ns)
                     nav.get_logger().set_level(LoggingSeverity.WARN)
                     runners.append(CommanderRunner(nav, routes[ns],
-                                                   CommanderConfig(loops=opts.loops),
+                                                   CommanderConfig(loops=opts.loops,
+                                                                   service_time=service),
                                                    emit=lambda line: print(line, flush=True)))
                     runners[-1].finished.add_done_callback(_say_error(runners[-1]))
                     executor.add_node(nav)

@@ -463,6 +463,7 @@ class Orchestrator:
                 extra={"ended_by": outcome.ended_by, "run_dir": str(cfg.run_dir),
                        "processes": PER_ROBOT if cfg.groups is None else len(cfg.groups),
                        "commanders": cfg.commanders, "rtf_requested": cfg.rtf,
+                       "service_time_s": cfg.service_time,
                        **({"hosts": hosts} if hosts else {}),
                        **({"recording": str(cfg.record_path)} if cfg.record_path else {})}))
         files = [cfg.run_dir / "metrics.json"]

@@ -33,6 +33,8 @@ class RunConfig:
         coordination: ``decentralized`` | ``centralized`` (with commanders).
         coordinator_args: the coordinator's policy flags given to swarm-up (``--assignment``
             ...), passed on to ``swarm-coordinator`` as they are.
+        service_time: [s] simulated: how long a robot stays docked at a workstation it reached
+            (``--service-time``, else the world's ``service_time``).
         metrics_path: ``--metrics`` file or None.
         groups: None for one process per robot, else the robots of every group process.
         gui: open the PyBullet window.
@@ -103,6 +105,7 @@ class RunConfig:
     rank_timeout: float = 10.0
     on_rank_loss: str = "end"
     coordinator_args: tuple[str, ...] = ()
+    service_time: float = 0.0
 
     @property
     def local_robots(self) -> tuple[str, ...]:

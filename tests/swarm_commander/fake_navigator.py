@@ -56,17 +56,23 @@ class FakeNavigatorNode(Node):
         abort_x: [m] goals with ``x`` above it are aborted.
         ignore_goals: the first this many goals are dropped (stays IDLE), as by a restart.
         take_instead: goal (x, y) [m] -> the pose (x, y, yaw) reached instead of it.
+        stamp_step_ns: if set, every status carries a ``stamp`` (simulated time), this many ns
+            after the previous one; the stamps of the SUCCEEDED statuses are kept in ``ended``.
         context: the rclpy context.
     """
 
     def __init__(self, namespace, *, drive_time=0.3, abort_x=100.0, ignore_goals=0,
-                 take_instead=None, context=None):
+                 take_instead=None, stamp_step_ns=None, context=None):
         super().__init__("navigator", namespace=namespace, context=context,
                          parameter_overrides=[Parameter("use_sim_time", value=False)])
         self.drive_time = drive_time
         self.abort_x = abort_x
         self.ignore_goals = ignore_goals
         self.take_instead = dict(take_instead or {})
+        self.stamp_step_ns = stamp_step_ns
+        self.stamp_ns = 0
+        self.ended: list[int] = []  # stamps of the SUCCEEDED statuses (with stamp_step_ns)
+        self._published = ""
         self.goals: list[tuple[str, float, float]] = []  # (goal_id, x, y) of every goal received
         self.cancels = 0
         self.state = "IDLE"
@@ -142,9 +148,17 @@ class FakeNavigatorNode(Node):
         else:
             distance = 0.0 if self.state == "SUCCEEDED" else self.distance0
         state = NavState(self.state)
+        stamp = None
+        if self.stamp_step_ns is not None:
+            self.stamp_ns += self.stamp_step_ns
+            stamp = self.stamp_ns
+            if self.state == "SUCCEEDED" and self._published != "SUCCEEDED":
+                self.ended.append(stamp)
+        self._published = self.state
         values = encode(NavStatusRecord(
             state=state, goal_id=self.goal_id, goal=self.goal, distance_remaining=distance,
-            navigation_time=self.elapsed, recoveries=0, holding_time=0.0, reason=self.reason))
+            navigation_time=self.elapsed, recoveries=0, holding_time=0.0, reason=self.reason,
+            stamp_ns=stamp))
         msg = DiagnosticStatus(
             level=bytes((level_of(state),)), name=f"{self.ns}/navigator",
             message=self.state, hardware_id=self.ns,

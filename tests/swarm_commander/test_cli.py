@@ -312,6 +312,44 @@ def test_the_line_names_the_workstation_the_navigator_took_and_its_stop_is_skipp
                      "reached (5.00, 5.00), sent to unload (taken)"] * 2
 
 
+def test_service_time_stamps_the_goal_after_an_arrival_that_much_later(context, tmp_path):
+    """With a service time of 30 s, every goal after a workstation reached is stamped 30 s
+    (simulated, the status's stamp) after the arrival; after an aborted goal the next goal is
+    not delayed. Route: loader1, loader2, unload (x > 1.5 aborts), twice."""
+    ns = f"Tsvc{next(_COUNTER)}"
+    (tmp_path / "w.yaml").write_text(POI_YAML)
+    stops = stops_from_workstations(load_poi(tmp_path / "w.yaml").workstations)
+    lines: list[str] = []
+    executor = SingleThreadedExecutor(context=context)
+    step = 1_000_000  # 1 ms per status
+    with running_fake_navigator(ns, context, drive_time=0.1, abort_x=1.5,
+                                stamp_step_ns=step) as fake:
+        nav = BasicNavigator(node_name="commander", namespace=ns, context=context,
+                             parameter_overrides=[Parameter("use_sim_time", value=False)])
+        cfg = CommanderConfig(loops=2, wait_timeout=10.0, service_time=30.0)
+        runner = CommanderRunner(nav, FixedRoute(stops), cfg, emit=lines.append)
+        executor.add_node(nav)
+        try:
+            deadline = time.monotonic() + 20.0
+            while not runner.finished.done():
+                assert time.monotonic() < deadline, lines
+                executor.spin_once(timeout_sec=0.1)
+        finally:
+            executor.shutdown(timeout_sec=0)
+            nav.destroy_node()
+    assert runner.finished.result() == 0
+    assert (runner.tasks, runner.reached, runner.failed) == (6, 4, 2)
+    stamps = [int(gid.replace(".", "")) for gid, _, _ in fake.goals]
+    service = 30 * 10**9
+    # loader1 and unload are reached, loader2 (x 2.0) aborts: goals 1, 3 and 4 follow an
+    # arrival, goals 2 and 5 an aborted goal
+    assert len(fake.ended) == 4
+    for k, arrival in zip((1, 3, 4), fake.ended, strict=False):
+        assert stamps[k] == arrival + service
+    for k in (2, 5):  # no service: stamped with the status (1 ns after the last goal here)
+        assert 0 < stamps[k] - stamps[k - 1] < 10**9
+
+
 def test_the_runner_is_driven_by_the_navigators_events_not_its_idle_timer(context, tmp_path):
     """With an idle period of a minute, the runner still sends its first goal on the first
     status and every next one on the end of the last: the route of 4 stops is done in well under

@@ -91,6 +91,29 @@ def test_done_releases_and_hands_over_one_tick_later_before_the_answer():
                       "t_start": "0.000000000", "duration_s": "40.000"}]
 
 
+def test_service_time_holds_the_workstation_and_stamps_the_next_goals_after_it():
+    its = {ns: itertools.cycle(["A", "B"]) for ns in ("r1", "r2")}
+    core = CoordinatorCore(["r1", "r2"], STATIONS, SPOTS, lambda ns: next(its[ns]),
+                           CoordinatorConfig(period_ns=T // 10, handover_ticks=2,
+                                             service_time_ns=15 * T), epoch="e1")
+    _, first = core.handle([ready("r1"), ready("r2")])
+    t = 40 * T
+    out, events = core.handle([done("r1", "A", t, seq=2)])
+    # r1 stays docked 15 s: A goes to r2 then (one hand-over later), r1 leaves for B then
+    assert [(a.robot, a.kind, a.target, a.stamp_ns) for a in out] == [
+        ("r2", "go", "A", t + 15 * T + 2 * T // 10), ("r1", "go", "B", t + 15 * T)]
+    res = [(e["robot"], e["action"], e["resource"], e["t"]) for e in reservations(events)]
+    assert res[0] == ("r1", "release", "workstation:A", "55.000000000")
+    # the task ended at the arrival; the next one starts when the robot leaves
+    tasks = [e.values() for e in events if e.kind == "task"]
+    assert [(e["t"], e["duration_s"]) for e in tasks] == [("40.000000000", "40.000")]
+    assert out[1].task_start_ns == t + 15 * T
+    assert check_reservations(reservations(first + events)) == []
+    # a goal that failed has no service: the workstation frees at once
+    out, _ = core.handle([done("r1", "B", 80 * T, seq=3, outcome="failed")])
+    assert out[-1].stamp_ns == 80 * T
+
+
 def test_a_failed_goal_releases_without_counting_a_task():
     core = make_core({"r1": ["A", "B"]})
     core.handle([ready("r1")])
@@ -380,3 +403,99 @@ def test_spots_from_poi_puts_the_worlds_waiting_spots_before_the_hall():
     assert [s.id for s in near if s.id.startswith("wait")] == [f"wait{k}" for k in range(1, 10)]
     assert not [s for s in hall if s.id.startswith("wait")]
     assert near[-1].id == hall[-1].id == "park1"
+
+
+# ---------------------------------------------------------------------------------- pipelined
+L_STATIONS = [Station("L1", (0.0, 0.0, 0.0)), Station("L2", (10.0, 0.0, 0.0)),
+              Station("U1", (5.0, 10.0, 0.0))]
+
+
+def pipelined_core(routes, start_xy, **cfg):
+    its = {ns: itertools.cycle(stops) for ns, stops in routes.items()}
+    cfg = {"period_ns": T // 10, "policy": "pipelined", "eta_speed": 1.0,
+           "dock_clear_ns": 5 * T, **cfg}
+    return CoordinatorCore(list(routes), L_STATIONS, SPOTS, lambda ns: next(its[ns]),
+                           CoordinatorConfig(**cfg), epoch="e1", start_xy=start_xy)
+
+
+def test_pipelined_sends_a_robot_at_once_when_its_window_begins_on_its_arrival():
+    """Four robots whose route says L1 (L2 is of its kind): r1 (1 m from L1) gets L1's first
+    window [1, 6) s and goes; r2 (9 m away) is sent too although L1 is booked, for its window
+    begins on its arrival; r3 (2 m from L1, 8 m from L2) is in line at L1 for [6, 11) s, ahead
+    of r2 (it arrives first), and waits at the spot nearest L1; r4 (at L2) goes to L2. Only the
+    spot is reserved. When r1 is done, r3, first in line, goes from its spot."""
+    core = pipelined_core({ns: ["L1"] for ns in ("r1", "r2", "r3", "r4")},
+                          {"r1": (1.0, 0.0), "r2": (-9.0, 0.0), "r3": (2.0, 0.0),
+                           "r4": (10.0, 0.0)})
+    out, events = core.handle([ready(ns) for ns in ("r1", "r2", "r3", "r4")])
+    assert [(a.robot, a.kind, a.target, a.stamp_ns) for a in out] == [
+        ("r1", "go", "L1", 0), ("r2", "go", "L1", 0), ("r3", "wait", "park3", 0),
+        ("r4", "go", "L2", 0)]
+    assert core.windows("L1") == [(1 * T, 6 * T, "r1"), (6 * T, 11 * T, "r3"),
+                                  (11 * T, 16 * T, "r2")]
+    assert core.windows("L2") == [(0, 5 * T, "r4")]
+    assert [e["resource"] for e in reservations(events)] == ["spot:park3"]
+    out, events = core.handle([done("r1", "L1", 4 * T, seq=2)])
+    assert (out[0].robot, out[0].kind, out[0].target, out[0].stamp_ns, out[0].reply_to) == (
+        "r3", "go", "L1", 4 * T + T // 10, 0)
+    assert ("r3", "release", "spot:park3") in [
+        (e["robot"], e["action"], e["resource"]) for e in reservations(events)]
+
+
+def test_pipelined_hands_over_by_arrival_time_not_by_who_asked_first():
+    """r1 asks first but is 9 m away from L1; r2 asks later from 1 m: r2's window comes
+    first."""
+    core = pipelined_core({"r1": ["L1"], "r2": ["L1"]}, {"r1": (-9.0, 0.0), "r2": (1.0, 0.0)},
+                          assignment="route")
+    core.handle([ready("r1", t=0)])
+    core.handle([ready("r2", t=2 * T)])
+    assert [r for _, _, r in core.windows("L1")] == ["r2", "r1"]
+    assert core.windows("L1")[0] == (3 * T, 8 * T, "r2")
+    assert core.windows("L1")[1] == (9 * T, 14 * T, "r1")
+
+
+def test_pipelined_done_ends_the_window_counts_the_task_and_applies_the_service_time():
+    core = pipelined_core({"r1": ["L1", "U1"], "r2": ["L1"]},
+                          {"r1": (1.0, 0.0), "r2": (2.0, 0.0)}, service_time_ns=15 * T,
+                          assignment="route")
+    core.handle([ready("r1"), ready("r2")])
+    assert core.windows("L1") == [(1 * T, 21 * T, "r1"), (21 * T, 41 * T, "r2")]
+    out, events = core.handle([done("r1", "L1", 3 * T, seq=2)])
+    # r2, waiting in line, goes when r1 leaves at 3 + 15 s (one hand-over later); r1 leaves
+    # for U1 then (path 5*sqrt(5) m straight: ETA 18 + 11.18 s)
+    assert [(a.robot, a.target, a.stamp_ns) for a in out] == [
+        ("r2", "L1", 18 * T + T // 10), ("r1", "U1", 18 * T)]
+    assert [e.values()["workstation"] for e in events if e.kind == "task"] == ["L1"]
+    assert core.windows("L1") == [(2 * T, 22 * T, "r2")]
+    assert core.windows("U1")[0][0] == 18 * T + round(125 ** 0.5 * T)
+
+
+def test_pipelined_never_reads_the_fault_schedule_a_silent_robot_loses_its_window_by_lease():
+    core = pipelined_core({"r1": ["L1"], "r2": ["U1"], "r3": ["L1"]},
+                          {"r1": (1.0, 0.0), "r2": (5.0, 10.0), "r3": (-5.0, 0.0)},
+                          assignment="route", lease_ns=60 * T)
+    core.handle([ready("r1"), ready("r2")], alive=lambda ns, t: ns != "r1")
+    # the schedule says r1 is dead: the pipelined core does not know it
+    assert [r for _, _, r in core.windows("L1")] == ["r1"]
+    # r2 speaks at 30 s; r1, silent since its window began at 1 s, keeps it until 61 s
+    core.handle([done("r2", "U1", 30 * T, seq=2)])
+    assert [r for _, _, r in core.windows("L1")] == ["r1"]
+    out, _ = core.handle([ready("r3", t=62 * T)])
+    assert core.expired == 1
+    assert [r for _, _, r in core.windows("L1")] == ["r3"]
+    assert (out[0].robot, out[0].kind, out[0].target) == ("r3", "go", "L1")
+    # r1 gets there after all: its task counts
+    _, events = core.handle([done("r1", "L1", 70 * T, seq=2)])
+    assert [e.values()["robot"] for e in events if e.kind == "task"] == ["r1"]
+
+
+def test_pipelined_keeps_to_the_route_where_its_window_begins_on_arrival():
+    """r1 stands 1 m from L2 but its route says L1 (9 m away), free on its arrival: L1, as the
+    reserve policy would; it is not sent back to L2, which it has just left, either."""
+    core = pipelined_core({"r1": ["L1", "L2", "L2"]}, {"r1": (9.0, 0.0)})
+    out, _ = core.handle([ready("r1")])
+    assert (out[0].target, core.windows("L1")) == ("L1", [(9 * T, 14 * T, "r1")])
+    out, _ = core.handle([done("r1", "L1", 20 * T, seq=2)])
+    assert out[0].target == "L2"
+    out, _ = core.handle([done("r1", "L2", 40 * T, seq=3)])
+    assert out[0].target == "L1"  # its route says L2, which it has just left

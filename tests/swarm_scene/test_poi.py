@@ -126,6 +126,8 @@ def test_unknown_keys_are_errors_with_did_you_mean(tmp_path, text, message):
     ("waiting: [[1]]\n", "waiting[0] must be [x, y] or [x, y, yaw], got [1]"),
     ("waiting: 5\n", "waiting must be a list of [x, y] or [x, y, yaw] points, got 5"),
     ("frame_id: odom\n", "frame_id must be 'map'"),
+    ("service_time: -5\n", "service_time must be >= 0 [s], got -5"),
+    ("service_time: soon\n", "service_time must be a number, got 'soon'"),
     ("- a\n- b\n", "the file must be a mapping of keys"),
     ("workstations: [unclosed\n", "invalid YAML at line"),
 ])
@@ -136,6 +138,11 @@ def test_bad_fields_name_file_and_field(tmp_path, text, message):
     msg = str(err.value)
     assert msg.startswith(f"{path}: {message}"), msg
     assert "\n" not in msg
+
+
+def test_service_time_defaults_to_zero_and_is_read(tmp_path):
+    assert load_poi(_write(tmp_path, "workstations: []\n")).service_time == 0.0
+    assert load_poi(_write(tmp_path, "service_time: 15\n", "s.yaml")).service_time == 15.0
 
 
 def test_missing_file(tmp_path):

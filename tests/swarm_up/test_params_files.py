@@ -212,8 +212,8 @@ def test_child_commands_per_robot(cfg):
                         str(cfg.run_dir / "params" / "Srobot2.yaml")]
     assert specs[2].log_path == cfg.run_dir / "logs" / "nav_Srobot2.log"
     cmd = list(specs[5].argv)
-    assert cmd[-7:] == ["Srobot2", "--world", str(cfg.world_path), "--seed", "4",
-                        "--wait-timeout", repr(cfg.ready_timeout)]
+    assert cmd[-9:] == ["Srobot2", "--world", str(cfg.world_path), "--seed", "4",
+                        "--wait-timeout", repr(cfg.ready_timeout), "--service-time", "0.0"]
     assert all(s.restart for s in specs[1:])
 
 
