@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -86,6 +87,21 @@ def _fault_spec(text: str) -> str:
     return text.strip()
 
 
+def _service_times(text: str) -> tuple[float, ...]:
+    out = []
+    for part in text.split(","):
+        try:
+            value = float(part)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"must be comma-separated seconds >= 0, e.g. 15,60, got {text!r}") from None
+        if not (value >= 0.0 and value < float("inf")):
+            raise argparse.ArgumentTypeError(
+                f"must be comma-separated seconds >= 0, e.g. 15,60, got {text!r}")
+        out.append(value)
+    return tuple(dict.fromkeys(out))
+
+
 def _shard(text: str) -> tuple[int, int]:
     try:
         i, n = (int(x) for x in text.split("/"))
@@ -126,6 +142,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="run no fault cells (only the sizes)")
     p.add_argument("--fault-size", type=cli.positive_int, default=None, metavar="N",
                    help="swarm size of the fault runs (default: as --ablation-size)")
+    p.add_argument("--service-times", type=_service_times, default=(), metavar="S,S",
+                   help="workstation service times [s] to run every variant of --variants "
+                   "with at --service-size, besides the world's own (its main cells; a value "
+                   "equal to it is dropped) (default: none)")
+    p.add_argument("--service-size", type=cli.positive_int, default=None, metavar="N",
+                   help="swarm size of the service-time cells (default: 50 if in --sizes, "
+                   "else the largest size)")
     p.add_argument("--warmup", type=cli.non_negative_float, default=300.0, metavar="SEC",
                    help="simulated seconds left out of the throughput (default: %(default)g)")
     out = p.add_mutually_exclusive_group()
@@ -215,11 +238,18 @@ def validate(args: argparse.Namespace) -> ExperimentConfig:
         if not variants[-1]:
             raise InputError(f"--fault-spec: '{spec}' kills the coordinator, which none of "
                              "--variants has")
+    from swarm_commander.route import world_service_time
+
+    if args.service_size is not None and not args.service_times:
+        raise InputError("--service-size: needs --service-times")
+    own = world_service_time(world)
+    service_times = tuple(s for s in args.service_times if s != own)
     plan = Plan(sizes=args.sizes, duration_s=args.duration, runs=args.runs, seed=args.seed,
                 world=world, variants=args.variants, ablations=ablations,
                 ablation_size=ablation_size, faults=specs, fault_size=fault_size,
                 fault_times=tuple(times), fault_variants=tuple(variants),
-                warmup_s=args.warmup)
+                warmup_s=args.warmup, service_times=service_times,
+                service_size=(args.service_size or middle) if service_times else None)
     if args.resume is not None:
         old = json.loads((args.resume / "plan.json").read_text()).get("settings", {})
         new = plan.settings()
@@ -275,8 +305,8 @@ def nav_params_file(out: Path, variant: Variant) -> Path | None:
 
 
 def variant_args(out: Path, cell: Cell) -> tuple[str, ...]:
-    """The ``swarm-up`` flags a cell adds to the common command: the variant's overrides and
-    the fault spec."""
+    """The ``swarm-up`` flags a cell adds to the common command: the variant's overrides, the
+    fault spec and the service time."""
     v = VARIANTS[cell.variant]
     args = list(v.swarm_up)
     params = nav_params_file(out, v)
@@ -284,7 +314,28 @@ def variant_args(out: Path, cell: Cell) -> tuple[str, ...]:
         args += ["--nav-params", str(params)]
     if cell.fault:
         args += ["--faults", cell.fault]
+    if cell.service is not None:
+        args += ["--service-time", f"{cell.service:g}"]
     return tuple(args)
+
+
+ESTIMATE_CPU_MS = 7.0
+"""[ms] CPU per robot per simulated second the plan's estimate assumes (all processes; the
+ledger at 8d1a2bb measured 5.7 at 20 robots and 7.2 at 100 on slim_blockage,
+docs/results/ledger.md)."""
+ESTIMATE_START_S = 20.0  # [s] wall: a run's start and end besides 0.2 s per robot
+
+
+def estimate_wall_s(plan: Plan, cells: list[Cell]) -> float:
+    """[s] wall: a rough estimate of how long ``cells`` (one entry per run) take on this
+    machine: each run's start and end plus its simulated duration at the real-time factor
+    :data:`ESTIMATE_CPU_MS` and the CPU count allow."""
+    cores = os.cpu_count() or 1
+    total = 0.0
+    for c in cells:
+        cpu_per_sim_s = c.size * ESTIMATE_CPU_MS / 1000.0
+        total += ESTIMATE_START_S + 0.2 * c.size + plan.duration_s * cpu_per_sim_s / cores
+    return total
 
 
 # --------------------------------------------------------------------------------------- main
@@ -322,12 +373,17 @@ def experiment(cfg: ExperimentConfig, argv: list[str]) -> int:
                  f"runs of {plan.duration_s:g} simulated s; shard {cfg.shard[0]}/{cfg.shard[1]}: "
                  f"{len(runs)} runs, {len(runs) - len(todo)} already done; records in "
                  f"{out / RECORDS}")
+        view.say(f"estimate: about {estimate_wall_s(plan, [c for _, c, _ in todo]) / 3600:.1f} "
+                 f"h for the {len(todo)} runs to do ({ESTIMATE_CPU_MS:g} ms of CPU per robot per "
+                 f"simulated second over {os.cpu_count()} cores, plus {ESTIMATE_START_S:g} s "
+                 "and 0.2 s per robot to start each run: a rough guide)")
         try:
             for i, (_k, cell, seed) in enumerate(todo, start=1):
                 if stop:
                     break
                 view.say(f"run {i}/{len(todo)}: {cell.variant}, {cell.size} robots, seed {seed}"
-                         f"{', faults: ' + cell.fault if cell.fault else ''}")
+                         f"{', faults: ' + cell.fault if cell.fault else ''}"
+                         f"{f', service time {cell.service:g} s' if cell.service else ''}")
                 run_dir = out / "runs" / f"{cell.label}-s{seed}"
                 run_dir.mkdir(parents=True, exist_ok=True)
                 bcfg = BenchConfig(sizes=(cell.size,), duration_s=plan.duration_s, runs=1,

@@ -48,6 +48,11 @@ VARIANTS = {v.name: v for v in (
             ("--assignment", "nearest-free", "--waiting-spots", "near"),
             what="the coordinator sends a robot to the nearest free workstation of its kind, "
             "queues the rest at the world's waiting spots near the workstations"),
+    Variant("centralized-pipelined", "centralized",
+            ("--policy", "pipelined", "--assignment", "nearest-free", "--waiting-spots", "near"),
+            what="the coordinator books every robot a time window at a workstation from ETAs "
+            "(hand-over by arrival) and sends it at once when its window begins on its "
+            "arrival, else in line at a spot near it; nothing held from dispatch to arrival"),
     Variant("centralized-scheduler-hall", "centralized",
             ("--assignment", "nearest-free", "--waiting-spots", "hall"),
             what="the scheduler, but queued robots park in the hall (the spawn grid)"),
@@ -68,8 +73,11 @@ class Cell:
         variant: the variant's name.
         size: robots.
         fault: the ``--faults`` spec, or ``""`` for none.
-        label: ``<variant>-n<size>`` (``-f<k>`` for the k-th fault spec).
-        role: ``main``, ``ablation`` or ``fault``.
+        label: ``<variant>-n<size>`` (``-f<k>`` for the k-th fault spec, ``-w<S>`` for a
+            service time of S s).
+        role: ``main``, ``ablation``, ``service`` or ``fault``.
+        service: [s] simulated: the workstations' service time (``swarm-up --service-time``);
+            None: the world's own.
     """
 
     variant: str
@@ -77,6 +85,7 @@ class Cell:
     fault: str
     label: str
     role: str = "main"
+    service: float | None = None
 
     @property
     def mode(self) -> str:
@@ -104,6 +113,8 @@ class Plan:
     fault_times: tuple[float, ...]  # [s] simulated, one per spec of ``faults``
     fault_variants: tuple[tuple[str, ...], ...]  # the variants each spec runs in
     warmup_s: float
+    service_times: tuple[float, ...] = ()  # [s] swept at service_size (besides the world's)
+    service_size: int | None = None
 
     def settings(self) -> dict:
         """The plan as JSON-able settings (with every variant's overrides)."""
@@ -115,13 +126,25 @@ class Plan:
                 "fault_times_s": list(self.fault_times),
                 "fault_variants": [list(v) for v in self.fault_variants],
                 "warmup_s": self.warmup_s,
+                # only when swept: the settings of an experiment without stay as they were
+                **({"service_times_s": list(self.service_times),
+                    "service_size": self.service_size} if self.service_times else {}),
                 "overrides": {v: {"mode": VARIANTS[v].mode, **VARIANTS[v].overrides(),
                                   "what": VARIANTS[v].what} for v in used}}
 
     def cells(self) -> list[Cell]:
         """Every cell, in run order: sizes ascending with every main variant, the ablations,
-        the fault runs' baselines (if their size is not among the sizes), then the faults."""
+        the service times (every main variant at ``service_size``; the world's own service
+        time is the main cell, run here if its size is not among the sizes), the fault runs'
+        baselines (if their size is not among the sizes), then the faults."""
         out = [Cell(v, n, "", f"{v}-n{n}") for n in self.sizes for v in self.variants]
+        labels = {c.label for c in out}
+        if self.service_times:
+            n = self.service_size
+            out += [Cell(v, n, "", f"{v}-n{n}") for v in self.variants
+                    if f"{v}-n{n}" not in labels]
+            out += [Cell(v, n, "", f"{v}-n{n}-w{s:g}", "service", s)
+                    for s in self.service_times for v in self.variants]
         labels = {c.label for c in out}
         if self.ablations and self.ablation_size is not None:
             out += [Cell(v, self.ablation_size, "", f"{v}-n{self.ablation_size}", "ablation")
@@ -142,10 +165,11 @@ class Plan:
         of the block for one seed before the next seed, so that a sweep cut short leaves pairs
         (the same seed in every variant) rather than whole cells of one variant."""
         cells = self.cells()
-        role = {"main": 0, "ablation": 1, "fault": 2}
+        role = {"main": 0, "ablation": 1, "service": 2, "fault": 3}
 
         def block(c: Cell) -> tuple:
-            return (role[c.role], c.size if c.role == "main" else 0, c.fault)
+            return (role[c.role], c.size if c.role == "main" else 0, c.fault,
+                    c.service or 0.0)
 
         order = sorted(((c, self.seed + r) for c in cells for r in range(self.runs)),
                        key=lambda cs: (block(cs[0]), cs[1], cells.index(cs[0])))
@@ -170,7 +194,9 @@ def plan_from_settings(settings: dict) -> Plan:
                     fault_size=settings["fault_size"],
                     fault_times=tuple(float(t) for t in settings["fault_times_s"]),
                     fault_variants=tuple(tuple(v) for v in settings["fault_variants"]),
-                    warmup_s=float(settings["warmup_s"]))
+                    warmup_s=float(settings["warmup_s"]),
+                    service_times=tuple(float(s) for s in settings.get("service_times_s", ())),
+                    service_size=settings.get("service_size"))
     except (KeyError, TypeError, ValueError) as exc:
         raise InputError(f"the records' plan is malformed ({exc})") from None
 

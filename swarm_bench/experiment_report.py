@@ -52,6 +52,7 @@ STYLE = {  # variant -> (colour, marker): fixed, so every figure reads alike
     "centralized-scheduler": ("#d62728", "s"),
     "centralized-scheduler-hall": ("#ff7f0e", "D"),
     "centralized-fifo-hall": ("#7f7f7f", "^"),
+    "centralized-pipelined": ("#2ca02c", "P"),
 }
 PRIMARY = "throughput"
 CO_PRIMARY = ("jain", "idle_robots")
@@ -69,6 +70,8 @@ ABLATION_PAIRS = (  # (A, B, what B differs from A in): a chain from decentraliz
      "waiting spots near the workstations instead of the hall"),
 )
 GAP = ("decentralized", "centralized-scheduler", "the whole gap")
+CENTRAL_ARMS = ("centralized-scheduler", "centralized-pipelined")
+"""The centralized arms decentralized is compared with, each on its own (the main pairs)."""
 
 
 # ------------------------------------------------------------------------------------ loading
@@ -148,7 +151,8 @@ def summarize(plan: Plan, records: list[dict], figs: dict) -> list[dict]:
                "runs_ok": len(fs), "seeds": sorted(fs),
                "reproducible_runs": sum(1 for f in fs.values() if f["reproducible"]),
                "reservation_conflicts": sum(f["reservation_conflicts"] or 0
-                                            for f in fs.values())}
+                                            for f in fs.values()),
+               **({"service_s": cell.service} if cell.service is not None else {})}
         for key, _, _ in MEASURES:
             mean, half = t_interval([f[key] for f in fs.values() if f[key] is not None])
             row[key] = {"mean": mean, "ci95": half}
@@ -174,8 +178,10 @@ MIN_CLAIM_SEEDS = 5  # the protocol's seeds per cell; a comparison over fewer cl
 def comparisons(plan: Plan, figs: dict) -> list[dict]:
     """Every paired comparison the report claims on, Holm-corrected together.
 
-    The family: the primary measure for the main pair at every size, every ablation pair, the
-    secondary measures for the main pair at every size, and per fault: each variant's tasks
+    The family: the primary and co-primary measures of decentralized against each centralized
+    arm (:data:`CENTRAL_ARMS`) at every size and, where swept, at every service time, the
+    primary measure of every ablation pair, the secondary measures for the main pairs at every
+    size, and per fault: each variant's tasks
     after the fault without it against with it (does the fault cost tasks?) and, where both
     main variants have it, their tasks lost against each other (does it cost one mode more?).
     Tasks lost are :func:`swarm_bench.experiment_stats.fault_effect`'s, per seed.
@@ -183,9 +189,10 @@ def comparisons(plan: Plan, figs: dict) -> list[dict]:
     rows = []
     main = [v for v in ("decentralized", "centralized-scheduler") if v in plan.variants]
     pairs = []
+    against = [v for v in CENTRAL_ARMS if v in plan.variants]
     if len(main) == 2:
         for n in plan.sizes:
-            pairs.append((f"{main[0]}-n{n}", f"{main[1]}-n{n}", n, "main", ""))
+            pairs += [(f"{main[0]}-n{n}", f"{v}-n{n}", n, "main", "") for v in against]
     elif len(plan.variants) >= 2:
         for n in plan.sizes:
             pairs.append((f"{plan.variants[0]}-n{n}", f"{plan.variants[1]}-n{n}", n, "main", ""))
@@ -198,10 +205,18 @@ def comparisons(plan: Plan, figs: dict) -> list[dict]:
             gap = (f"{GAP[0]}-n{n}", f"{GAP[1]}-n{n}")
             if not any(p[:2] == gap for p in pairs):  # else the main pair at n is the gap
                 pairs.append((*gap, n, "ablation", GAP[2]))
+    if plan.service_times and "decentralized" in plan.variants:
+        n = plan.service_size
+        for label, what in [("", "the world's service time"),
+                            *((f"-w{t:g}", f"service time {t:g} s")
+                              for t in plan.service_times)]:
+            pairs += [(f"decentralized-n{n}{label}", f"{v}-n{n}{label}", n, "service", what)
+                      for v in against]
     for a, b, n, role, what in pairs:
         if a not in figs or b not in figs:
             continue
-        measures = (PRIMARY, *CO_PRIMARY, *SECONDARY) if role == "main" else (PRIMARY,)
+        measures = {"main": (PRIMARY, *CO_PRIMARY, *SECONDARY),
+                    "service": (PRIMARY, *CO_PRIMARY)}.get(role, (PRIMARY,))
         for key in measures:
             st = paired({s: f[key] for s, f in figs[a].items()},
                         {s: f[key] for s, f in figs[b].items()})
@@ -274,7 +289,7 @@ def plot_against_size(out: Path, stem: str, plan: Plan, summaries: list[dict], f
     interval (error bar), one colour and marker per variant."""
     plt = _plt()
     fig, ax = plt.subplots(figsize=(6.4, 4.2), constrained_layout=True)
-    plain = [s for s in summaries if not s["fault"]]
+    plain = [s for s in summaries if not s["fault"] and s["role"] != "service"]
     sizes = sorted({s["size"] for s in plain})
     vs = _variants_in(plain)
     for i, v in enumerate(vs):
@@ -324,7 +339,7 @@ def plot_tasks_over_time(out: Path, plan: Plan, summaries: list[dict], figs: dic
     """Cumulative tasks over simulated time (mean over seeds), one panel per size, the
     warm-up marked: where the rate settles."""
     plt = _plt()
-    plain = [s for s in summaries if not s["fault"]]
+    plain = [s for s in summaries if not s["fault"] and s["role"] != "service"]
     sizes = sorted({s["size"] for s in plain})
     fig, axes = _panels(plt, len(sizes))
     step = 10.0
@@ -346,7 +361,7 @@ def plot_tasks_over_time(out: Path, plan: Plan, summaries: list[dict], figs: dic
 def plot_ecdf(out: Path, plan: Plan, summaries: list[dict], figs: dict) -> str:
     """The distribution (ECDF) of time to task after the warm-up, every seed pooled."""
     plt = _plt()
-    plain = [s for s in summaries if not s["fault"]]
+    plain = [s for s in summaries if not s["fault"] and s["role"] != "service"]
     sizes = sorted({s["size"] for s in plain})
     fig, axes = _panels(plt, len(sizes))
     for ax, n in zip(axes, sizes, strict=True):
@@ -366,7 +381,7 @@ def plot_ecdf(out: Path, plan: Plan, summaries: list[dict], figs: dict) -> str:
 def plot_tasks_per_robot(out: Path, plan: Plan, summaries: list[dict], figs: dict) -> str:
     """Tasks per robot over the whole run: a box per cell, every seed's robots pooled."""
     plt = _plt()
-    plain = [s for s in summaries if not s["fault"]]
+    plain = [s for s in summaries if not s["fault"] and s["role"] != "service"]
     fig, ax = plt.subplots(figsize=(max(6.4, 0.9 * len(plain) + 2), 4.2),
                            constrained_layout=True)
     data, labels, colours = [], [], []
@@ -394,7 +409,8 @@ def plot_standstill_map(out: Path, plan: Plan, summaries: list[dict], figs: dict
     0.5 m cell over the map, summed over the seeds, one panel per variant at ``size``."""
     import numpy as np
 
-    cells = [s for s in summaries if not s["fault"] and s["size"] == size]
+    cells = [s for s in summaries if not s["fault"] and s["role"] != "service"
+             and s["size"] == size]
     if not cells:
         return None
     plt = _plt()
@@ -448,7 +464,8 @@ def plot_standing_over_time(out: Path, plan: Plan, summaries: list[dict], figs: 
                             size: int) -> str | None:
     """Robots standing still (in an episode that lasts >= 60 s) over simulated time, mean over
     seeds: the queue lengths of both modes measured alike."""
-    cells = [s for s in summaries if not s["fault"] and s["size"] == size]
+    cells = [s for s in summaries if not s["fault"] and s["role"] != "service"
+             and s["size"] == size]
     if not cells:
         return None
     plt = _plt()
@@ -582,8 +599,9 @@ def build_report(plan: Plan, settings: dict, records: list[dict], summaries: lis
     if len(records) < expected:
         lines += [f"**This report is partial**: {expected - len(records)} runs of the plan are "
                   "still missing; a cell with fewer than 5 seeds claims nothing.", ""]
-    plain = [s for s in summaries if not s["fault"]]
+    plain = [s for s in summaries if not s["fault"] and s["role"] != "service"]
     lines += _primary_section(plan, plain, stats, figures)
+    lines += _service_section(plan, summaries, records, stats, figures)
     lines += _secondary_section(plan, plain, stats, figures)
     lines += _littles_section(summaries)
     lines += _fault_section(plan, summaries, figures, stats)
@@ -628,6 +646,95 @@ def _primary_section(plan: Plan, plain: list[dict], stats: list[dict],
                           f"explains ({plan.ablation_size} robots)", (PRIMARY,))
     lines += _shares(stats)
     lines += _horizons(plan, plain)
+    return lines
+
+
+def own_service_time(plan: Plan, records: list[dict]) -> float:
+    """[s] the world's own service time, as the runs of the main cells at ``service_size``
+    recorded it (0 where none did)."""
+    for r in records:
+        m = r.get("metrics") or {}
+        if r.get("role") == "main" and r.get("size") == plan.service_size \
+                and m.get("service_time_s") is not None:
+            return float(m["service_time_s"])
+    return 0.0
+
+
+def service_rows(plan: Plan, summaries: list[dict], records: list[dict]
+                 ) -> dict[str, dict[float, dict]]:
+    """variant -> service time [s] -> its summary at ``service_size`` (the world's own: the
+    main cell)."""
+    own = own_service_time(plan, records)
+    out: dict[str, dict[float, dict]] = {}
+    for s in summaries:
+        if s["fault"] or s["size"] != plan.service_size or s["role"] not in ("main", "service"):
+            continue
+        out.setdefault(s["variant"], {})[s.get("service_s", own)] = s
+    return out
+
+
+def plot_service(out: Path, plan: Plan, rows: dict[str, dict[float, dict]], figs: dict) -> str:
+    """Throughput and Jain's index against the service time: mean ± 95 % interval, points:
+    seeds; one line per variant."""
+    plt = _plt()
+    fig, axes = _panels(plt, 2)
+    times = sorted({t for r in rows.values() for t in r})
+    span = (max(times) - min(times)) or 10.0
+    for ax, key, label in ((axes[0], "throughput", "throughput [tasks/h]"),
+                           (axes[1], "jain", "Jain's index of tasks per robot")):
+        vs = [v for v in VARIANTS if v in rows]
+        for i, v in enumerate(vs):
+            colour, marker = STYLE[v]
+            pts = sorted((t, s) for t, s in rows[v].items() if s[key]["mean"] is not None)
+            if not pts:
+                continue
+            dx = (i - (len(vs) - 1) / 2) * 0.012 * span
+            xs = [t + dx for t, _ in pts]
+            ax.errorbar(xs, [s[key]["mean"] for _, s in pts],
+                        yerr=[s[key]["ci95"] or 0.0 for _, s in pts], color=colour,
+                        marker=marker, capsize=4, label=v)
+            for (_, s), x in zip(pts, xs, strict=True):
+                seeds = [f[key] for f in figs.get(s["label"], {}).values() if f[key] is not None]
+                ax.scatter([x] * len(seeds), seeds, color=colour, marker=marker, s=12,
+                           alpha=0.45, linewidths=0)
+        ax.set_xticks(times)
+        ax.set_xlabel("workstation service time [s]")
+        ax.set_ylabel(label)
+        ax.grid(True, alpha=0.3)
+    axes[0].legend(fontsize=7)
+    fig.suptitle(f"{plan.service_size} robots: mean ± 95 % interval, points: seeds",
+                 fontsize=10)
+    return _save(fig, out, "service_time")
+
+
+def _service_section(plan: Plan, summaries: list[dict], records: list[dict],
+                     stats: list[dict], figures: dict[str, str]) -> list[str]:
+    """The service-time sweep: throughput and fairness per variant and service time, and the
+    paired tests of decentralized against each centralized arm at each."""
+    if not plan.service_times:
+        return []
+    rows = service_rows(plan, summaries, records)
+    times = sorted({t for r in rows.values() for t in r})
+    own = own_service_time(plan, records)
+    lines = ["## Service time: when each mode wins", "",
+             f"Every robot stays docked at a workstation it reached for the service time "
+             f"before it leaves (the workstation occupied meanwhile); {plan.service_size} "
+             f"robots; {own:g} s is the world's own (the main cells). Throughput after the "
+             "warm-up; Jain's index and the robots without a task over the whole run; mean ± "
+             "95 % interval across seeds (in brackets: seeds).", "",
+             "| variant | " + " | ".join(f"{t:g} s: throughput, Jain, without a task"
+                                        for t in times) + " |",
+             "|---|" + "---|" * len(times)]
+    for v in [v for v in VARIANTS if v in rows]:
+        lines.append(f"| {v} | " + " | ".join(
+            f"{_fmt(rows[v][t]['throughput'], 0)}, {_fmt(rows[v][t]['jain'], 3)}, "
+            f"{_fmt(rows[v][t]['idle_robots'], 1)} ({rows[v][t]['runs_ok']})"
+            if t in rows[v] else "" for t in times) + " |")
+    lines += [""]
+    if "service_time" in figures:
+        lines += [f"![service time]({figures['service_time']})", ""]
+    lines += _stats_table(stats, "service", "Paired differences by service time",
+                          (PRIMARY, *CO_PRIMARY))
     return lines
 
 
@@ -871,6 +978,10 @@ def write_report(dirs: list[Path], out: Path) -> dict:
         figures["tasks_over_time"] = plot_tasks_over_time(out, plan, summaries, figs)
         figures["time_to_task_ecdf"] = plot_ecdf(out, plan, summaries, figs)
         figures["tasks_per_robot"] = plot_tasks_per_robot(out, plan, summaries, figs)
+        if plan.service_times:
+            rows = service_rows(plan, summaries, records)
+            if rows:
+                figures["service_time"] = plot_service(out, plan, rows, figs)
         for size in plan.sizes:
             for key, fn in (("standstill_map", plot_standstill_map),
                             ("standing_over_time", plot_standing_over_time)):

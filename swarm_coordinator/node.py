@@ -4,8 +4,10 @@
 
     swarm-coordinator --swarm-size N [--name-prefix Srobot] [--world NAME|PATH] [--seed S]
                       [--robot NAME|PATH] [--control-period SEC] [--faults FILE]
-                      [--assignment nearest-free|route] [--waiting-spots near|hall]
-                      [--silence-timeout SEC] [--stall-report SEC] [--ros-args ...]
+                      [--policy reserve|pipelined] [--assignment nearest-free|route]
+                      [--waiting-spots near|hall] [--silence-timeout SEC] [--eta-speed M_PER_S]
+                      [--dock-clear SEC] [--lease SEC] [--service-time SEC]
+                      [--stall-report SEC] [--ros-args ...]
 
 A thin ROS 2 shell (node ``/swarm_coordinator``) around
 :class:`swarm_coordinator.core.CoordinatorCore`; the contract (topics, JSON records, events) is

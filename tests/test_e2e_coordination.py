@@ -96,6 +96,22 @@ def test_centralized_same_seed_gives_same_simulated_figures(centralized_run, tmp
     assert first["task_times_s"] == second["task_times_s"]
 
 
+def test_pipelined_policy_with_a_service_time_runs_clean(tmp_path):
+    """``--policy pipelined --service-time 10``: every robot completes tasks, no collision, no
+    late goal, a reproducible run; each task's robot stayed docked 10 s (its next task started
+    no earlier: the coordinator's task records)."""
+    _, m, diag = _run_to_end(ARGS + ["--coordination", "centralized", "--policy", "pipelined",
+                                     "--service-time", "10"], tmp_path, "pipelined", DURATION)
+    _check_clean(m, diag)
+    assert m["service_time_s"] == 10.0, diag
+    assert m["reservation_conflicts"] == 0 and m["reproducible"] is True, diag
+    log = (Path(m["run_dir"]) / "logs" / "coordinator.log").read_text()
+    assert "policy pipelined" in log and "service time 10 s" in log, log
+    for ns, robot in m["per_robot"].items():
+        times = robot["task_times_s"]
+        assert all(b - a >= 10.0 for a, b in zip(times, times[1:])), (ns, times)
+
+
 def _coordinator(run: SwarmUp) -> psutil.Process:
     for p in run.track():
         with contextlib.suppress(psutil.Error):

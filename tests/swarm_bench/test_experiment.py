@@ -521,6 +521,9 @@ def test_report_command_rebuilds_from_records(tmp_path):
     (["--fault-spec", "kill-robot:3@1000"], "--fault-spec"),  # after the 900 s run
     (["--fault-spec", "kill-coordinator@60", "--variants", "decentralized"], "--fault-spec"),
     (["--fault-spec", "kill-robot:3@60", "--no-faults"], "--no-faults"),
+    (["--service-times", "15,soon"], "--service-times"),
+    (["--service-times", "-5"], "--service-times"),
+    (["--service-size", "50"], "--service-size"),
     (["--bogus"], "--bogus"),
 ])
 def test_bad_flag_exits_2_with_one_line(args, flag, tmp_path):
@@ -598,3 +601,64 @@ def test_the_committed_report_is_rebuilt_from_its_json(world, tmp_path):
     for fig in figures:
         for name in (fig, str(Path(fig).with_suffix(".svg"))):
             assert (tmp_path / "out" / name).read_bytes() == (committed / name).read_bytes(), name
+
+
+def test_a_service_time_sweep_of_three_arms_is_planned_run_and_tested(tmp_path):
+    """--service-times 15,60 at 20 robots: every main variant (here all three arms) once more
+    per service time (the world's own, 0 s, is the main cell); swarm-up gets --service-time;
+    the report tests decentralized against each centralized arm at each service time (in the
+    Holm family) and rebuilds byte for byte from its JSON."""
+    from swarm_bench.bench import _write_json
+    from swarm_bench.experiment_report import write_report
+
+    arms = "decentralized,centralized-scheduler,centralized-pipelined"
+    argv = ["--output", str(tmp_path / "a"), "--sizes", "20", "--no-faults", "--no-ablations",
+            "--variants", arms, "--service-times", "0,15,60"]
+    plan = validate(build_parser().parse_args(argv)).plan
+    assert plan.service_times == (15.0, 60.0) and plan.service_size == 20
+    cells = {c.label: c for c in plan.cells()}
+    assert [c.label for c in plan.cells() if c.role == "service"] == [
+        f"{v}-n20-w{t}" for t in (15, 60) for v in arms.split(",")]
+    assert variant_args(tmp_path, cells["centralized-pipelined-n20-w60"]) == (
+        "--policy", "pipelined", "--assignment", "nearest-free", "--waiting-spots", "near",
+        "--service-time", "60")
+    assert variant_args(tmp_path, cells["decentralized-n20"]) == ()
+    assert plan_from_settings(plan.settings()) == plan
+    out = tmp_path / "a"
+    (out / "records").mkdir(parents=True)
+    _write_json(out / "plan.json", {"settings": plan.settings()})
+    # decentralized loses to the pipelined arm as the service time grows
+    base = {"decentralized": 3.0, "centralized-scheduler": 2.0, "centralized-pipelined": 2.8}
+    slope = {"decentralized": -0.02, "centralized-scheduler": -0.01,
+             "centralized-pipelined": -0.005}
+    for cell, seed in plan.runs_in_order():
+        rate = base[cell.variant] + slope[cell.variant] * (cell.service or 0) + 0.1 * seed
+        _write_json(record_path(out, cell.label, seed),
+                    fake_record(cell.label, cell.variant, cell.mode, cell.size, seed, rate,
+                                role=cell.role))
+    write_report([out], out)
+    doc = json.loads((out / "experiment.json").read_text())
+    service = [r for r in doc["statistics"] if r["role"] == "service"]
+    assert {(r["b"], r["measure"]) for r in service} >= {
+        ("centralized-pipelined-n20-w60", "throughput"), ("centralized-scheduler-n20", "jain")}
+    assert len(service) == 3 * 2 * 3  # 3 service times x 2 arms x 3 measures
+    row = next(r for r in service if r["b"] == "centralized-pipelined-n20-w60"
+               and r["measure"] == "throughput")
+    assert row["a"] == "decentralized-n20-w60" and -30.0 < row["diff"] < -20.0
+    assert all(r["p_holm"] is None or r["p_holm"] >= r["p_t"] for r in doc["statistics"])
+    main = {(r["a"], r["b"]) for r in doc["statistics"] if r["role"] == "main"}
+    assert main == {("decentralized-n20", "centralized-scheduler-n20"),
+                    ("decentralized-n20", "centralized-pipelined-n20")}
+    report = (out / "report.md").read_text()
+    section = report.split("## Service time")[1].split("## Secondary")[0]
+    assert "| 0 s: throughput, Jain, without a task | 15 s:" in section
+    assert "![service time](service_time.png)" in section
+    # the main tables keep to the main cells
+    primary = report.split("## Primary measures")[1].split("## Service time")[0]
+    assert "-w15" not in primary
+    c = tmp_path / "c"
+    c.mkdir()
+    (c / "experiment.json").write_bytes((out / "experiment.json").read_bytes())
+    write_report([c], c)
+    for name in ("report.md", "experiment.json", "service_time.png", "service_time.svg"):
+        assert (out / name).read_bytes() == (c / name).read_bytes(), name
