@@ -16,6 +16,7 @@
 from __future__ import annotations
 
 import contextlib
+import itertools
 import json
 import os
 import re
@@ -109,7 +110,7 @@ def test_pipelined_policy_with_a_service_time_runs_clean(tmp_path):
     assert "policy pipelined" in log and "service time 10 s" in log, log
     for ns, robot in m["per_robot"].items():
         times = robot["task_times_s"]
-        assert all(b - a >= 10.0 for a, b in zip(times, times[1:])), (ns, times)
+        assert all(b - a >= 10.0 for a, b in itertools.pairwise(times)), (ns, times)
 
 
 def _coordinator(run: SwarmUp) -> psutil.Process:
