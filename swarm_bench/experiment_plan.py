@@ -41,6 +41,10 @@ class Variant:
 VARIANTS = {v.name: v for v in (
     Variant("decentralized", "decentralized", what="every navigator decides; a holding robot "
             "takes another free workstation of its goal's kind within swap_range (2.5 m)"),
+    Variant("decentralized-patience", "decentralized", navigator=(("patience_time", 120.0),),
+            what="decentralized with an anti-starvation rule: a robot that has held 120 s for "
+            "its goal no longer holds for the crowd rule, and for congestion only as a "
+            "starving robot (patience_time 120)"),
     Variant("decentralized-no-swap", "decentralized", navigator=(("swap_range", 0.0),),
             what="decentralized, but a robot only ever docks at the workstation it was sent "
             "to (swap_range 0)"),

@@ -49,6 +49,7 @@ from swarm_common.errors import EXIT_OK, InputError
 STYLE = {  # variant -> (colour, marker): fixed, so every figure reads alike
     "decentralized": ("#1f77b4", "o"),
     "decentralized-no-swap": ("#17becf", "v"),
+    "decentralized-patience": ("#9467bd", "X"),
     "centralized-scheduler": ("#d62728", "s"),
     "centralized-scheduler-hall": ("#ff7f0e", "D"),
     "centralized-fifo-hall": ("#7f7f7f", "^"),

@@ -195,6 +195,10 @@ class HoldingConfig:
     starvation_congestion_limit: int = _p(6, "-", "... but by this many robots standing on "
                                           "its way, as congestion_limit (0 = by none)",
                                           check=">=0")
+    patience_time: float = _p(0.0, "s", "a robot that has held this long for its current goal "
+                              "(whatever it reached before) no longer holds for the crowd rule "
+                              "and is held back by congestion only as a starving robot "
+                              "(starvation_congestion_limit) (0 = never)", check=">=0")
     swap_range: float = _p(2.5, "m", "a holding robot that sees, in line of sight and within "
                            "this, another workstation of its goal's kind free (as judged for "
                            "its own goal) takes that one instead (0 = never)", check=">=0")

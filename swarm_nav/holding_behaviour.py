@@ -336,10 +336,13 @@ class HoldingBehaviour:
         first = False
         goal = self._goal[:2]
         fresh = obs.fresh(now)
+        # waited long enough (patience_time): the queue it sees no longer holds it
+        patient = hc.patience_time <= 0 or holding_time < hc.patience_time
         if fresh and goal_visible(costmap, pose[:2], goal, hc):
             occupied = goal_occupied(obs.robots, goal, hc)
             first = (someone_came_first(obs.robots, pose[:2], goal, hc)
-                     or goal_crowded(obs.robots, pose[:2], goal, hc, self._elsewhere))
+                     or (patient and goal_crowded(obs.robots, pose[:2], goal, hc,
+                                                  self._elsewhere)))
         if self._occupant_stays(occupied, goal, obs, now):
             return HoldingDecision(HoldingKind.ABORT, reason=(
                 f"goal occupied by a robot that has not moved for {hc.occupied_timeout:g} s"))
@@ -454,14 +457,16 @@ class HoldingBehaviour:
         (:func:`~swarm_nav.holding.path_congested`), judged once per scan while driving there.
 
         A starving robot (``starvation_time`` > 0: one that has reached no goal since the
-        navigator started and has held ``starvation_time`` for this goal) is held back only by a
-        longer queue, ``starvation_congestion_limit`` robots (0: by none). Why, and why with
+        navigator started and has held ``starvation_time`` for this goal), and an impatient one
+        (``patience_time`` > 0: one that has held that long for this goal), is held back only
+        by a longer queue, ``starvation_congestion_limit`` robots (0: by none). Why, and why with
         these defaults: docs/design/navigator.md#congestion and #starvation.
         """
         hc = self.cfg.holding
         limit = hc.congestion_limit
-        if (hc.starvation_time > 0 and not self.reached_goal
-                and holding_time >= hc.starvation_time):
+        if ((hc.starvation_time > 0 and not self.reached_goal
+             and holding_time >= hc.starvation_time)
+                or (hc.patience_time > 0 and holding_time >= hc.patience_time)):
             limit = hc.starvation_congestion_limit
         if (hc.congestion_limit <= 0 or limit <= 0 or track.path is None or hp.rerouted
                 or hp.phase == HoldingPhase.WAIT or obs.time <= self._congestion_judged

@@ -474,6 +474,30 @@ def test_a_starving_robot_is_held_back_by_congestion_no_more(occ, reached, held,
     assert (me.pose[1] < start[1] - 0.3) is not held_back  # drove on down the corridor
 
 
+@pytest.mark.parametrize(("patience", "held", "held_back"),
+                         [(0.0, 500.0, True), (120.0, 119.0, True), (120.0, 120.0, False)])
+def test_an_impatient_robot_is_held_back_by_congestion_no_more(occ, patience, held, held_back):
+    """``patience_time`` (off by default): the scene of the tests above, for a robot that has
+    reached goals before. Once it has held ``patience_time`` for its goal it presses on, as a
+    starving robot does; with the rule off, or before, it holds back."""
+    cfg = NavigatorConfig()
+    assert cfg.holding.patience_time == 0.0
+    cfg = dataclasses.replace(cfg, holding=dataclasses.replace(cfg.holding,
+                                                               patience_time=patience))
+    core = NavigatorCore(cfg, WAFFLE_FOOTPRINT)
+    core.set_map(occ)
+    start = np.array([-6.6, 6.6, -math.pi / 2])
+    core.step(start, 0.0, 0.0, 0.0)
+    core.set_goal(LOADER1, "g", 0.0)
+    core._holding.reached_goal, core._holding_time = True, held
+    me = SimRobot(core, start, log=[])
+    queue = [SimRobot(None, np.array([x, y, -math.pi / 2]))
+             for x, y in ((-6.7, 4.4), (-6.2, 3.7), (-7.2, 3.4))]
+    simulate([me, *queue], SLIM_BLOCKAGE_WALLS, 3.0, until_done=False)
+    assert (core.status.state == NavState.HOLDING) is held_back
+    assert (me.pose[1] < start[1] - 0.3) is not held_back
+
+
 QUEUE_OF_3 = ((-6.7, 4.4), (-6.2, 3.7), (-7.2, 3.4))  # the tests above
 QUEUE_OF_6 = ((-6.3, 5.7), (-7.1, 5.2), (-6.2, 4.8), (-7.0, 4.3), (-6.3, 3.9), (-7.2, 3.5))
 
@@ -700,3 +724,32 @@ def test_a_robot_waiting_for_the_next_workstation_is_no_queue_for_this_one(occ, 
     else:
         assert third.core.status.state == NavState.HOLDING
         assert np.hypot(*(third.pose[:2] - ws["loader3"][1][0])) < 0.4
+
+
+def test_an_impatient_robot_no_longer_holds_for_the_crowd_rule(occ, monkeypatch):
+    """The scene of the test above with the crowd rule fooled (``elsewhere`` off), so that the
+    robot at loader3's spot takes the robot waiting for loader4 for a queue at loader3: with
+    ``patience_time`` 10 s it holds 10 s, then goes in."""
+    monkeypatch.setattr(HoldingBehaviour, "_other_sites", lambda self, goal_xy: None)
+    poi = poi_for_world(WORLDS / "slim_blockage.world")
+    sites = holding_sites_from_poi(poi)
+    ws = {w.name: (np.asarray(w.pose, dtype=float), np.asarray(w.holding, dtype=float))
+          for w in poi.workstations}
+    base = NavigatorConfig()
+    cfg = dataclasses.replace(base, holding=dataclasses.replace(base.holding,
+                                                                patience_time=10.0))
+    robots = []
+    for i, (pose, goal) in enumerate([
+            (ws["loader4"][0], None),
+            (np.array([*ws["loader4"][1][0], math.pi / 2]), ws["loader4"][0]),
+            (np.array([*ws["loader3"][1][0], math.pi / 2]), ws["loader3"][0])], start=1):
+        core = NavigatorCore(dataclasses.replace(cfg, robot_index=i), WAFFLE_FOOTPRINT, sites)
+        core.set_map(occ)
+        core.step(pose, 0.0, 0.0, 0.0)
+        if goal is not None:
+            core.set_goal(goal, f"g{i}", 0.0)
+        robots.append(SimRobot(core, pose.copy(), log=None))
+    res = simulate(robots, SLIM_BLOCKAGE_WALLS, 60.0, until_done=False)
+    assert res["contact_ticks"] == 0 and res["min_separation"] > 0.02
+    assert robots[1].core.status.state == NavState.HOLDING  # loader4 stays taken
+    assert_arrived(robots[2], ws["loader3"][0])
