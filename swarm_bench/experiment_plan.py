@@ -53,10 +53,17 @@ VARIANTS = {v.name: v for v in (
             what="the coordinator sends a robot to the nearest free workstation of its kind, "
             "queues the rest at the world's waiting spots near the workstations"),
     Variant("centralized-pipelined", "centralized",
-            ("--policy", "pipelined", "--assignment", "nearest-free", "--waiting-spots", "near"),
+            ("--policy", "pipelined", "--queue-at", "holding", "--assignment", "nearest-free"),
             what="the coordinator books every robot a time window at a workstation from ETAs "
-            "(hand-over by arrival) and sends it at once when its window begins on its "
-            "arrival, else in line at a spot near it; nothing held from dispatch to arrival"),
+            "(hand-over by arrival) and sends it there at once; the queue at the workstation "
+            "is the navigators' holding pattern, their queue rules on; nothing held from "
+            "dispatch to arrival"),
+    Variant("centralized-pipelined-spots", "centralized",
+            ("--policy", "pipelined", "--queue-at", "spots", "--assignment", "nearest-free",
+             "--waiting-spots", "near"),
+            what="the pipelined coordinator, but a robot whose window does not begin on its "
+            "arrival waits in line at a spot near its workstation (the navigators' queue rules "
+            "off), sent on when first in line"),
     Variant("centralized-scheduler-hall", "centralized",
             ("--assignment", "nearest-free", "--waiting-spots", "hall"),
             what="the scheduler, but queued robots park in the hall (the spawn grid)"),

@@ -59,21 +59,31 @@ first to ask gets it, later askers are queued and parked at a waiting spot until
 warehouse fleet manager does beyond Open-RMF's reservations (VDA 5050 releases a route piece by
 piece; zones are leased, and released on exit). Nothing is held from dispatch to arrival:
 
-- When a robot asks for its next task at t (leaving at t + service), it is sent at once (``go``)
-  to the workstation of its route's kind where its *time window* would begin first (``nearest-
-  free``; ``route``: its route's workstation): its ETA is t + the path length on the map from
-  where it stands (the workstation it left, or its spawn pose) over ``eta_speed``; a
+- When a robot asks for its next task at t (leaving at t + service), it is booked on a
+  workstation: its route's, if its *time window* there would begin on its arrival (and it has
+  not just left it), else (``nearest-free``) the one of its route's kind where its window would
+  begin first (:meth:`CoordinatorCore.choose_window`). Its ETA is t + the path length on the map
+  from where it stands (the workstation it left, or its spawn pose) over ``eta_speed``; a
   workstation's windows are its booked robots in order of ETA (hand-over by arrival time, not
-  by who asked first), each beginning at its ETA or when the one before ends, and lasting the
-  service time plus ``dock_clear_ns``. Other than the one it has just left, if there is another.
-- Who docks first, and the queue in front of a workstation, are the navigators' own rules (the
-  holding pattern: first come, first served among robots that see each other; the queue moves up
-  into the holding spot and the staging points as a whole). Only ``swap_range`` is off (the
-  coordinator chose the workstation); swarm-up keeps every other navigator rule on.
-- A robot's ``done`` ends its window. No fault schedule is read: a robot that has not spoken for
-  ``lease_ns`` after its window began loses the window (a dead robot no longer delays the
-  others' windows); a task it completes after all still counts.
-- No waiting spots, no reservation events: nothing is exclusive.
+  by who asked first), each beginning at its ETA, when the one before ends or now, whichever is
+  latest, and lasting the service time plus ``dock_clear_ns``.
+- ``queue_at`` :data:`QUEUE_AT_HOLDING`: the robot is sent there at once (``go``). Who docks
+  first, and the queue in front of the workstation, are the navigators' own rules (the holding
+  pattern: first come, first served among robots that see each other, the queue rule, the
+  congestion rule); swarm-up turns only ``swap_range`` off (the coordinator chose the
+  workstation). Nothing is reserved.
+- ``queue_at`` :data:`QUEUE_AT_SPOTS`: the robot is sent there at once when it is first in
+  line, or its window begins on its arrival and nobody ahead of it in line is past their ETA;
+  else it waits in line at a spot (the workstation's holding spot first, as the reserve
+  policy's queues) and is sent on when it is first in line (the one before it said ``done``),
+  one hand-over later; a freed holding spot is taken by the first in line waiting farther away.
+  The spots are reserved; the navigators' queue rules are off, as under the reserve policy.
+- A robot's ``done`` ends its window. No fault schedule is read: a robot sent to its
+  workstation that has not spoken for ``lease_ns`` after its window began loses the window (a
+  dead robot no longer delays the others'); a task it completes after all still counts.
+- What the coordinator knows of a robot's position is where it stood when it asked (the
+  workstation it left, its spawn pose or its spot), exact then; ETAs are not updated from live
+  positions on the way.
 
 Requests of one batch are handled in order of (stamp, robot number), never in arrival order, so
 one batch gives the same answers whatever order its messages came in.
@@ -128,6 +138,9 @@ class Spot:
 POLICY_RESERVE = "reserve"
 POLICY_PIPELINED = "pipelined"
 POLICIES = (POLICY_RESERVE, POLICY_PIPELINED)
+QUEUE_AT_SPOTS = "spots"
+QUEUE_AT_HOLDING = "holding"
+QUEUES_AT = (QUEUE_AT_SPOTS, QUEUE_AT_HOLDING)
 ASSIGN_ROUTE = "route"
 ASSIGN_NEAREST_FREE = "nearest-free"
 ASSIGNMENTS = (ASSIGN_NEAREST_FREE, ASSIGN_ROUTE)
@@ -166,12 +179,15 @@ class CoordinatorConfig:
     eta_speed: float = ETA_SPEED
     dock_clear_ns: int = round(DOCK_CLEAR_S * NS_PER_S)
     lease_ns: int = round(LEASE_S * NS_PER_S)
+    queue_at: str = "spots"
 
     def __post_init__(self) -> None:
         if self.assignment not in ASSIGNMENTS:
             raise ValueError(f"assignment must be one of {ASSIGNMENTS}, got {self.assignment!r}")
         if self.policy not in POLICIES:
             raise ValueError(f"policy must be one of {POLICIES}, got {self.policy!r}")
+        if self.queue_at not in QUEUES_AT:
+            raise ValueError(f"queue_at must be one of {QUEUES_AT}, got {self.queue_at!r}")
         if not self.eta_speed > 0.0:
             raise ValueError(f"eta_speed must be > 0 [m/s], got {self.eta_speed!r}")
 
@@ -660,7 +676,7 @@ class CoordinatorCore:
         ahead = line[:line.index(ns)]
         # no overtaking a robot in line that is past its ETA: where it is, nobody knows
         late = any(self.robots[r].eta_ns <= t for r in ahead)
-        if not ahead or (start <= eta and not late):
+        if not ahead or (start <= eta and not late) or self.cfg.queue_at == QUEUE_AT_HOLDING:
             self._dispatch(ns, rob, t, reply_to, out)
             return
         rob.dispatched = False

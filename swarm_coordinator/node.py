@@ -6,7 +6,8 @@
                       [--robot NAME|PATH] [--control-period SEC] [--faults FILE]
                       [--policy reserve|pipelined] [--assignment nearest-free|route]
                       [--waiting-spots near|hall] [--silence-timeout SEC] [--eta-speed M_PER_S]
-                      [--dock-clear SEC] [--lease SEC] [--service-time SEC]
+                      [--dock-clear SEC] [--lease SEC] [--queue-at spots|holding]
+                      [--service-time SEC]
                       [--stall-report SEC] [--ros-args ...]
 
 A thin ROS 2 shell (node ``/swarm_coordinator``) around
@@ -346,7 +347,7 @@ WAITING_SPOTS = ("near", "hall")
 
 
 POLICY_FLAGS = ("policy", "assignment", "waiting_spots", "silence_timeout", "eta_speed",
-                "dock_clear", "lease")
+                "dock_clear", "lease", "queue_at")
 
 
 def add_policy_args(p, defaults: bool = True) -> None:
@@ -360,6 +361,7 @@ def add_policy_args(p, defaults: bool = True) -> None:
         ETA_SPEED,
         LEASE_S,
         POLICIES,
+        QUEUES_AT,
         SILENCE_TIMEOUT_S,
     )
 
@@ -394,6 +396,11 @@ def add_policy_args(p, defaults: bool = True) -> None:
                    default=DOCK_CLEAR_S if defaults else None, metavar="SEC",
                    help="pipelined: simulated seconds a workstation's time window lasts beyond "
                    f"the service time (default: {DOCK_CLEAR_S:g})")
+    p.add_argument("--queue-at", choices=QUEUES_AT, default=QUEUES_AT[0] if defaults else None,
+                   help="pipelined: where a robot whose window does not begin on its arrival "
+                   "waits: spots (default) in line at a spot near its workstation, sent on when "
+                   "first in line; holding: it is sent to its workstation at once and queues in "
+                   "the navigators' holding pattern (their queue rules on)")
     p.add_argument("--lease", type=cli.non_negative_float,
                    default=LEASE_S if defaults else None, metavar="SEC",
                    help="pipelined: simulated seconds after its window began that a silent "
@@ -444,7 +451,7 @@ def build_core(world: str, seed: int, robots: tuple[str, ...], robot_model: str,
                waiting_spots: str = "near", silence_timeout: float | None = None,
                service_time: float | None = None, policy: str = "reserve",
                eta_speed: float | None = None, dock_clear: float | None = None,
-               lease: float | None = None) -> CoordinatorCore:
+               lease: float | None = None, queue_at: str = "spots") -> CoordinatorCore:
     """The core for a world: its workstations, holding spots, its waiting spots (``near``),
     parking on the spawn grid, each robot's route (:func:`swarm_commander.route.build_route`,
     as the commanders') and start (the spawn grid's pose of its number), and path lengths on
@@ -494,7 +501,7 @@ def build_core(world: str, seed: int, robots: tuple[str, ...], robot_model: str,
         silence_timeout_ns=round(timeout * NS_PER_S), service_time_ns=round(service * NS_PER_S),
         policy=policy, eta_speed=ETA_SPEED if eta_speed is None else eta_speed,
         dock_clear_ns=round((DOCK_CLEAR_S if dock_clear is None else dock_clear) * NS_PER_S),
-        lease_ns=round((LEASE_S if lease is None else lease) * NS_PER_S))
+        lease_ns=round((LEASE_S if lease is None else lease) * NS_PER_S), queue_at=queue_at)
     start = ({ns: (float(p[0]), float(p[1])) for ns, p in zip(robots, parking, strict=False)}
              if parking is not None else None)
     distance = path_lengths(path, stations) if assignment != "route" else None
@@ -514,7 +521,7 @@ def _run(argv: list[str]) -> int:
     core = build_core(opts.world, opts.seed, robots, opts.robot, opts.control_period, epoch,
                       opts.assignment, opts.waiting_spots, opts.silence_timeout,
                       opts.service_time, opts.policy, opts.eta_speed, opts.dock_clear,
-                      opts.lease)
+                      opts.lease, opts.queue_at)
     dead = {}
     if opts.faults:
         from swarm_common.faults import KILL_ROBOT, parse_faults

@@ -498,7 +498,8 @@ def _check_modes(args: argparse.Namespace) -> list[str]:
     if args.coordination == "centralized" and not args.commanders:
         raise InputError("--coordination: centralized needs --commanders (the coordinator "
                          "assigns the commanders' tasks)")
-    pipelined_only = [f"--{k.replace('_', '-')}" for k in ("eta_speed", "dock_clear", "lease")
+    pipelined_only = [f"--{k.replace('_', '-')}" for k in ("eta_speed", "dock_clear", "lease",
+                                                            "queue_at")
                       if getattr(args, k, None) is not None]
     if pipelined_only and getattr(args, "policy", None) != "pipelined":
         raise InputError(f"{pipelined_only[0]}: needs --policy pipelined (the reserve policy "

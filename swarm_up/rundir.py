@@ -33,6 +33,19 @@ CONTEXT_KEYS = frozenset({"use_sim_time", "robot", "poi_file", "map_yaml_path", 
 # 8bb897c, before the rules). And the coordinator reserves one workstation for each robot: its
 # navigator must not take another one instead (swap_range).
 CENTRALIZED_OVERRIDES = {"crowd_limit": 0, "congestion_limit": 0, "swap_range": 0.0}
+# Under the pipelined policy with --queue-at holding the coordinator parks nobody: the queue at a
+# workstation is the navigators' holding pattern, with their queue rules; only the coordinator's
+# choice of the workstation is kept (swap_range).
+QUEUE_AT_HOLDING_OVERRIDES = {"swap_range": 0.0}
+
+
+def centralized_overrides(coordinator_args) -> dict:
+    """The navigator parameters swarm-up sets under ``--coordination centralized`` with these
+    policy flags: :data:`QUEUE_AT_HOLDING_OVERRIDES` with ``--queue-at holding`` (which only
+    ``--policy pipelined`` takes), else :data:`CENTRALIZED_OVERRIDES`."""
+    args = list(coordinator_args)
+    holding = "--queue-at" in args and args[args.index("--queue-at") + 1] == "holding"
+    return dict(QUEUE_AT_HOLDING_OVERRIDES if holding else CENTRALIZED_OVERRIDES)
 
 
 class RunError(Exception):
@@ -181,7 +194,7 @@ def navigator_params(template: dict, ns: str, index: int, cfg: RunConfig,
         wait_for_plan_readers=int("plan" in recorded),
     )
     if cfg.coordination == "centralized":
-        params.update(CENTRALIZED_OVERRIDES)
+        params.update(centralized_overrides(cfg.coordinator_args))
     return {f"/{ns}/navigator": {"ros__parameters": params}}
 
 

@@ -620,7 +620,7 @@ def test_a_service_time_sweep_of_three_arms_is_planned_run_and_tested(tmp_path):
     assert [c.label for c in plan.cells() if c.role == "service"] == [
         f"{v}-n20-w{t}" for t in (15, 60) for v in arms.split(",")]
     assert variant_args(tmp_path, cells["centralized-pipelined-n20-w60"]) == (
-        "--policy", "pipelined", "--assignment", "nearest-free", "--waiting-spots", "near",
+        "--policy", "pipelined", "--queue-at", "holding", "--assignment", "nearest-free",
         "--service-time", "60")
     assert variant_args(tmp_path, cells["decentralized-n20"]) == ()
     assert plan_from_settings(plan.settings()) == plan

@@ -499,3 +499,21 @@ def test_pipelined_keeps_to_the_route_where_its_window_begins_on_arrival():
     assert out[0].target == "L2"
     out, _ = core.handle([done("r1", "L2", 40 * T, seq=3)])
     assert out[0].target == "L1"  # its route says L2, which it has just left
+
+
+def test_pipelined_queue_at_holding_sends_everyone_to_its_workstation_at_once():
+    """``queue_at`` holding: the robots of the first pipelined test, but r3, in line at L1
+    behind r1, is sent to L1 too (its navigator holds there); the windows are the same."""
+    core = pipelined_core({ns: ["L1"] for ns in ("r1", "r2", "r3", "r4")},
+                          {"r1": (1.0, 0.0), "r2": (-9.0, 0.0), "r3": (2.0, 0.0),
+                           "r4": (10.0, 0.0)}, queue_at="holding")
+    out, events = core.handle([ready(ns) for ns in ("r1", "r2", "r3", "r4")])
+    assert [(a.robot, a.kind, a.target) for a in out] == [
+        ("r1", "go", "L1"), ("r2", "go", "L1"), ("r3", "go", "L1"), ("r4", "go", "L2")]
+    assert [r for _, _, r in core.windows("L1")] == ["r1", "r3", "r2"]
+    assert reservations(events) == []
+    # r1 done: nobody waits at a spot, so nothing is handed over
+    out, _ = core.handle([done("r1", "L1", 4 * T, seq=2)])
+    assert [a.robot for a in out] == ["r1"]
+    with pytest.raises(ValueError, match="queue_at"):
+        CoordinatorConfig(queue_at="hall")

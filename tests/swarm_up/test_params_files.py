@@ -117,15 +117,20 @@ def test_a_recording_adds_the_recorder_to_the_readers_the_first_answer_waits_for
         assert params["wait_for_cmd_vel_readers"] == cmd_vel_readers, path.name
 
 
-@pytest.mark.parametrize("coordination", ["decentralized", "centralized"])
-def test_centralized_runs_leave_the_queueing_to_the_coordinator(cfg, template, coordination):
+@pytest.mark.parametrize(("coordination", "policy", "expected"), [
+    ("decentralized", (), (1, 3, 2.5)),
+    ("centralized", (), (0, 0, 0.0)),
+    ("centralized", ("--policy", "pipelined"), (0, 0, 0.0)),
+    ("centralized", ("--policy", "pipelined", "--queue-at", "holding"), (1, 3, 0.0))])
+def test_centralized_runs_leave_the_queueing_to_the_coordinator(cfg, template, coordination,
+                                                                policy, expected):
     """Under --coordination centralized the navigator's own queue and congestion rules are off
     (the coordinator queues the robots), and so is taking another workstation (the coordinator
-    reserves one); decentralized runs keep the template's values."""
-    cfg = replace(cfg, coordination=coordination)
+    chooses one); with the pipelined policy's --queue-at holding the navigators queue, so only
+    the last is off; decentralized runs keep the template's values."""
+    cfg = replace(cfg, coordination=coordination, coordinator_args=policy)
     template = {**template, "crowd_limit": 1, "congestion_limit": 3,
                 "swap_range": 2.5}  # the defaults' values
-    expected = (0, 0, 0.0) if coordination == "centralized" else (1, 3, 2.5)
     for path in write_params_files(cfg, template):
         params = next(iter(yaml.safe_load(path.read_text()).values()))["ros__parameters"]
         assert (params["crowd_limit"], params["congestion_limit"],
