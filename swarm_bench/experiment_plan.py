@@ -67,6 +67,10 @@ VARIANTS = {v.name: v for v in (
     Variant("centralized-scheduler-hall", "centralized",
             ("--assignment", "nearest-free", "--waiting-spots", "hall"),
             what="the scheduler, but queued robots park in the hall (the spawn grid)"),
+    Variant("centralized-fifo", "centralized",
+            ("--assignment", "route", "--waiting-spots", "near"),
+            what="the route's workstation only, first come first served, queues at the world's "
+            "waiting spots near the workstations (the factorial's fixed goal, near spots)"),
     Variant("centralized-fifo-hall", "centralized",
             ("--assignment", "route", "--waiting-spots", "hall"),
             what="the route's workstation only, first come first served, queues parked in the "
@@ -222,7 +226,7 @@ METRICS_KEPT = (
     "min_separation_m", "holding_time_s", "late_ticks", "goal_wait_timeouts", "late_goals",
     "reproducible", "coordinator_wait_s", "reservation_conflicts", "coordinator_starts",
     "cpu_percent", "peak_rss_mb_per_robot", "restarts", "faults", "fault_log", "ended_by",
-    "service_time_s")
+    "service_time_s", "waiting_s", "waiting_per_task_s")
 """The metrics a record keeps (``metrics.json`` has more: per-robot details, tables)."""
 
 
@@ -247,6 +251,7 @@ def slim_record(rec: dict, cell: Cell, seed: int, git: dict, machine: dict) -> d
         # the distance it drove [m] (the simulator's; None where unknown)
         slim["robot_task_times"] = [list(r.get("task_times_s") or []) for r in robots]
         slim["robot_distance_m"] = [r.get("distance_m") for r in robots]
+        slim["robot_waiting_s"] = [r.get("waiting_s") for r in robots]
     keep = ("command", "exit_code", "error", "cpu_s", "cpu_per_robot")
     return {"label": cell.label, "variant": cell.variant, "mode": cell.mode,
             "size": cell.size, "fault": cell.fault, "role": cell.role, "seed": seed,

@@ -53,6 +53,7 @@ STYLE = {  # variant -> (colour, marker): fixed, so every figure reads alike
     "centralized-scheduler": ("#d62728", "s"),
     "centralized-scheduler-hall": ("#ff7f0e", "D"),
     "centralized-fifo-hall": ("#7f7f7f", "^"),
+    "centralized-fifo": ("#8c564b", "<"),
     "centralized-pipelined": ("#2ca02c", "P"),
 }
 PRIMARY = "throughput"

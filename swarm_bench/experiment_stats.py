@@ -118,7 +118,9 @@ def run_figures(record: dict, warmup_s: float) -> dict | None:
         robot), ``distance_per_task`` [m] (all robots' distance driven over the tasks
         completed; None for records without the robots' distances), ``ttt_km_median`` and
         ``ttt_km_p95`` [s] (:func:`km_quantiles` of :func:`task_intervals`; None for records
-        without each robot's task times), ``standstills`` (the
+        without each robot's task times), ``waiting_per_task`` [s] (the metrics'
+        ``waiting_per_task_s``: time without progress toward the task's workstation, from
+        ground truth, the same in every mode; None for records without it), ``standstills`` (the
         simulator's episodes of >= 60 s), ``min_separation`` [m], ``sim_time``, ``robots``.
     """
     m = record.get("metrics")
@@ -160,6 +162,7 @@ def run_figures(record: dict, warmup_s: float) -> dict | None:
         "coord_bytes": sum(v["bytes"] for v in coord) / sim if sim else None,
         "comm_bytes_per_robot": (comm.get("bytes_per_s") or 0.0) / n,
         "distance_per_task": per_task,
+        "waiting_per_task": m.get("waiting_per_task_s"),
         "ttt_km_median": km[0],
         "ttt_km_p95": km[1],
         "rtf": m.get("rtf"),
@@ -195,6 +198,7 @@ MEASURES = (
     ("coord_bytes", "coordinator traffic [bytes per sim s]", 0),
     ("comm_bytes_per_robot", "communication per robot [bytes per sim s]", 0),
     ("distance_per_task", "distance driven per task [m]", 1),
+    ("waiting_per_task", "waiting per task: no progress toward its workstation [s]", 1),
     ("rtf", "real-time factor", 2),
 )
 

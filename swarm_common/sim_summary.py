@@ -27,7 +27,10 @@ s or more (``robot``, ``start_s``, ``duration_s``, ``x``, ``y`` in ``map``, ``op
 ended first; :mod:`swarm_sim.standstill`); ``spawn``, where the robots went, the text of the
 simulator's ``spawned N robots in ...`` line (:func:`swarm_scene.spawn.describe_spawn`);
 ``world_skipped``, the world's skip report (``World.skipped``: one text per element not simulated,
-empty when the world loads whole); ``faults`` when ``--faults`` was given.
+empty when the world loads whole); ``track``, every robot's position at each whole simulated
+second (``period_s`` 1.0; ``xy[k][i]`` robot i's x, y [m] in ``map`` at k + 1 s, to the
+centimetre), the ground truth of the metrics' waiting measure; ``faults`` when ``--faults`` was
+given.
 """
 
 from __future__ import annotations

@@ -685,6 +685,8 @@ class RunFacts:
         models: the robot model of every robot (name or path), in the recorder's robot order:
             ``fleet`` (model -> robots, :func:`swarm_scene.fleet.fleet_counts`) and each
             ``per_robot`` entry's ``robot``; None: neither.
+        map_path: the run's map YAML (the waiting measure's free space); None: no waiting
+            measure.
     """
 
     world: str
@@ -699,6 +701,7 @@ class RunFacts:
     workstations: Mapping[str, tuple[float, float]] | None = None
     holding: Mapping[str, list[tuple[float, float]]] | None = None
     models: Sequence[str] | None = None
+    map_path: str | None = None
 
     @property
     def centralized(self) -> bool:
@@ -864,6 +867,48 @@ def _per_robot(recorder: RunRecorder, sim: SimSummary, facts: RunFacts,
     return per_robot, fleet
 
 
+def _task_intervals(rec: RobotRecord, facts: RunFacts) -> list[tuple[float, float, tuple]]:
+    """(start [s], end [s], workstation x, y [m]) of each task a robot completed: under a
+    coordinator its task records (from its assignment to its ``done``); decentralized its goals
+    reached (from the goal taking effect to reaching it, at the workstation it reached)."""
+    if facts.centralized:
+        where = facts.workstations or {}
+        return [(t - d, t, tuple(where[ws])) for t, d, ws in rec.tasks if ws in where]
+    out = []
+    for goal, end in rec.reached_at.items():
+        ttg, xy = rec.reached.get(goal), rec.goal_xy.get(goal)
+        if ttg is not None and xy is not None:
+            out.append((end - ttg, end, xy))
+    return out
+
+
+def _waiting(recorder: RunRecorder, sim: SimSummary, facts: RunFacts) -> dict[str, float] | None:
+    """robot -> [s] it waited during its completed tasks (:mod:`swarm_metrics.waiting`), or None
+    without the simulator's track or a map."""
+    extras = sim.extras if isinstance(sim.extras, Mapping) else {}
+    track = extras.get("track")
+    if not facts.map_path or not isinstance(track, Mapping) or not track.get("xy"):
+        return None
+    import numpy as np
+
+    from swarm_common.errors import InputError
+    from swarm_metrics.waiting import DistanceField, waiting_s
+    from swarm_scene.map_io import load_map
+
+    try:
+        occ = load_map(facts.map_path)
+        xy = np.asarray(track["xy"], dtype=float)  # (T, N, 2)
+    except (InputError, ValueError, OSError):
+        return None
+    if xy.ndim != 3 or xy.shape[1] != len(recorder.robots):
+        return None
+    field = DistanceField(occ.data, occ.resolution, occ.origin)
+    period = float(track.get("period_s") or 1.0)
+    return {ns: round(waiting_s(xy[:, i], _task_intervals(recorder.per_robot[ns], facts),
+                                field, period), 3)
+            for i, ns in enumerate(recorder.robots)}
+
+
 def _scene_fields(sim: SimSummary, facts: RunFacts) -> dict:
     """``spawn``, ``world_skipped`` and the standstills of ``metrics.json``."""
     extras = sim.extras if isinstance(sim.extras, Mapping) else {}
@@ -901,6 +946,10 @@ def aggregate(recorder: RunRecorder, sim_summary: SimSummary, facts: RunFacts) -
     timing = Timing.of(recorder, sim, facts.wall_time_s)
     comm = _comm(recorder, facts.map_deliveries, timing.sim_time_s)
     per_robot, fleet = _per_robot(recorder, sim, facts, comm)
+    waiting = _waiting(recorder, sim, facts)
+    if waiting is not None:
+        for ns in robots:
+            per_robot[ns]["waiting_s"] = waiting[ns]
     reached = sum(r["goals_reached"] for r in per_robot.values())
     tasks = TaskFigures.of(recorder, facts.centralized, reached, timing.sim_time_s)
     scene = _scene_fields(sim, facts)
@@ -932,6 +981,9 @@ def aggregate(recorder: RunRecorder, sim_summary: SimSummary, facts: RunFacts) -
         "min_separation_m": finite_float(sim.min_separation_m),
         "mean_time_to_goal_s": (sum(ttgs) / len(ttgs)) if ttgs else None,
         "holding_time_s": sum((r["holding_time_s"] for r in per_robot.values()), 0.0),
+        "waiting_s": None if waiting is None else round(sum(waiting.values()), 3),
+        "waiting_per_task_s": (None if waiting is None or not tasks.completed
+                               else round(sum(waiting.values()) / tasks.completed, 3)),
         "late_ticks": late,
         "goal_wait_timeouts": waits,
         "late_goals": late_goals,

@@ -281,6 +281,7 @@ class SimLoop:
         events = self.engine.step(v, w, held)
         self.gate.advance(self.period_ns)
         self.log.standstills.update(self.gate.t_ns / NS_PER_S, self.engine.poses)
+        self.log.sample(self.gate.t_ns, self.engine.poses)
         self.ports.stepped(events)
 
     def run(self, duration_s: float | None = None, rtf: float = 0.0) -> None:

@@ -27,12 +27,23 @@ class RunLog:
         dropped: malformed messages dropped [-].
         fault_log: every fault transition applied, in order (``fault``, ``kind``, ``phase``,
             ``robot``, ``t`` [s], and ``x``, ``y`` [m] where the robot was).
+        track: [k] every robot's x, y [m] in ``map`` (rounded to the centimetre) at simulated
+            second k + 1: the ground truth the metrics' waiting measure reads
+            (:mod:`swarm_metrics.waiting`).
     """
 
     standstills: StandstillTracker
     wall_timeline: list[float] = field(default_factory=list)
     dropped: int = 0
     fault_log: list[dict] = field(default_factory=list)
+    track: list[list[list[float]]] = field(default_factory=list)
+
+    def sample(self, t_ns: int, poses) -> None:
+        """Keep the robots' positions at whole simulated seconds (``t_ns`` [ns], ``poses``
+        (N, 3) x, y [m], yaw [rad])."""
+        if t_ns % NS_PER_S == 0 and t_ns > 0:
+            self.track.append([[round(float(x), 2), round(float(y), 2)]
+                               for x, y in poses[:, :2]])
 
 
 def summarize(engine, gate, namespaces: list[str], log: RunLog, faults, wall_s: float,
@@ -61,7 +72,8 @@ def summarize(engine, gate, namespaces: list[str], log: RunLog, faults, wall_s: 
               "world_skipped": list(world_skipped),
               "standstills": [{"robot": namespaces[e.robot], "start_s": e.start_s,
                                "duration_s": e.duration_s, "x": e.x, "y": e.y,
-                               "open": e.open} for e in log.standstills.finish()]}
+                               "open": e.open} for e in log.standstills.finish()],
+              "track": {"period_s": 1.0, "xy": log.track}}
     if faults is not None:
         extras["faults"] = {
             "injected": [f.label() for f in faults.faults],

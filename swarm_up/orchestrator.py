@@ -460,6 +460,7 @@ class Orchestrator:
                 wall_time_s=wall_s, resources=self.sampler.result(), restarts=restarts,
                 fault_restarts=fault_restarts, map_deliveries=self._map_deliveries(summary),
                 workstations=stations, holding=holding, models=cfg.models,
+                map_path=str(cfg.map_path) if cfg.map_path is not None else None,
                 extra={"ended_by": outcome.ended_by, "run_dir": str(cfg.run_dir),
                        "processes": PER_ROBOT if cfg.groups is None else len(cfg.groups),
                        "commanders": cfg.commanders, "rtf_requested": cfg.rtf,
