@@ -44,6 +44,8 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from swarm_bench.experiment_plan import (  # noqa: F401 - the runner's public names
     ABLATIONS,
     MAIN_VARIANTS,
@@ -136,7 +138,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--fault-spec", type=_fault_spec, action="append", default=None,
                    metavar="SPEC", help="a fault scenario, passed to swarm-up as --faults SPEC "
                    "(repeatable; each is one more cell per main variant at --fault-size; a "
-                   "spec that kills the coordinator runs only in centralized variants; "
+                   "spec that kills the coordinator runs only in centralized variants; a robot "
+                   "may be a placement, @station, @approach or @hall, chosen per seed from "
+                   "the no-fault run's ground truth at the fault's time, e.g. "
+                   "kill-robot:@approach@360; "
                    f"default: {' and '.join(DEFAULT_FAULTS)})")
     p.add_argument("--no-faults", action="store_true",
                    help="run no fault cells (only the sizes)")
@@ -229,8 +234,11 @@ def validate(args: argparse.Namespace) -> ExperimentConfig:
     specs = () if args.no_faults else tuple(args.fault_spec or DEFAULT_FAULTS)
     fault_size = (args.fault_size or ablation_size or middle) if specs else None
     times, variants = [], []
+    from swarm_bench.experiment_faults import placement_of, with_robot
+
     for spec in specs:
-        faults = _parse_spec(spec, fault_size, args.duration)
+        placement_of(spec)  # an unknown placement: InputError
+        faults = _parse_spec(with_robot(spec), fault_size, args.duration)
         times.append(min(f.at for f in faults))
         central = any(f.kind == KILL_COORDINATOR for f in faults)
         variants.append(tuple(v for v in args.variants
@@ -304,16 +312,42 @@ def nav_params_file(out: Path, variant: Variant) -> Path | None:
     return path
 
 
-def variant_args(out: Path, cell: Cell) -> tuple[str, ...]:
+def run_dir_of(out: Path, label: str, seed: int, size: int) -> Path:
+    """Where the swarm-up run of a cell's seed keeps its files (its ``sim_summary.json``)."""
+    return out / "runs" / f"{label}-s{seed}" / f"n{size}-r0"
+
+
+def fault_for(out: Path, cell: Cell, seed: int, world: str) -> str:
+    """The concrete ``--faults`` spec of a fault cell's run: a placed victim
+    (:mod:`swarm_bench.experiment_faults`) read off the no-fault run of the same seed and
+    variant.
+
+    Raises:
+        InputError: that run is not in ``out`` yet.
+    """
+    from swarm_bench.experiment_faults import placement_of, resolve_spec
+
+    if not placement_of(cell.fault):
+        return cell.fault
+    from swarm_scene.poi import poi_for_world
+    from swarm_scene.world import resolve_world
+
+    poi = poi_for_world(resolve_world(world))
+    docks = np.array([w.pose[:2] for w in poi.workstations], float).reshape(-1, 2)
+    base = run_dir_of(out, f"{cell.variant}-n{cell.size}", seed, cell.size)
+    return resolve_spec(cell.fault, base / "sim_summary.json", docks)
+
+
+def variant_args(out: Path, cell: Cell, fault: str | None = None) -> tuple[str, ...]:
     """The ``swarm-up`` flags a cell adds to the common command: the variant's overrides, the
-    fault spec and the service time."""
+    fault spec (``fault``: the concrete one, :func:`fault_for`) and the service time."""
     v = VARIANTS[cell.variant]
     args = list(v.swarm_up)
     params = nav_params_file(out, v)
     if params is not None:
         args += ["--nav-params", str(params)]
     if cell.fault:
-        args += ["--faults", cell.fault]
+        args += ["--faults", fault or cell.fault]
     if cell.service is not None:
         args += ["--service-time", f"{cell.service:g}"]
     return tuple(args)
@@ -386,11 +420,20 @@ def experiment(cfg: ExperimentConfig, argv: list[str]) -> int:
                          f"{f', service time {cell.service:g} s' if cell.service else ''}")
                 run_dir = out / "runs" / f"{cell.label}-s{seed}"
                 run_dir.mkdir(parents=True, exist_ok=True)
+                try:
+                    fault = fault_for(out, cell, seed, plan.world) if cell.fault else None
+                except InputError as exc:
+                    view.say(f"run {i}/{len(todo)} skipped: {exc}")
+                    failed = True
+                    continue
+                if fault and fault != cell.fault:
+                    view.say(f"  the victim: {fault}")
                 bcfg = BenchConfig(sizes=(cell.size,), duration_s=plan.duration_s, runs=1,
                                    world=plan.world, seed=seed, coordination=cell.mode,
                                    processes=cfg.processes, output=out / "unused.json",
                                    plot=out / "unused.png", baseline=False, run_dir=run_dir,
-                                   swarm_up=cfg.swarm_up, extra_args=variant_args(out, cell))
+                                   swarm_up=cfg.swarm_up,
+                                   extra_args=variant_args(out, cell, fault))
                 started = datetime.datetime.now().astimezone().isoformat(timespec="seconds")
                 rec = run_swarm_up(bcfg, cell.size, 0, stop, view)
                 if rec["interrupted"]:
@@ -400,8 +443,10 @@ def experiment(cfg: ExperimentConfig, argv: list[str]) -> int:
                     timespec="seconds")
                 failed |= rec["exit_code"] != EXIT_OK
                 finished += 1
-                _write_json(record_path(out, cell.label, seed),
-                            slim_record(rec, cell, seed, git, machine))
+                record = slim_record(rec, cell, seed, git, machine)
+                if fault and fault != cell.fault:
+                    record["fault_resolved"] = fault
+                _write_json(record_path(out, cell.label, seed), record)
         finally:
             view.close()
     code = 130 if stop else (1 if failed else EXIT_OK)

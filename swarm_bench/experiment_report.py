@@ -606,7 +606,7 @@ def build_report(plan: Plan, settings: dict, records: list[dict], summaries: lis
     lines += _service_section(plan, summaries, records, stats, figures)
     lines += _secondary_section(plan, plain, stats, figures)
     lines += _littles_section(summaries)
-    lines += _fault_section(plan, summaries, figures, stats)
+    lines += _fault_section(plan, summaries, figures, stats, records)
     lines += _threats(plan)
     return "\n".join(lines) + "\n"
 
@@ -884,9 +884,13 @@ def _horizons(plan: Plan, plain: list[dict]) -> list[str]:
 
 
 def _fault_section(plan: Plan, summaries: list[dict], figures: dict,
-                   stats: list[dict]) -> list[str]:
+                   stats: list[dict], records: list[dict] = ()) -> list[str]:
     if not plan.faults:
         return []
+    placed = {}  # label -> [(seed, the concrete spec)] of runs whose victim was placed
+    for r in records:
+        if r.get("fault_resolved"):
+            placed.setdefault(r["label"], []).append((r["seed"], r["fault_resolved"]))
     lines = ["## Faults", "",
              f"At {plan.fault_size} robots. Tasks lost: tasks the no-fault run of the same "
              "seed completed after the fault minus the faulted run's. Back within 10 %: from "
@@ -908,6 +912,9 @@ def _fault_section(plan: Plan, summaries: list[dict], figures: dict,
             lines.append(f"- {s['variant']}: tasks lost "
                          f"{_fmt({'mean': lost[0], 'ci95': lost[1]}, 1)} ({len(eff)} seeds); "
                          f"back within 10 % after: {rec}")
+            if placed.get(s["label"]):
+                lines.append("  (the victims, placed from the no-fault run: " + "; ".join(
+                    f"seed {seed} `{spec}`" for seed, spec in sorted(placed[s["label"]])) + ")")
         if f"fault_{k}" in figures:
             lines += ["", f"![fault {k}]({figures[f'fault_{k}']})"]
         lines += [""]

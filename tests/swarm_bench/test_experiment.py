@@ -8,6 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from swarm_bench.experiment import (
@@ -28,6 +29,7 @@ from swarm_bench.experiment_stats import (
     t_interval,
     window_counts,
 )
+from swarm_common.errors import InputError
 
 SWARM_EXPERIMENT = Path(sys.executable).parent / "swarm-experiment"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -524,6 +526,7 @@ def test_report_command_rebuilds_from_records(tmp_path):
     (["--service-times", "15,soon"], "--service-times"),
     (["--service-times", "-5"], "--service-times"),
     (["--service-size", "50"], "--service-size"),
+    (["--fault-spec", "kill-robot:@dock@360"], "--fault-spec"),
     (["--bogus"], "--bogus"),
 ])
 def test_bad_flag_exits_2_with_one_line(args, flag, tmp_path):
@@ -662,3 +665,41 @@ def test_a_service_time_sweep_of_three_arms_is_planned_run_and_tested(tmp_path):
     write_report([c], c)
     for name in ("report.md", "experiment.json", "service_time.png", "service_time.svg"):
         assert (out / name).read_bytes() == (c / name).read_bytes(), name
+
+
+def test_a_placed_victim_is_read_off_the_no_fault_run_of_the_same_seed(tmp_path):
+    """``kill-robot:@station@3``: the robot nearest a docking pose at 3 s in the no-fault run
+    of that seed and variant; @approach the one nearest 1.5 m from one, @hall the farthest;
+    two placed faults of one spec get two robots; an unknown placement is a bad flag."""
+    from swarm_bench.experiment import fault_for, run_dir_of
+    from swarm_bench.experiment_faults import choose_victim
+    from swarm_scene.poi import poi_for_world
+    from swarm_scene.world import resolve_world
+
+    docks = np.array([[0.0, 0.0], [10.0, 0.0]])
+    xy = np.array([[5.0, 5.0], [0.1, 0.0], [1.4, 0.3], [20.0, 20.0], [9.95, 0.0]])
+    assert [choose_victim(xy, docks, w) for w in ("station", "approach", "hall")] == [4, 2, 3]
+    assert choose_victim(xy, docks, "station", exclude=(4,)) == 1
+    argv = ["--output", str(tmp_path / "x"), "--sizes", "5", "--no-ablations",
+            "--fault-size", "5", "--fault-spec", "kill-robot:@station@3",
+            "--fault-spec", "kill-robot:@hall@3,kill-nav:@hall@2+2"]
+    plan = validate(build_parser().parse_args(argv)).plan
+    cells = {c.label: c for c in plan.cells()}
+    poi = poi_for_world(resolve_world(plan.world))
+    w = poi.workstations[2]
+    track = [[[w.pose[0] + 3.0, w.pose[1]]] * 5] * 3
+    track[2] = [[-30.0, -30.0], [w.pose[0] + 0.02, w.pose[1]], [w.pose[0], w.pose[1] + 2.0],
+                [40.0, 40.0], [w.pose[0] + 0.3, w.pose[1]]]  # at 3 s
+    base = run_dir_of(tmp_path, "decentralized-n5", 0, 5)
+    base.mkdir(parents=True)
+    (base / "sim_summary.json").write_text(json.dumps({"track": {"period_s": 1.0,
+                                                                 "xy": track}}))
+    assert fault_for(tmp_path, cells["decentralized-n5-f1"], 0, plan.world) == \
+        "kill-robot:Srobot2@3"
+    # the farthest from every dock at 3 s is (40, 40), robot 4, then (-30, -30) at 2 s
+    assert fault_for(tmp_path, cells["decentralized-n5-f2"], 0, plan.world) == \
+        "kill-robot:Srobot4@3,kill-nav:Srobot1@2+2"
+    with pytest.raises(InputError, match="must run first"):
+        fault_for(tmp_path, cells["decentralized-n5-f1"], 1, plan.world)
+    assert variant_args(tmp_path, cells["decentralized-n5-f1"], "kill-robot:Srobot2@3") == (
+        "--faults", "kill-robot:Srobot2@3")
