@@ -35,6 +35,7 @@ from swarm_bench.experiment_plan import (
 from swarm_bench.experiment_stats import (
     MEASURES,
     WINDOW_S,
+    factorial_2x2,
     fault_effect,
     holm,
     littles_law,
@@ -55,6 +56,7 @@ STYLE = {  # variant -> (colour, marker): fixed, so every figure reads alike
     "centralized-fifo-hall": ("#7f7f7f", "^"),
     "centralized-fifo": ("#8c564b", "<"),
     "centralized-pipelined": ("#2ca02c", "P"),
+    "centralized-pipelined-spots": ("#bcbd22", "p"),
 }
 PRIMARY = "throughput"
 CO_PRIMARY = ("jain", "idle_robots")
@@ -73,6 +75,21 @@ ABLATION_PAIRS = (  # (A, B, what B differs from A in): a chain from decentraliz
 )
 GAP = ("decentralized", "centralized-scheduler", "the whole gap")
 CENTRAL_ARMS = ("centralized-scheduler", "centralized-pipelined")
+FACTORIALS = (  # (name, (factor A: level 0, level 1), (factor B: ...), cells [a][b])
+    ("mode x goal flexibility", ("mode", "decentralized", "centralized"),
+     ("goal", "fixed", "flexible"),
+     (("decentralized-no-swap", "decentralized"),
+      ("centralized-fifo", "centralized-scheduler"))),
+    ("centralized: goal flexibility x queue placement", ("goal", "fixed", "flexible"),
+     ("queues", "hall", "near"),
+     (("centralized-fifo-hall", "centralized-fifo"),
+      ("centralized-scheduler-hall", "centralized-scheduler"))),
+)
+"""The 2 x 2 designs the ablations form, tested as main effects and interaction
+(:func:`~swarm_bench.experiment_stats.factorial_2x2`), each where all four cells ran."""
+HORIZON = ("centralized-scheduler", "centralized-pipelined-spots",
+           "reservation horizon: held from dispatch (reserve) against time windows (pipelined), "
+           "nearest-free, near spots")
 """The centralized arms decentralized is compared with, each on its own (the main pairs)."""
 
 
@@ -214,6 +231,11 @@ def comparisons(plan: Plan, figs: dict) -> list[dict]:
                               for t in plan.service_times)]:
             pairs += [(f"decentralized-n{n}{label}", f"{v}-n{n}{label}", n, "service", what)
                       for v in against]
+    if plan.ablation_size is not None:
+        n = plan.ablation_size
+        if all(f"{v}-n{n}" in figs for v in HORIZON[:2]):
+            pairs.append((f"{HORIZON[0]}-n{n}", f"{HORIZON[1]}-n{n}", n, "factorial",
+                          HORIZON[2]))
     for a, b, n, role, what in pairs:
         if a not in figs or b not in figs:
             continue
@@ -224,11 +246,37 @@ def comparisons(plan: Plan, figs: dict) -> list[dict]:
                         {s: f[key] for s, f in figs[b].items()})
             rows.append({"a": a, "b": b, "size": n, "role": role, "what": what,
                          "measure": key, **st})
+    rows += _factorial_rows(plan, figs)
     rows += _fault_comparisons(plan, figs, main or list(plan.variants[:2]))
     adjusted = holm([r["p_t"] for r in rows])
     for r, p in zip(rows, adjusted, strict=True):
         r["p_holm"] = p
         r["claim"] = p is not None and p < ALPHA and r["n"] >= MIN_CLAIM_SEEDS
+    return rows
+
+
+def _factorial_rows(plan: Plan, figs: dict) -> list[dict]:
+    """The :data:`FACTORIALS` at ``ablation_size`` where all four cells ran: per measure
+    (throughput, Jain's index), each main effect and the interaction tested against 0 over the
+    seeds (role ``factorial``)."""
+    rows = []
+    n = plan.ablation_size
+    if n is None:
+        return rows
+    for name, fa, fb, cells in FACTORIALS:
+        labels = [[f"{cells[i][j]}-n{n}" for j in (0, 1)] for i in (0, 1)]
+        if not all(lab in figs for row in labels for lab in row):
+            continue
+        for key in (PRIMARY, "jain"):
+            y = {(i, j): {s: f[key] for s, f in figs[labels[i][j]].items()}
+                 for i in (0, 1) for j in (0, 1)}
+            effects = factorial_2x2(y)
+            for effect, what in (("A", f"{fa[0]}: {fa[2]} - {fa[1]}"),
+                                 ("B", f"{fb[0]}: {fb[2]} - {fb[1]}"),
+                                 ("AxB", f"{fa[0]} x {fb[0]} interaction")):
+                zero = {s: 0.0 for s in effects[effect]}
+                rows.append({"a": name, "b": what, "size": n, "role": "factorial",
+                             "what": "", "measure": key, **paired(effects[effect], zero)})
     return rows
 
 
@@ -646,7 +694,8 @@ def _primary_section(plan: Plan, plain: list[dict], stats: list[dict],
                           (PRIMARY, *CO_PRIMARY))
     lines += _stats_table(stats, "ablation", "Ablations: how much of the gap each factor "
                           f"explains ({plan.ablation_size} robots)", (PRIMARY,))
-    lines += _shares(stats)
+    factorial = _factorial_table(stats)
+    lines += factorial or _shares(stats)  # a factorial's effects, else the chain's shares
     lines += _horizons(plan, plain)
     return lines
 
@@ -847,6 +896,36 @@ def _stats_table(stats: list[dict], role: str, title: str,
         out.append(f"| {r['a']} | {r['b']}{what} | {label.get(r['measure'], r['measure'])} | "
                    f"{r['n']} | {diff} | {rel} | {_p(r['p_t'])} | {_p(r['p_wilcoxon'])} | "
                    f"{_p(r['p_holm'])} | {claim} |")
+    return out + [""]
+
+
+def _factorial_table(stats: list[dict]) -> list[str]:
+    """The ablations as factorial designs: main effects and interactions, and the reservation
+    horizon, each with its interval and its tests (in the report's Holm family)."""
+    rows = [r for r in stats if r["role"] == "factorial"]
+    if not rows:
+        return []
+    label = {k: lab for k, lab, _ in MEASURES}
+    out = ["### Ablations as a factorial", "",
+           f"At {rows[0]['size']} robots. Each 2 x 2 design's main effects (one factor's "
+           "second level minus its first, averaged over the other factor's levels) and its "
+           "interaction (the first factor's effect at the other's second level minus at its "
+           "first), per seed, tested against 0 (paired t, Holm over the whole report); the "
+           "reservation horizon as the difference of its two arms. No shares of a chain: "
+           "they depend on the chain's order.", "",
+           "| design | effect | measure | seeds | estimate | p (t) | p (Holm) | claim |",
+           "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        digits = 0 if r["measure"] == PRIMARY else 3
+        if r["what"]:  # the horizon: A - B of two arms
+            design, effect = r["what"], f"{r['a']} - {r['b']}"
+        else:
+            design, effect = r["a"], r["b"]
+        claim = (("**yes**" if r["claim"] else "no") if r["n"] >= MIN_CLAIM_SEEDS
+                 else f"no (< {MIN_CLAIM_SEEDS} seeds)")
+        out.append(f"| {design} | {effect} | {label.get(r['measure'], r['measure'])} | "
+                   f"{r['n']} | {_fmt({'mean': r['diff'], 'ci95': r['ci95']}, digits)} | "
+                   f"{_p(r['p_t'])} | {_p(r['p_holm'])} | {claim} |")
     return out + [""]
 
 

@@ -285,6 +285,31 @@ def paired(a: dict[int, float], b: dict[int, float], level: float = 0.95) -> dic
     return out
 
 
+def factorial_2x2(y: dict[tuple[int, int], dict[int, float]]) -> dict[str, dict[int, float]]:
+    """The effects of a 2 x 2 design, per seed.
+
+    Args:
+        y: (level of A, level of B), each 0 or 1 -> seed -> the measure.
+
+    Returns:
+        ``A``, ``B`` (main effects: level 1 minus level 0, averaged over the other factor's two
+        levels) and ``AxB`` (the interaction: A's effect at B = 1 minus at B = 0), each seed ->
+        value, over the seeds all four cells have. Test them with :func:`paired` against 0.
+
+    Source: the effects of a 2^2 factorial design (Montgomery, *Design and Analysis of
+    Experiments*, ch. 6), computed per seed so that the seeds pair them.
+    """
+    seeds = sorted(set.intersection(*(set(k for k, v in y[c].items() if _finite(v))
+                                      for c in ((0, 0), (0, 1), (1, 0), (1, 1)))))
+    a, b, ab = {}, {}, {}
+    for s in seeds:
+        y00, y01, y10, y11 = (float(y[c][s]) for c in ((0, 0), (0, 1), (1, 0), (1, 1)))
+        a[s] = ((y10 - y00) + (y11 - y01)) / 2.0
+        b[s] = ((y01 - y00) + (y11 - y10)) / 2.0
+        ab[s] = (y11 - y01) - (y10 - y00)
+    return {"A": a, "B": b, "AxB": ab}
+
+
 def holm(pvalues: list[float | None]) -> list[float | None]:
     """Holm's step-down adjusted p-values (None stays None and does not count).
 

@@ -703,3 +703,65 @@ def test_a_placed_victim_is_read_off_the_no_fault_run_of_the_same_seed(tmp_path)
         fault_for(tmp_path, cells["decentralized-n5-f1"], 1, plan.world)
     assert variant_args(tmp_path, cells["decentralized-n5-f1"], "kill-robot:Srobot2@3") == (
         "--faults", "kill-robot:Srobot2@3")
+
+
+def test_factorial_effects_by_hand():
+    from swarm_bench.experiment_stats import factorial_2x2
+
+    # y(a, b) = 10 + 4a + 2b + 3ab, plus a seed offset that the pairing removes
+    y = {(a, b): {s: 10 + 4 * a + 2 * b + 3 * a * b + s for s in range(5)}
+         for a in (0, 1) for b in (0, 1)}
+    eff = factorial_2x2(y)
+    assert set(eff["A"].values()) == {4 + 1.5} and set(eff["B"].values()) == {2 + 1.5}
+    assert set(eff["AxB"].values()) == {3}
+    y[(1, 1)].pop(4)  # a seed missing in one cell is left out of every effect
+    assert sorted(factorial_2x2(y)["A"]) == [0, 1, 2, 3]
+
+
+def test_the_ablations_are_reported_as_a_factorial_with_no_chain_shares(tmp_path):
+    """All the factorial's cells at 20 robots: main effects and interactions of both 2 x 2
+    designs and the reservation horizon are tested (in the Holm family) and tabled; the
+    chain's shares are not given."""
+    from swarm_bench.bench import _write_json
+    from swarm_bench.experiment_report import write_report
+
+    ablations = ("decentralized-no-swap,centralized-fifo,centralized-fifo-hall,"
+                 "centralized-scheduler-hall,centralized-pipelined-spots")
+    argv = ["--output", str(tmp_path / "a"), "--sizes", "20", "--no-faults",
+            "--ablations", ablations, "--ablation-size", "20"]
+    plan = validate(build_parser().parse_args(argv)).plan
+    out = tmp_path / "a"
+    (out / "records").mkdir(parents=True)
+    _write_json(out / "plan.json", {"settings": plan.settings()})
+    # tasks per 100 s: mode (centralized -1), flexible goal (+0.5), their interaction
+    # (+0.25 more for centralized), near spots (+0.2 for centralized), pipelined (+0.4)
+    rate = {"decentralized": 3.0, "decentralized-no-swap": 2.5,
+            "centralized-scheduler": 2.75, "centralized-fifo": 2.0,
+            "centralized-scheduler-hall": 2.55, "centralized-fifo-hall": 1.8,
+            "centralized-pipelined-spots": 3.15}
+    for cell, seed in plan.runs_in_order():
+        _write_json(record_path(out, cell.label, seed),
+                    fake_record(cell.label, cell.variant, cell.mode, cell.size, seed,
+                                rate[cell.variant] + 0.1 * seed, role=cell.role))
+    write_report([out], out)
+    doc = json.loads((out / "experiment.json").read_text())
+    rows = {(r["a"], r["b"], r["measure"]): r for r in doc["statistics"]
+            if r["role"] == "factorial"}
+    mode = rows[("mode x goal flexibility", "mode: centralized - decentralized", "throughput")]
+    inter = rows[("mode x goal flexibility", "mode x goal interaction", "throughput")]
+    # per 100 s x 36 = per hour, up to the fake records' rounding of task counts
+    assert mode["diff"] == pytest.approx(-0.375 * 36, abs=3.0) and mode["n"] == 5
+    assert inter["diff"] == pytest.approx(0.25 * 36, abs=3.0)
+    horizon = next(r for r in doc["statistics"] if r["role"] == "factorial" and r["what"])
+    assert (horizon["a"], horizon["b"]) == ("centralized-scheduler-n20",
+                                            "centralized-pipelined-spots-n20")
+    assert all(r["p_holm"] is None or r["p_holm"] >= r["p_t"] for r in doc["statistics"])
+    report = (out / "report.md").read_text()
+    assert "### Ablations as a factorial" in report
+    assert "adds up to the whole gap" not in report
+
+
+def test_every_variant_has_a_style():
+    from swarm_bench.experiment_report import STYLE
+
+    assert set(STYLE) == set(VARIANTS)
