@@ -240,7 +240,8 @@ def comparisons(plan: Plan, figs: dict) -> list[dict]:
         if a not in figs or b not in figs:
             continue
         measures = {"main": (PRIMARY, *CO_PRIMARY, *SECONDARY),
-                    "service": (PRIMARY, *CO_PRIMARY)}.get(role, (PRIMARY,))
+                    "service": (PRIMARY, *CO_PRIMARY),
+                    "factorial": (PRIMARY, "jain")}.get(role, (PRIMARY,))
         for key in measures:
             st = paired({s: f[key] for s, f in figs[a].items()},
                         {s: f[key] for s, f in figs[b].items()})
