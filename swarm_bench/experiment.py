@@ -143,6 +143,12 @@ def build_parser() -> argparse.ArgumentParser:
                    "the no-fault run's ground truth at the fault's time, e.g. "
                    "kill-robot:@approach@360; "
                    f"default: {' and '.join(DEFAULT_FAULTS)})")
+    p.add_argument("--fault-runs", type=cli.positive_int, default=None, metavar="R",
+                   help="seeds of the fault study: the fault cells and their no-fault runs "
+                   "(default: --runs)")
+    p.add_argument("--fault-n-minus-1", action="store_true",
+                   help="also run every fault variant with one robot fewer and no fault: is a "
+                   "robot lost mid-run worse than one never there?")
     p.add_argument("--no-faults", action="store_true",
                    help="run no fault cells (only the sizes)")
     p.add_argument("--fault-size", type=cli.positive_int, default=None, metavar="N",
@@ -257,7 +263,9 @@ def validate(args: argparse.Namespace) -> ExperimentConfig:
                 ablation_size=ablation_size, faults=specs, fault_size=fault_size,
                 fault_times=tuple(times), fault_variants=tuple(variants),
                 warmup_s=args.warmup, service_times=service_times,
-                service_size=(args.service_size or middle) if service_times else None)
+                service_size=(args.service_size or middle) if service_times else None,
+                fault_runs=args.fault_runs if specs else None,
+                fault_n_minus_1=bool(args.fault_n_minus_1 and specs))
     if args.resume is not None:
         old = json.loads((args.resume / "plan.json").read_text()).get("settings", {})
         new = plan.settings()

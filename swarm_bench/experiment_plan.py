@@ -130,6 +130,8 @@ class Plan:
     warmup_s: float
     service_times: tuple[float, ...] = ()  # [s] swept at service_size (besides the world's)
     service_size: int | None = None
+    fault_runs: int | None = None  # seeds of the fault study's cells (None: ``runs``)
+    fault_n_minus_1: bool = False  # also every fault variant with one robot fewer, no fault
 
     def settings(self) -> dict:
         """The plan as JSON-able settings (with every variant's overrides)."""
@@ -144,6 +146,8 @@ class Plan:
                 # only when swept: the settings of an experiment without stay as they were
                 **({"service_times_s": list(self.service_times),
                     "service_size": self.service_size} if self.service_times else {}),
+                **({"fault_runs": self.fault_runs} if self.fault_runs is not None else {}),
+                **({"fault_n_minus_1": True} if self.fault_n_minus_1 else {}),
                 "overrides": {v: {"mode": VARIANTS[v].mode, **VARIANTS[v].overrides(),
                                   "what": VARIANTS[v].what} for v in used}}
 
@@ -168,6 +172,11 @@ class Plan:
         if self.faults:
             out += [Cell(v, self.fault_size, "", f"{v}-n{self.fault_size}")
                     for v in self.variants if f"{v}-n{self.fault_size}" not in labels]
+        if self.faults and self.fault_n_minus_1 and self.fault_size > 1:
+            n = self.fault_size - 1
+            used = dict.fromkeys(v for vs in self.fault_variants for v in vs)
+            out += [Cell(v, n, "", f"{v}-n{n}", "fault") for v in used
+                    if f"{v}-n{n}" not in labels]
         for k, (spec, variants) in enumerate(zip(self.faults, self.fault_variants, strict=True),
                                              start=1):
             out += [Cell(v, self.fault_size, spec, f"{v}-n{self.fault_size}-f{k}", "fault")
@@ -186,9 +195,18 @@ class Plan:
             return (role[c.role], c.size if c.role == "main" else 0, c.fault,
                     c.service or 0.0)
 
-        order = sorted(((c, self.seed + r) for c in cells for r in range(self.runs)),
+        order = sorted(((c, self.seed + r) for c in cells for r in range(self.runs_of(c))),
                        key=lambda cs: (block(cs[0]), cs[1], cells.index(cs[0])))
         return order
+
+    def runs_of(self, cell: Cell) -> int:
+        """Seeds of a cell: ``fault_runs`` for the fault study's cells (the faults, their
+        no-fault runs at ``fault_size`` and the N-1 runs), ``runs`` for the others."""
+        if self.fault_runs is None or not self.faults:
+            return self.runs
+        study = cell.role == "fault" or (cell.size == self.fault_size and not cell.fault
+                                         and cell.role == "main")
+        return max(self.runs, self.fault_runs) if study else self.runs
 
 
 def plan_from_settings(settings: dict) -> Plan:
@@ -211,7 +229,9 @@ def plan_from_settings(settings: dict) -> Plan:
                     fault_variants=tuple(tuple(v) for v in settings["fault_variants"]),
                     warmup_s=float(settings["warmup_s"]),
                     service_times=tuple(float(s) for s in settings.get("service_times_s", ())),
-                    service_size=settings.get("service_size"))
+                    service_size=settings.get("service_size"),
+                    fault_runs=settings.get("fault_runs"),
+                    fault_n_minus_1=bool(settings.get("fault_n_minus_1", False)))
     except (KeyError, TypeError, ValueError) as exc:
         raise InputError(f"the records' plan is malformed ({exc})") from None
 

@@ -33,8 +33,11 @@ from swarm_bench.experiment_plan import (
     plan_from_settings,
 )
 from swarm_bench.experiment_stats import (
+    EQUIVALENCE_MARGIN,
     MEASURES,
     WINDOW_S,
+    cumulative_lost,
+    equivalence,
     factorial_2x2,
     fault_effect,
     holm,
@@ -298,11 +301,20 @@ def _fault_comparisons(plan: Plan, figs: dict, main: list[str]) -> list[dict]:
             after = {label: {s: float(sum(1 for t in f["task_times"] if t >= fault_s))
                              for s, f in runs.items()}
                      for label, runs in (("base", base), ("hit", hit))}
+            st = paired(after["base"], after["hit"])
+            mean_base = sum(after["base"].values()) / len(after["base"])
             rows.append({"a": f"{v}-n{n}", "b": f"{v}-n{n}-f{k}", "size": n, "role": "fault",
-                         "what": spec, "measure": FAULT_AFTER,
-                         **paired(after["base"], after["hit"])})
+                         "what": spec, "measure": FAULT_AFTER, **st,
+                         **equivalence(st["diffs"], EQUIVALENCE_MARGIN * mean_base)})
             lost[v] = {s: after["base"][s] - after["hit"][s]
                        for s in set(base) & set(hit)}
+            fewer = figs.get(f"{v}-n{n - 1}")
+            if fewer:  # a robot lost mid-run against one never there
+                one_less = {s: float(sum(1 for t in f["task_times"] if t >= fault_s))
+                            for s, f in fewer.items()}
+                rows.append({"a": f"{v}-n{n - 1}", "b": f"{v}-n{n}-f{k}", "size": n,
+                             "role": "fault", "what": f"{spec}, against {n - 1} robots",
+                             "measure": FAULT_AFTER, **paired(one_less, after["hit"])})
         if len(main) == 2 and all(v in lost for v in main):
             rows.append({"a": f"{main[0]}-n{n}-f{k}", "b": f"{main[1]}-n{n}-f{k}", "size": n,
                          "role": "fault", "what": spec, "measure": FAULT_LOST,
@@ -340,7 +352,7 @@ def plot_against_size(out: Path, stem: str, plan: Plan, summaries: list[dict], f
     interval (error bar), one colour and marker per variant."""
     plt = _plt()
     fig, ax = plt.subplots(figsize=(6.4, 4.2), constrained_layout=True)
-    plain = [s for s in summaries if not s["fault"] and s["role"] != "service"]
+    plain = [s for s in summaries if s["role"] in ("main", "ablation")]
     sizes = sorted({s["size"] for s in plain})
     vs = _variants_in(plain)
     for i, v in enumerate(vs):
@@ -390,7 +402,7 @@ def plot_tasks_over_time(out: Path, plan: Plan, summaries: list[dict], figs: dic
     """Cumulative tasks over simulated time (mean over seeds), one panel per size, the
     warm-up marked: where the rate settles."""
     plt = _plt()
-    plain = [s for s in summaries if not s["fault"] and s["role"] != "service"]
+    plain = [s for s in summaries if s["role"] in ("main", "ablation")]
     sizes = sorted({s["size"] for s in plain})
     fig, axes = _panels(plt, len(sizes))
     step = 10.0
@@ -412,7 +424,7 @@ def plot_tasks_over_time(out: Path, plan: Plan, summaries: list[dict], figs: dic
 def plot_ecdf(out: Path, plan: Plan, summaries: list[dict], figs: dict) -> str:
     """The distribution (ECDF) of time to task after the warm-up, every seed pooled."""
     plt = _plt()
-    plain = [s for s in summaries if not s["fault"] and s["role"] != "service"]
+    plain = [s for s in summaries if s["role"] in ("main", "ablation")]
     sizes = sorted({s["size"] for s in plain})
     fig, axes = _panels(plt, len(sizes))
     for ax, n in zip(axes, sizes, strict=True):
@@ -432,7 +444,7 @@ def plot_ecdf(out: Path, plan: Plan, summaries: list[dict], figs: dict) -> str:
 def plot_tasks_per_robot(out: Path, plan: Plan, summaries: list[dict], figs: dict) -> str:
     """Tasks per robot over the whole run: a box per cell, every seed's robots pooled."""
     plt = _plt()
-    plain = [s for s in summaries if not s["fault"] and s["role"] != "service"]
+    plain = [s for s in summaries if s["role"] in ("main", "ablation")]
     fig, ax = plt.subplots(figsize=(max(6.4, 0.9 * len(plain) + 2), 4.2),
                            constrained_layout=True)
     data, labels, colours = [], [], []
@@ -460,7 +472,7 @@ def plot_standstill_map(out: Path, plan: Plan, summaries: list[dict], figs: dict
     0.5 m cell over the map, summed over the seeds, one panel per variant at ``size``."""
     import numpy as np
 
-    cells = [s for s in summaries if not s["fault"] and s["role"] != "service"
+    cells = [s for s in summaries if s["role"] in ("main", "ablation")
              and s["size"] == size]
     if not cells:
         return None
@@ -515,7 +527,7 @@ def plot_standing_over_time(out: Path, plan: Plan, summaries: list[dict], figs: 
                             size: int) -> str | None:
     """Robots standing still (in an episode that lasts >= 60 s) over simulated time, mean over
     seeds: the queue lengths of both modes measured alike."""
-    cells = [s for s in summaries if not s["fault"] and s["role"] != "service"
+    cells = [s for s in summaries if s["role"] in ("main", "ablation")
              and s["size"] == size]
     if not cells:
         return None
@@ -554,6 +566,30 @@ def plot_fault(out: Path, stem: str, curves: dict[str, tuple[str, list[float]]],
     ax.axvline(fault_s, color="red", linewidth=1.0, label=f"fault at {fault_s:g} s")
     ax.set_xlabel("simulated time [s]")
     ax.set_ylabel(f"tasks completed per {WINDOW_S:g} s")
+    ax.set_title(title, fontsize=10)
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7)
+    return _save(fig, out, stem)
+
+
+def plot_cumulative_lost(out: Path, stem: str, curves: dict[str, list], fault_s: float,
+                         title: str) -> str:
+    """Tasks lost to the fault by each time after it (no fault minus fault, same seed): the
+    mean over seeds with its 95 % band, one line per variant."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(7.5, 4.2), constrained_layout=True)
+    for variant, stats in curves.items():
+        xs = [fault_s + (i + 1) * WINDOW_S for i in range(len(stats))]
+        mean = [m if m is not None else float("nan") for m, _ in stats]
+        half = [h if h is not None else 0.0 for _, h in stats]
+        colour, marker = STYLE[variant]
+        ax.plot(xs, mean, color=colour, marker=marker, markersize=3, label=variant)
+        ax.fill_between(xs, [m - h for m, h in zip(mean, half, strict=True)],
+                        [m + h for m, h in zip(mean, half, strict=True)], color=colour,
+                        alpha=0.15, linewidth=0)
+    ax.axhline(0.0, color="black", linewidth=0.8)
+    ax.set_xlabel("simulated time [s]")
+    ax.set_ylabel("tasks lost to the fault, cumulative")
     ax.set_title(title, fontsize=10)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7)
@@ -650,7 +686,7 @@ def build_report(plan: Plan, settings: dict, records: list[dict], summaries: lis
     if len(records) < expected:
         lines += [f"**This report is partial**: {expected - len(records)} runs of the plan are "
                   "still missing; a cell with fewer than 5 seeds claims nothing.", ""]
-    plain = [s for s in summaries if not s["fault"] and s["role"] != "service"]
+    plain = [s for s in summaries if s["role"] in ("main", "ablation")]
     lines += _primary_section(plan, plain, stats, figures)
     lines += _service_section(plan, summaries, records, stats, figures)
     lines += _secondary_section(plan, plain, stats, figures)
@@ -997,6 +1033,16 @@ def _fault_section(plan: Plan, summaries: list[dict], figures: dict,
                     f"seed {seed} `{spec}`" for seed, spec in sorted(placed[s["label"]])) + ")")
         if f"fault_{k}" in figures:
             lines += ["", f"![fault {k}]({figures[f'fault_{k}']})"]
+        if f"fault_lost_{k}" in figures:
+            lines += ["", f"![tasks lost {k}]({figures[f'fault_lost_{k}']})"]
+        for r in stats:
+            if r["role"] == "fault" and r["what"] == spec and r.get("p_equiv") is not None:
+                verdict = ("within it (equivalent)" if r["equivalent"]
+                           else "not shown within it")
+                lines.append(f"- {r['a'].rsplit('-n', 1)[0]}: the tasks lost after the fault "
+                             f"against a margin of ± {r['margin']:.1f} tasks "
+                             f"({100 * EQUIVALENCE_MARGIN:g} % of the no-fault run's): "
+                             f"{verdict}, TOST p = {_p(r['p_equiv'])}")
         lines += [""]
     return lines + _stats_table(
         stats, "fault", "Paired tests of the faults (A: without the fault, or the first mode's "
@@ -1009,15 +1055,19 @@ def _fault_effects(plan: Plan, summaries: list[dict], figs: dict) -> dict[int, d
     out = {}
     for k, (spec, fault_s) in enumerate(zip(plan.faults, plan.fault_times, strict=True),
                                         start=1):
-        curves = {}
+        curves, cumulative = {}, {}
         for s in summaries:
             if s["fault"] != spec:
                 continue
             base_label = f"{s['variant']}-n{plan.fault_size}"
             base, hit = figs.get(base_label, {}), figs.get(s["label"], {})
+            seeds = sorted(set(base) & set(hit))
             s["fault_effects"] = [fault_effect(base[x]["task_times"], hit[x]["task_times"],
-                                               fault_s, plan.duration_s)
-                                  for x in sorted(set(base) & set(hit))]
+                                               fault_s, plan.duration_s) for x in seeds]
+            lost = [cumulative_lost(base[x]["task_times"], hit[x]["task_times"], fault_s,
+                                    plan.duration_s) for x in seeds]
+            if lost:
+                cumulative[s["variant"]] = [t_interval(list(c)) for c in zip(*lost, strict=True)]
             for name, runs in ((f"{s['variant']}, no fault", base),
                                (f"{s['variant']}, fault", hit)):
                 counts = [window_counts(f["task_times"], plan.duration_s)
@@ -1025,7 +1075,7 @@ def _fault_effects(plan: Plan, summaries: list[dict], figs: dict) -> dict[int, d
                 if counts:
                     curves[name] = (s["variant"], [sum(c) / len(counts)
                                                    for c in zip(*counts, strict=True)])
-        out[k] = {"curves": curves, "fault_s": fault_s, "spec": spec}
+        out[k] = {"curves": curves, "fault_s": fault_s, "spec": spec, "cumulative": cumulative}
     return out
 
 
@@ -1082,6 +1132,10 @@ def write_report(dirs: list[Path], out: Path) -> dict:
                 figures[f"fault_{k}"] = plot_fault(
                     out, f"fault_{k}", f["curves"], f["fault_s"],
                     f"tasks per {WINDOW_S:g} s, {plan.fault_size} robots, faults: {f['spec']}")
+            if f["cumulative"]:
+                figures[f"fault_lost_{k}"] = plot_cumulative_lost(
+                    out, f"fault_lost_{k}", f["cumulative"], f["fault_s"],
+                    f"tasks lost, {plan.fault_size} robots, faults: {f['spec']}: mean ± 95 %")
     text = build_report(plan, settings, records, summaries, stats, figures) if summaries \
         else f"# {PROG}: no runs yet\n"
     (out / "report.md").write_text(text)

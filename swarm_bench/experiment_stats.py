@@ -285,6 +285,51 @@ def paired(a: dict[int, float], b: dict[int, float], level: float = 0.95) -> dic
     return out
 
 
+EQUIVALENCE_MARGIN = 0.05
+"""The share of the no-fault run's tasks after the fault within which a fault's cost counts
+as none (the equivalence margin of :func:`equivalence`)."""
+
+
+def equivalence(diffs: list[float], margin: float, level: float = 0.05) -> dict:
+    """Two one-sided t-tests (TOST): is the mean difference within ``±margin``?
+
+    Args:
+        diffs: per-seed differences (no fault minus fault).
+        margin: the margin (> 0), in the differences' unit.
+        level: the tests' level.
+
+    Returns:
+        ``margin``, ``p_equiv`` (the larger of the two one-sided p-values; None with fewer than
+        2 differences or a zero spread) and ``equivalent`` (``p_equiv < level``).
+
+    Source: Schuirmann (1987), the two one-sided tests procedure; ``scipy.stats.ttest_1samp``.
+    """
+    out = {"margin": margin, "p_equiv": None, "equivalent": False}
+    if len(diffs) < 2 or not margin > 0 or len(set(diffs)) < 2:
+        return out
+    from scipy import stats
+
+    lower = stats.ttest_1samp(diffs, -margin, alternative="greater").pvalue
+    upper = stats.ttest_1samp(diffs, margin, alternative="less").pvalue
+    out["p_equiv"] = float(max(lower, upper))
+    out["equivalent"] = out["p_equiv"] < level
+    return out
+
+
+def cumulative_lost(base: list[float], hit: list[float], fault_s: float, duration_s: float,
+                    step_s: float = WINDOW_S) -> list[float]:
+    """Tasks lost to a fault by each time after it: for t = fault + step, fault + 2 step, ...
+    up to the run's end, the no-fault run's tasks completed in [fault, t) minus the faulted
+    run's (same seed; :data:`WINDOW_S` steps)."""
+    out = []
+    t = fault_s + step_s
+    while t <= duration_s + 1e-9:
+        out.append(float(sum(1 for x in base if fault_s <= x < t)
+                         - sum(1 for x in hit if fault_s <= x < t)))
+        t += step_s
+    return out
+
+
 def factorial_2x2(y: dict[tuple[int, int], dict[int, float]]) -> dict[str, dict[int, float]]:
     """The effects of a 2 x 2 design, per seed.
 

@@ -765,3 +765,67 @@ def test_every_variant_has_a_style():
     from swarm_bench.experiment_report import STYLE
 
     assert set(STYLE) == set(VARIANTS)
+
+
+def test_equivalence_and_cumulative_loss_by_hand():
+    from swarm_bench.experiment_stats import cumulative_lost, equivalence
+
+    # differences near 0 and tight: within a margin of 2; a margin of 0.1 is too narrow
+    diffs = [0.5, -0.5, 0.2, -0.1, 0.1]
+    assert equivalence(diffs, 2.0)["equivalent"] is True
+    assert equivalence(diffs, 2.0)["p_equiv"] < 0.05
+    assert equivalence(diffs, 0.1)["equivalent"] is False
+    assert equivalence([1.0], 2.0)["p_equiv"] is None
+    base = [100.0, 110.0, 125.0, 140.0, 170.0]
+    hit = [100.0, 125.0, 170.0]
+    # fault at 100 s, 30 s steps to 190 s: by 130 s base 3 (100, 110, 125) hit 2 (100, 125)
+    assert cumulative_lost(base, hit, 100.0, 190.0) == [1.0, 2.0, 2.0]
+
+
+def test_the_fault_study_runs_more_seeds_and_an_n_minus_1_cell(tmp_path):
+    argv = ["--output", str(tmp_path / "x"), "--sizes", "20", "--no-ablations",
+            "--fault-size", "20", "--fault-spec", "kill-robot:@approach@360",
+            "--fault-runs", "10", "--fault-n-minus-1"]
+    plan = validate(build_parser().parse_args(argv)).plan
+    seeds = {}
+    for cell, seed in plan.runs_in_order():
+        seeds.setdefault(cell.label, []).append(seed)
+    # the fault study's cells (the faults, their no-fault runs, the N-1 runs) have 10 seeds
+    assert {k: len(v) for k, v in seeds.items()} == {
+        "decentralized-n20": 10, "centralized-scheduler-n20": 10,
+        "decentralized-n19": 10, "centralized-scheduler-n19": 10,
+        "decentralized-n20-f1": 10, "centralized-scheduler-n20-f1": 10}
+    assert plan_from_settings(plan.settings()) == plan
+    plain = validate(build_parser().parse_args(
+        ["--output", str(tmp_path / "y"), "--no-faults"])).plan
+    assert "fault_runs" not in plain.settings() and "fault_n_minus_1" not in plain.settings()
+
+
+def test_the_fault_report_compares_with_n_minus_1_and_tests_equivalence(tmp_path):
+    from swarm_bench.bench import _write_json
+    from swarm_bench.experiment_report import write_report
+
+    argv = ["--output", str(tmp_path / "a"), "--sizes", "20", "--no-ablations",
+            "--fault-size", "20", "--fault-spec", "kill-robot:3@360", "--fault-n-minus-1",
+            "--variants", "decentralized"]
+    plan = validate(build_parser().parse_args(argv)).plan
+    out = tmp_path / "a"
+    (out / "records").mkdir(parents=True)
+    _write_json(out / "plan.json", {"settings": plan.settings()})
+    rate = {"decentralized-n20": 3.0, "decentralized-n19": 2.9, "decentralized-n20-f1": 3.0}
+    for cell, seed in plan.runs_in_order():
+        _write_json(record_path(out, cell.label, seed),
+                    fake_record(cell.label, cell.variant, cell.mode, cell.size, seed,
+                                rate[cell.label] + 0.01 * seed
+                                + (0.12 * (seed % 3) if cell.fault else 0.0),
+                                role=cell.role, fault=cell.fault))
+    write_report([out], out)
+    doc = json.loads((out / "experiment.json").read_text())
+    rows = [r for r in doc["statistics"] if r["role"] == "fault"]
+    assert [(r["a"], r["b"]) for r in rows] == [
+        ("decentralized-n20", "decentralized-n20-f1"),
+        ("decentralized-n19", "decentralized-n20-f1")]
+    assert rows[0]["margin"] > 0 and "p_equiv" in rows[0]
+    assert rows[1]["what"] == "kill-robot:3@360, against 19 robots" and rows[1]["diff"] < 0
+    report = (out / "report.md").read_text()
+    assert "against a margin of ±" in report and "![tasks lost 1](fault_lost_1.png)" in report
