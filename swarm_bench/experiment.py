@@ -122,7 +122,8 @@ def build_parser() -> argparse.ArgumentParser:
         PROG, "Compare decentralized with centralized coordination on the same world, seeds "
         "and sizes (with ablations and faults): runs swarm-up for every cell, keeps one record "
         "per run and writes a report directory (Markdown, PNG and SVG figures, JSON). "
-        f"'{PROG} report DIR...' rebuilds the report from records without simulating.",
+        f"'{PROG} report DIR...' rebuilds the report from records without simulating; "
+        f"'{PROG} recheck DIR' runs one seed of every cell again at this commit.",
         "experiment", "runs", (20, 50, 100), 5,
         "runs per cell; run r uses seed S+r in every variant")
     p.set_defaults(duration=900.0)
@@ -467,6 +468,101 @@ def experiment(cfg: ExperimentConfig, argv: list[str]) -> int:
     return code
 
 
+def recheck_parser() -> argparse.ArgumentParser:
+    """The ``swarm-experiment recheck`` argument parser."""
+    p = cli.ArgumentParser(
+        prog=f"{PROG} recheck", allow_abbrev=False,
+        description="Run one seed of every cell of an experiment again at this checkout's "
+        "commit and compare its task times with the records' (the protocol's condition for "
+        "runs from several commits in one report); the re-runs go to DIR/recheck/ and the "
+        "report, rebuilt, says how many were identical.",
+        epilog="Exit codes: 0 every re-run identical, 1 some differ or failed, 2 bad input, "
+        "130 interrupted.")
+    p.add_argument("dir", type=Path, metavar="DIR", help="the experiment directory")
+    p.add_argument("--seed", type=cli.non_negative_int, default=None, metavar="S",
+                   help="the seed to run again (default: the plan's first)")
+    p.add_argument("--swarm-up", type=Path, default=None, metavar="PATH",
+                   help="the swarm-up executable (default: the one beside this Python)")
+    p.add_argument("--allow-dirty", action="store_true",
+                   help="run although a tracked file differs from the commit (its re-runs "
+                   "keep the diff's SHA-256)")
+    return p
+
+
+def recheck_main(argv: list[str]) -> int:
+    """``swarm-experiment recheck DIR``: one seed of every cell again, at this commit."""
+    import datetime
+
+    from swarm_bench.bench import (
+        BenchConfig,
+        BenchView,
+        _write_json,
+        git_commit,
+        machine_info,
+        run_swarm_up,
+        stop_on_signals,
+        swarm_up_path,
+    )
+    from swarm_bench.experiment_report import RECHECK, write_report
+
+    args = recheck_parser().parse_args(argv)
+    out = args.dir.expanduser().resolve()
+    if not (out / "plan.json").is_file():
+        raise InputError(f"DIR: '{args.dir}' holds no experiment (no plan.json)")
+    plan = plan_from_settings(json.loads((out / "plan.json").read_text())["settings"])
+    seed = plan.seed if args.seed is None else args.seed
+    git = git_commit()
+    if not args.allow_dirty and git.get("dirty"):
+        raise InputError("--allow-dirty: the working tree differs from its commit; commit the "
+                         "changes or give --allow-dirty")
+    swarm_up = swarm_up_path(args.swarm_up)
+    todo = []
+    for cell in plan.cells():
+        rec = load_record(record_path(out, cell.label, seed))
+        if rec is not None and rec.get("exit_code") == EXIT_OK:
+            todo.append((cell, rec))
+    if not todo:
+        raise InputError(f"--seed: no run of seed {seed} in '{args.dir}' ended well")
+    machine, failed = machine_info(), False
+    with stop_on_signals() as stop:
+        view = BenchView(tty=sys.stdout.isatty(), prog=f"{PROG} recheck")
+        view.say(f"{len(todo)} cells, seed {seed}, at commit {git.get('commit')}")
+        try:
+            for i, (cell, rec) in enumerate(todo, start=1):
+                if stop:
+                    break
+                view.say(f"re-run {i}/{len(todo)}: {cell.label}, seed {seed}")
+                fault = rec.get("fault_resolved") or cell.fault or None
+                bcfg = BenchConfig(sizes=(cell.size,), duration_s=plan.duration_s, runs=1,
+                                   world=plan.world, seed=seed, coordination=cell.mode,
+                                   processes=None, output=out / "unused.json",
+                                   plot=out / "unused.png", baseline=False,
+                                   run_dir=out / "recheck_runs" / f"{cell.label}-s{seed}",
+                                   swarm_up=swarm_up,
+                                   extra_args=variant_args(out, cell, fault))
+                bcfg.run_dir.mkdir(parents=True, exist_ok=True)
+                started = datetime.datetime.now().astimezone().isoformat(timespec="seconds")
+                run = run_swarm_up(bcfg, cell.size, 0, stop, view)
+                if run["interrupted"]:
+                    break
+                run["started"] = started
+                run["finished"] = datetime.datetime.now().astimezone().isoformat(
+                    timespec="seconds")
+                again = slim_record(run, cell, seed, git, machine)
+                again["recheck"] = True
+                (out / RECHECK).mkdir(exist_ok=True)
+                _write_json(out / RECHECK / f"{cell.label}-s{seed}.json", again)
+                same = (again["metrics"] or {}).get("task_times_s") == (
+                    rec.get("metrics") or {}).get("task_times_s")
+                failed |= not same
+                view.say(f"  task times {'identical' if same else 'DIFFER'}")
+        finally:
+            view.close()
+    summary = write_report([out], out)
+    print(f"{PROG} recheck: report: {summary['report']}", flush=True)
+    return 130 if stop else (1 if failed else EXIT_OK)
+
+
 def report_main(argv: list[str]) -> int:
     """``swarm-experiment report DIR...``: rebuild the report from records (exit 0 or 2)."""
     from swarm_bench.experiment_report import write_report
@@ -491,6 +587,8 @@ def main(argv: list[str] | None = None) -> int:
     args = list(sys.argv[1:] if argv is None else argv)
     if args[:1] == ["report"]:
         return run_cli(f"{PROG} report", lambda: report_main(args[1:]))
+    if args[:1] == ["recheck"]:
+        return run_cli(f"{PROG} recheck", lambda: recheck_main(args[1:]))
     return command_main(PROG, args, lambda a: validate(build_parser().parse_args(a)),
                         experiment)
 

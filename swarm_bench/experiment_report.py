@@ -147,6 +147,45 @@ def load_dirs(dirs: list[Path]) -> tuple[Plan, dict, list[dict]]:
     return plan, merged, [best[k] for k in sorted(best)]
 
 
+RECHECK = "recheck"
+"""The directory of an experiment's re-runs at one commit (``swarm-experiment recheck``)."""
+
+
+def load_rechecks(dirs: list[Path]) -> list[dict]:
+    """The re-run records of ``dirs`` (``DIR/recheck/*.json``, or a report's ``rechecks``),
+    by label and seed."""
+    out = {}
+    for d in dirs:
+        d = Path(d)
+        if (d / RECHECK).is_dir():
+            found = [load_record(p) for p in sorted((d / RECHECK).glob("*.json"))]
+        elif (d / "experiment.json").is_file():
+            found = json.loads((d / "experiment.json").read_text()).get("rechecks", [])
+        else:
+            found = []
+        for r in found:
+            if isinstance(r, dict) and "label" in r:
+                out[(r["label"], r["seed"])] = r
+    return [out[k] for k in sorted(out)]
+
+
+def recheck_table(records: list[dict], rechecks: list[dict]) -> list[dict]:
+    """Per re-run: its cell, seed, the record's commit, the re-run's, and whether the task
+    times (every robot's) are identical."""
+    by = {(r["label"], r["seed"]): r for r in records}
+    rows = []
+    for rr in rechecks:
+        rec = by.get((rr["label"], rr["seed"]))
+        if rec is None:
+            continue
+        a, b = rec.get("metrics") or {}, rr.get("metrics") or {}
+        same = (rr.get("exit_code") == EXIT_OK and a.get("task_times_s") == b.get("task_times_s")
+                and a.get("robot_task_times") == b.get("robot_task_times"))
+        rows.append({"label": rr["label"], "seed": rr["seed"], "commit": _commit_label(rec),
+                     "recheck_commit": _commit_label(rr), "identical": bool(same)})
+    return rows
+
+
 # ---------------------------------------------------------------------------------- summaries
 def cell_figures(plan: Plan, records: list[dict]) -> dict[str, dict[int, dict]]:
     """label -> seed -> :func:`run_figures` (runs that ended well only)."""
@@ -624,7 +663,23 @@ def _commit_label(record: dict) -> str:
     return f"{label} (dirty, diff sha256 {digest[:12]})" if digest else f"{label} (dirty)"
 
 
-def _header(plan: Plan, settings: dict, records: list[dict]) -> list[str]:
+def _provenance(commits: list[str], checks: list[dict]) -> list[str]:
+    """What the report says of runs from several commits (the protocol's provenance rule)."""
+    if checks:
+        same = [c for c in checks if c["identical"]]
+        at = ", ".join(sorted({f"`{c['recheck_commit']}`" for c in checks}))
+        differ = [f"{c['label']} seed {c['seed']}" for c in checks if not c["identical"]]
+        return [f"- re-run at {at}: one seed of {len(checks)} cells; task times identical to "
+                f"the records' in {len(same)} of {len(checks)}"
+                + (f" (they differ in {', '.join(differ)})" if differ else "")]
+    if len(commits) > 1:
+        return [f"- runs from {len(commits)} commits and no re-run check (`{PROG} recheck`): "
+                "the comparisons assume the commits between them change no simulated behaviour"]
+    return []
+
+
+def _header(plan: Plan, settings: dict, records: list[dict],
+            checks: list[dict] = ()) -> list[str]:
     commits = sorted({_commit_label(r) for r in records})
     machines = {}
     for r in records:
@@ -650,9 +705,14 @@ def _header(plan: Plan, settings: dict, records: list[dict]) -> list[str]:
                 if plan.ablations else " --no-ablations")
              + ("".join(f" --fault-spec {f}" for f in plan.faults) + f" --fault-size "
                 f"{plan.fault_size}" if plan.faults else " --no-faults")
+             + (f" --service-times {','.join(f'{t:g}' for t in plan.service_times)} "
+                f"--service-size {plan.service_size}" if plan.service_times else "")
+             + (f" --fault-runs {plan.fault_runs}" if plan.fault_runs is not None else "")
+             + (" --fault-n-minus-1" if plan.fault_n_minus_1 else "")
              + " --resume DIR --shard I/N",
              f"{PROG} report DIR [DIR ...]", "```", "",
              f"- commit(s) of the runs: {', '.join(f'`{c}`' for c in commits)}",
+             *_provenance(commits, list(checks)),
              f"- runs from {started} to {finished}"]
     for (cpu, cores, py, distro, rclpy, fastdds, plat), n in sorted(
             machines.items(), key=lambda kv: -kv[1]):
@@ -671,11 +731,11 @@ def _header(plan: Plan, settings: dict, records: list[dict]) -> list[str]:
 
 
 def build_report(plan: Plan, settings: dict, records: list[dict], summaries: list[dict],
-                 stats: list[dict], figures: dict[str, str]) -> str:
+                 stats: list[dict], figures: dict[str, str], checks: list[dict] = ()) -> str:
     """The Markdown of the report (deterministic in its inputs)."""
     world = Path(plan.world).stem
     lines = [f"# Decentralized vs centralized coordination: {world}", ""]
-    lines += _header(plan, settings, records)
+    lines += _header(plan, settings, records, checks)
     expected = len(plan.runs_in_order())
     ok = sum(s["runs_ok"] for s in summaries)
     repro = sum(s["reproducible_runs"] for s in summaries)
@@ -1103,6 +1163,8 @@ def write_report(dirs: list[Path], out: Path) -> dict:
         InputError: see :func:`load_dirs`.
     """
     plan, settings, records = load_dirs([Path(d) for d in dirs])
+    rechecks = load_rechecks([Path(d) for d in dirs])
+    checks = recheck_table(records, rechecks)
     figs = cell_figures(plan, records)
     summaries = summarize(plan, records, figs)
     stats = comparisons(plan, figs)
@@ -1136,11 +1198,12 @@ def write_report(dirs: list[Path], out: Path) -> dict:
                 figures[f"fault_lost_{k}"] = plot_cumulative_lost(
                     out, f"fault_lost_{k}", f["cumulative"], f["fault_s"],
                     f"tasks lost, {plan.fault_size} robots, faults: {f['spec']}: mean ± 95 %")
-    text = build_report(plan, settings, records, summaries, stats, figures) if summaries \
-        else f"# {PROG}: no runs yet\n"
+    text = build_report(plan, settings, records, summaries, stats, figures, checks) \
+        if summaries else f"# {PROG}: no runs yet\n"
     (out / "report.md").write_text(text)
     doc = {"experiment": PROG, "settings": settings, "records": records,
-           "summary": _rounded(summaries), "statistics": _rounded(stats), "figures": figures}
+           "summary": _rounded(summaries), "statistics": _rounded(stats), "figures": figures,
+           **({"rechecks": rechecks, "recheck_table": checks} if rechecks else {})}
     (out / "experiment.json").write_text(json.dumps(doc, indent=1, sort_keys=True,
                                                     default=str) + "\n")
     return {"report": out / "report.md", "records": len(records),

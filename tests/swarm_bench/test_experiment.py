@@ -574,6 +574,46 @@ def test_tiny_sweep_writes_the_report(tmp_path):
         assert (out / png.replace(".png", ".svg")).is_file()
         assert f"]({png})" in report
     assert "report:" in res.stdout
+    # one seed of every cell again at this commit: the same task times (reproducible runs)
+    res = subprocess.run([str(SWARM_EXPERIMENT), "recheck", str(out), "--allow-dirty"],
+                         capture_output=True, text=True, cwd=tmp_path, timeout=900)
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    assert len(list((out / "recheck").glob("*.json"))) == 3
+    report = (out / "report.md").read_text()
+    assert "one seed of 3 cells; task times identical to the records' in 3 of 3" in report
+
+
+def test_a_report_of_several_commits_says_whether_a_re_run_checked_them(tmp_path):
+    from swarm_bench.bench import _write_json
+    from swarm_bench.experiment_report import RECHECK, recheck_table, write_report
+
+    plan = write_fake_sweep(tmp_path / "a")
+    out = tmp_path / "a"
+    first = record_path(out, "decentralized-n20", 0)
+    rec = json.loads(first.read_text())
+    rec["commit"] = "def456"
+    _write_json(first, rec)
+    write_report([out], out)
+    assert "runs from 2 commits and no re-run check" in (out / "report.md").read_text()
+    (out / RECHECK).mkdir()
+    for cell in plan.cells():
+        again = json.loads(record_path(out, cell.label, 0).read_text())
+        again["commit"] = "fff000"
+        if cell.variant == "centralized-scheduler":
+            again["metrics"]["task_times_s"] = again["metrics"]["task_times_s"][1:]
+        _write_json(out / RECHECK / f"{cell.label}-s0.json", again)
+    write_report([out], out)
+    report = (out / "report.md").read_text()
+    assert ("re-run at `fff000`: one seed of 2 cells; task times identical to the records' "
+            "in 1 of 2 (they differ in centralized-scheduler-n20 seed 0)") in report
+    doc = json.loads((out / "experiment.json").read_text())
+    assert [r["identical"] for r in doc["recheck_table"]] == [False, True]
+    c = tmp_path / "c"
+    c.mkdir()
+    (c / "experiment.json").write_bytes((out / "experiment.json").read_bytes())
+    write_report([c], c)
+    assert (c / "report.md").read_bytes() == (out / "report.md").read_bytes()
+    assert recheck_table([], doc["rechecks"]) == []
 
 
 COMMITTED_WORLDS = sorted(
