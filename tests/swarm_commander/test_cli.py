@@ -288,13 +288,26 @@ def test_the_line_names_the_workstation_the_navigator_took_and_its_stop_is_skipp
     (tmp_path / "w.yaml").write_text(POI_YAML)
     stops = stops_from_workstations(load_poi(tmp_path / "w.yaml").workstations)
     take = {STATIONS["loader1"]: (2.0, 1.0, 1.5708), STATIONS["unload"]: (5.0, 5.0, 0.0)}
+    cfg = CommanderConfig(loops=2, wait_timeout=10.0)
+    runner, fake, lines = _run_route(context, ns, FixedRoute(stops), cfg, drive_time=0.1,
+                                     take_instead=take)
+    assert runner.finished.result() == 0
+    assert [(x, y) for _, x, y in fake.goals] == [STATIONS["loader1"], STATIONS["unload"]] * 2
+    assert (runner.tasks, runner.reached, runner.skipped) == (4, 4, 2)
+    tails = [re.sub(r" in \d+\.\d s \(wall\)", "", line.split(": ", 1)[1]) for line in lines]
+    assert tails == ["reached loader2, sent to loader1 (taken)",
+                     "reached (5.00, 5.00), sent to unload (taken)"] * 2
+
+
+def _run_route(context, ns, route, cfg, **fake_args):
+    """Run one CommanderRunner over ``route`` against a fake navigator until it finishes
+    (20 s wall at most); returns (runner, the fake navigator, the lines)."""
     lines: list[str] = []
     executor = SingleThreadedExecutor(context=context)
-    with running_fake_navigator(ns, context, drive_time=0.1, take_instead=take) as fake:
+    with running_fake_navigator(ns, context, **fake_args) as fake:
         nav = BasicNavigator(node_name="commander", namespace=ns, context=context,
                              parameter_overrides=[Parameter("use_sim_time", value=False)])
-        cfg = CommanderConfig(loops=2, wait_timeout=10.0)
-        runner = CommanderRunner(nav, FixedRoute(stops), cfg, emit=lines.append)
+        runner = CommanderRunner(nav, route, cfg, emit=lines.append)
         executor.add_node(nav)
         try:
             deadline = time.monotonic() + 20.0
@@ -304,12 +317,7 @@ def test_the_line_names_the_workstation_the_navigator_took_and_its_stop_is_skipp
         finally:
             executor.shutdown(timeout_sec=0)
             nav.destroy_node()
-    assert runner.finished.result() == 0
-    assert [(x, y) for _, x, y in fake.goals] == [STATIONS["loader1"], STATIONS["unload"]] * 2
-    assert (runner.tasks, runner.reached, runner.skipped) == (4, 4, 2)
-    tails = [re.sub(r" in \d+\.\d s \(wall\)", "", line.split(": ", 1)[1]) for line in lines]
-    assert tails == ["reached loader2, sent to loader1 (taken)",
-                     "reached (5.00, 5.00), sent to unload (taken)"] * 2
+    return runner, fake, lines
 
 
 def test_service_time_stamps_the_goal_after_an_arrival_that_much_later(context, tmp_path):
@@ -319,24 +327,9 @@ def test_service_time_stamps_the_goal_after_an_arrival_that_much_later(context, 
     ns = f"Tsvc{next(_COUNTER)}"
     (tmp_path / "w.yaml").write_text(POI_YAML)
     stops = stops_from_workstations(load_poi(tmp_path / "w.yaml").workstations)
-    lines: list[str] = []
-    executor = SingleThreadedExecutor(context=context)
-    step = 1_000_000  # 1 ms per status
-    with running_fake_navigator(ns, context, drive_time=0.1, abort_x=1.5,
-                                stamp_step_ns=step) as fake:
-        nav = BasicNavigator(node_name="commander", namespace=ns, context=context,
-                             parameter_overrides=[Parameter("use_sim_time", value=False)])
-        cfg = CommanderConfig(loops=2, wait_timeout=10.0, service_time=30.0)
-        runner = CommanderRunner(nav, FixedRoute(stops), cfg, emit=lines.append)
-        executor.add_node(nav)
-        try:
-            deadline = time.monotonic() + 20.0
-            while not runner.finished.done():
-                assert time.monotonic() < deadline, lines
-                executor.spin_once(timeout_sec=0.1)
-        finally:
-            executor.shutdown(timeout_sec=0)
-            nav.destroy_node()
+    cfg = CommanderConfig(loops=2, wait_timeout=10.0, service_time=30.0)
+    runner, fake, _ = _run_route(context, ns, FixedRoute(stops), cfg, drive_time=0.1,
+                                 abort_x=1.5, stamp_step_ns=1_000_000)  # 1 ms per status
     assert runner.finished.result() == 0
     assert (runner.tasks, runner.reached, runner.failed) == (6, 4, 2)
     stamps = [int(gid.replace(".", "")) for gid, _, _ in fake.goals]

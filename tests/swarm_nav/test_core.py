@@ -474,43 +474,20 @@ def test_a_starving_robot_is_held_back_by_congestion_no_more(occ, reached, held,
     assert (me.pose[1] < start[1] - 0.3) is not held_back  # drove on down the corridor
 
 
-@pytest.mark.parametrize(("patience", "held", "held_back"),
-                         [(0.0, 500.0, True), (120.0, 119.0, True), (120.0, 120.0, False)])
-def test_an_impatient_robot_is_held_back_by_congestion_no_more(occ, patience, held, held_back):
-    """``patience_time`` (off by default): the scene of the tests above, for a robot that has
-    reached goals before. Once it has held ``patience_time`` for its goal it presses on, as a
-    starving robot does; with the rule off, or before, it holds back."""
-    cfg = NavigatorConfig()
-    assert cfg.holding.patience_time == 0.0
-    cfg = dataclasses.replace(cfg, holding=dataclasses.replace(cfg.holding,
-                                                               patience_time=patience))
-    core = NavigatorCore(cfg, WAFFLE_FOOTPRINT)
-    core.set_map(occ)
-    start = np.array([-6.6, 6.6, -math.pi / 2])
-    core.step(start, 0.0, 0.0, 0.0)
-    core.set_goal(LOADER1, "g", 0.0)
-    core._holding.reached_goal, core._holding_time = True, held
-    me = SimRobot(core, start, log=[])
-    queue = [SimRobot(None, np.array([x, y, -math.pi / 2]))
-             for x, y in ((-6.7, 4.4), (-6.2, 3.7), (-7.2, 3.4))]
-    simulate([me, *queue], SLIM_BLOCKAGE_WALLS, 3.0, until_done=False)
-    assert (core.status.state == NavState.HOLDING) is held_back
-    assert (me.pose[1] < start[1] - 0.3) is not held_back
-
-
 QUEUE_OF_3 = ((-6.7, 4.4), (-6.2, 3.7), (-7.2, 3.4))  # the tests above
 QUEUE_OF_6 = ((-6.3, 5.7), (-7.1, 5.2), (-6.2, 4.8), (-7.0, 4.3), (-6.3, 3.9), (-7.2, 3.5))
 
 
-def _starving_robot_before_a_queue(occ, cfg, spots):
-    """A robot that has reached no goal and held 300 s, on its way down the corridor to loader1
-    (the tests above), with robots standing at ``spots``; after 3 s: its core and its pose."""
+def _starving_robot_before_a_queue(occ, cfg, spots, reached=False, held=300.0):
+    """A robot that has reached no goal (``reached``) and held 300 s (``held``), on its way down
+    the corridor to loader1 (the tests above), with robots standing at ``spots``; after 3 s:
+    its core and its pose."""
     core = NavigatorCore(cfg, WAFFLE_FOOTPRINT)
     core.set_map(occ)
     start = np.array([-6.6, 6.6, -math.pi / 2])
     core.step(start, 0.0, 0.0, 0.0)
     core.set_goal(LOADER1, "g", 0.0)
-    core._holding.reached_goal, core._holding_time = False, 300.0
+    core._holding.reached_goal, core._holding_time = reached, held
     me = SimRobot(core, start, log=[])
     queue = [SimRobot(None, np.array([x, y, -math.pi / 2])) for x, y in spots]
     simulate([me, *queue], SLIM_BLOCKAGE_WALLS, 3.0, until_done=False)
@@ -524,6 +501,21 @@ def test_a_starving_robot_is_held_back_by_a_long_queue(occ, spots, held_back):
     cfg = NavigatorConfig()
     assert cfg.holding.starvation_congestion_limit == 6
     core, pose = _starving_robot_before_a_queue(occ, cfg, spots)
+    assert (core.status.state == NavState.HOLDING) is held_back
+    assert (pose[1] < 6.6 - 0.3) is not held_back  # drove on down the corridor
+
+
+@pytest.mark.parametrize(("patience", "held", "held_back"),
+                         [(0.0, 500.0, True), (120.0, 119.0, True), (120.0, 120.0, False)])
+def test_an_impatient_robot_is_held_back_by_congestion_no_more(occ, patience, held, held_back):
+    """``patience_time`` (off by default): the scene of the tests above, for a robot that has
+    reached goals before. Once it has held ``patience_time`` for its goal it presses on past
+    a queue of 3, as a starving robot does; with the rule off, or before, it holds back."""
+    cfg = NavigatorConfig()
+    assert cfg.holding.patience_time == 0.0
+    cfg = dataclasses.replace(cfg, holding=dataclasses.replace(cfg.holding,
+                                                               patience_time=patience))
+    core, pose = _starving_robot_before_a_queue(occ, cfg, QUEUE_OF_3, reached=True, held=held)
     assert (core.status.state == NavState.HOLDING) is held_back
     assert (pose[1] < 6.6 - 0.3) is not held_back  # drove on down the corridor
 
