@@ -679,15 +679,17 @@ def test_robots_packed_body_to_body_in_the_open_escape_the_knot(occ, escape):
         assert sorted(left)[1] < 0.5, left  # two or more still in the knot
 
 
-@pytest.mark.parametrize("fixed", [True, False])
-def test_a_robot_waiting_for_the_next_workstation_is_no_queue_for_this_one(occ, fixed,
-                                                                          monkeypatch):
+@pytest.mark.parametrize(("fixed", "patience", "arrives"),
+                         [(True, 0.0, True), (False, 0.0, False), (False, 10.0, True)])
+def test_a_robot_waiting_for_the_next_workstation_is_no_queue_for_this_one(occ, fixed, patience,
+                                                                          arrives, monkeypatch):
     """Found in 30-minute shifts of 100 robots (16 robots without a task, every one sent to
     loader1, 2 or 3): loader4's holding spot is 1.115 m from loader3, within ``crowd_radius``
     and nearer than loader3's own spot (1.179 m). A robot waiting there for loader4 (taken)
     made loader3 "crowded" for the robot at loader3's spot, which then held on with loader3
     free. Robots on another workstation's spot no longer count (``holding.goal_crowded``'s
-    ``elsewhere``); counted (``fixed`` False), loader3 stays free and unreached."""
+    ``elsewhere``); counted (``fixed`` False), loader3 stays free and unreached, unless the
+    robot is impatient (``patience_time`` 10 s: it holds 10 s for the "queue", then goes in)."""
     if not fixed:
         monkeypatch.setattr(HoldingBehaviour, "_other_sites", lambda self, goal_xy: None)
     poi = poi_for_world(WORLDS / "slim_blockage.world")
@@ -699,8 +701,10 @@ def test_a_robot_waiting_for_the_next_workstation_is_no_queue_for_this_one(occ, 
             (ws["loader4"][0], None),                                           # on loader4
             (np.array([*ws["loader4"][1][0], math.pi / 2]), ws["loader4"][0]),  # waits for it
             (np.array([*ws["loader3"][1][0], math.pi / 2]), ws["loader3"][0])], start=1):
-        core = NavigatorCore(dataclasses.replace(NavigatorConfig(), robot_index=i),
-                             WAFFLE_FOOTPRINT, sites)
+        base = NavigatorConfig()
+        cfg = dataclasses.replace(base, robot_index=i, holding=dataclasses.replace(
+            base.holding, patience_time=patience))
+        core = NavigatorCore(cfg, WAFFLE_FOOTPRINT, sites)
         core.set_map(occ)
         core.step(pose, 0.0, 0.0, 0.0)
         if goal is not None:
@@ -711,37 +715,8 @@ def test_a_robot_waiting_for_the_next_workstation_is_no_queue_for_this_one(occ, 
     waiting, third = robots[1], robots[2]
     assert waiting.core.status.state == NavState.HOLDING  # loader4 stays taken
     assert np.hypot(*(waiting.pose[:2] - ws["loader4"][1][0])) < 0.4
-    if fixed:
+    if arrives:
         assert_arrived(third, ws["loader3"][0])
     else:
         assert third.core.status.state == NavState.HOLDING
         assert np.hypot(*(third.pose[:2] - ws["loader3"][1][0])) < 0.4
-
-
-def test_an_impatient_robot_no_longer_holds_for_the_crowd_rule(occ, monkeypatch):
-    """The scene of the test above with the crowd rule fooled (``elsewhere`` off), so that the
-    robot at loader3's spot takes the robot waiting for loader4 for a queue at loader3: with
-    ``patience_time`` 10 s it holds 10 s, then goes in."""
-    monkeypatch.setattr(HoldingBehaviour, "_other_sites", lambda self, goal_xy: None)
-    poi = poi_for_world(WORLDS / "slim_blockage.world")
-    sites = holding_sites_from_poi(poi)
-    ws = {w.name: (np.asarray(w.pose, dtype=float), np.asarray(w.holding, dtype=float))
-          for w in poi.workstations}
-    base = NavigatorConfig()
-    cfg = dataclasses.replace(base, holding=dataclasses.replace(base.holding,
-                                                                patience_time=10.0))
-    robots = []
-    for i, (pose, goal) in enumerate([
-            (ws["loader4"][0], None),
-            (np.array([*ws["loader4"][1][0], math.pi / 2]), ws["loader4"][0]),
-            (np.array([*ws["loader3"][1][0], math.pi / 2]), ws["loader3"][0])], start=1):
-        core = NavigatorCore(dataclasses.replace(cfg, robot_index=i), WAFFLE_FOOTPRINT, sites)
-        core.set_map(occ)
-        core.step(pose, 0.0, 0.0, 0.0)
-        if goal is not None:
-            core.set_goal(goal, f"g{i}", 0.0)
-        robots.append(SimRobot(core, pose.copy(), log=None))
-    res = simulate(robots, SLIM_BLOCKAGE_WALLS, 60.0, until_done=False)
-    assert res["contact_ticks"] == 0 and res["min_separation"] > 0.02
-    assert robots[1].core.status.state == NavState.HOLDING  # loader4 stays taken
-    assert_arrived(robots[2], ws["loader3"][0])
