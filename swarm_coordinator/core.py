@@ -148,10 +148,15 @@ SILENCE_TIMEOUT_S = 600.0
 """[s] simulated: a robot that holds a workstation this long without a word has died. Five times
 the longest time to task of a run at 100 robots on slim_blockage (decentralized p95 109 s, 120 s
 run), so a robot stuck in traffic keeps its reservation."""
-ETA_SPEED = 0.2
-"""[m/s] pipelined: the speed of an ETA (see :class:`CoordinatorConfig`)."""
-DOCK_CLEAR_S = 5.0
-"""[s] simulated, pipelined: a window's length beyond the service."""
+ETA_SPEED = 0.4
+"""[m/s] pipelined: the speed of an ETA (see :class:`CoordinatorConfig`). Tuned with
+:data:`DOCK_CLEAR_S` on slim_blockage, 50 robots, ``--queue-at holding``, 600 s, seeds 0 and 1,
+over 0.15 / 0.25 / 0.4 m/s x 2 / 8 s: the highest Jain's index among the settings within 5 % of
+the best throughput (docs/results/experiments.md, "Tuning the pipelined arm"). Faster than the
+robots drive: an ETA is an order of arrival more than a time."""
+DOCK_CLEAR_S = 2.0
+"""[s] simulated, pipelined: a window's length beyond the service (tuned with
+:data:`ETA_SPEED`)."""
 LEASE_S = 300.0
 """[s] simulated, pipelined: a window lapses this long after it began without a ``done``."""
 
