@@ -414,9 +414,9 @@ def _run(argv: list[str]) -> int:
             # context down while a callback was publishing, rcl: "publisher's context is
             # invalid") ends quietly
             if runner is not None:
-                runner.stop()
-                if runner.started:
+                if runner.started:  # first: stopping after a Ctrl-C may raise (context gone)
                     _emit(runner.summary())
+                runner.stop()
             executor.shutdown(timeout_sec=0)
     if runner is not None and runner.error:
         print(f"{PROG}: error: {runner.error}", file=sys.stderr)

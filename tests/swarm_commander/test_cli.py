@@ -223,12 +223,15 @@ def test_ctrl_c_prints_a_summary_and_exits_cleanly(context, ns, world):
             first = lines.get(timeout=20.0)
             assert REACHED.match(first.rstrip("\n")), first
             proc.send_signal(signal.SIGINT)
-            proc.wait(timeout=5.0)
+            proc.wait(timeout=60.0)
         finally:
             if proc.poll() is None:
                 proc.kill()
                 proc.wait()
-        reader.join(timeout=5.0)
+        # the process has ended: its stdout reaches EOF and the reader ends, however loaded the
+        # machine (a 5 s join lost the summary line once, a CI run beside a 100-robot sweep)
+        reader.join(timeout=120.0)
+        assert not reader.is_alive()
         stderr = proc.stderr.read()
         proc.stdout.close()
         proc.stderr.close()
