@@ -677,11 +677,14 @@ class CoordinatorCore:
         w, eta, start = self.choose_window(ns, name, t)
         rob.workstation, rob.eta_ns = w, eta
         self.bookings[w].append(ns)
+        if self.cfg.queue_at == QUEUE_AT_HOLDING:  # the navigators queue: no line to wait in
+            self._dispatch(ns, rob, t, reply_to, out)
+            return
         line = [r for _, _, r in self.windows(w)]
         ahead = line[:line.index(ns)]
         # no overtaking a robot in line that is past its ETA: where it is, nobody knows
         late = any(self.robots[r].eta_ns <= t for r in ahead)
-        if not ahead or (start <= eta and not late) or self.cfg.queue_at == QUEUE_AT_HOLDING:
+        if not ahead or (start <= eta and not late):
             self._dispatch(ns, rob, t, reply_to, out)
             return
         rob.dispatched = False
