@@ -6,6 +6,7 @@
                      [--world slim_blockage] [--variants V,V] [--ablations V,V | --no-ablations]
                      [--ablation-size N] [--fault-spec SPEC ... | --no-faults] [--fault-size N]
                      [--warmup 300] [--output DIR | --resume DIR] [--shard I/N]
+                     [--only BLOCK,BLOCK]
                      [--processes per-robot|K] [--swarm-up PATH]
     swarm-experiment report DIR [DIR ...] [--output DIR]
 
@@ -25,8 +26,9 @@ Each run is ``swarm-up --swarm-size N --world W --seed S --commanders --rtf 0 --
 --coordination M [overrides] [--faults SPEC]`` (:func:`swarm_bench.bench.run_swarm_up`), and its
 record goes to ``DIR/records/<cell>-s<seed>.json`` as soon as it ends (``DIR/plan.json`` holds the
 settings). ``--shard I/N`` runs the runs whose index in the plan's order is I-1 modulo N, so N
-machines (or N sittings) share a sweep; ``--resume DIR`` skips the runs DIR already holds
-(ended well). At the end, and by ``swarm-experiment report DIR...`` at any time, the report is
+machines (or N sittings) share a sweep; ``--only main:50,service`` runs only those blocks of
+the plan (the plan stays whole); ``--resume DIR`` skips the runs DIR already holds (ended well).
+At the end, and by ``swarm-experiment report DIR...`` at any time, the report is
 rebuilt from the records alone (:mod:`swarm_bench.experiment_report`): ``report.md``, figures
 (PNG and SVG) and ``experiment.json`` (the settings, every record, the summaries and the paired
 statistics), which ``report`` also reads back, so a committed report is rebuilt from its JSON.
@@ -104,6 +106,35 @@ def _service_times(text: str) -> tuple[float, ...]:
     return tuple(dict.fromkeys(out))
 
 
+BLOCKS = ("main", "ablation", "service", "fault")
+"""The kinds of :func:`_blocks`: a plan's cells by role (``main`` takes a size: ``main:50``)."""
+
+
+def _blocks(text: str) -> tuple[str, ...]:
+    out = []
+    for part in (p.strip() for p in text.split(",")):
+        kind, _, size = part.partition(":")
+        if kind not in BLOCKS or (size and (kind != "main" or not size.isdigit()
+                                            or int(size) < 1)):
+            raise argparse.ArgumentTypeError(
+                f"must be comma-separated blocks of {', '.join(BLOCKS)} (main:N for one size), "
+                f"e.g. main:50,service, got {part!r}")
+        out.append(part)
+    return tuple(dict.fromkeys(out))
+
+
+def in_blocks(cell: Cell, blocks: tuple[str, ...]) -> bool:
+    """Whether ``cell`` belongs to one of ``blocks`` (:func:`_blocks`; empty: every cell).
+
+    ``main`` is the main variants' no-fault cells at every size (``main:N`` at size N only),
+    ``ablation``, ``service`` and ``fault`` the cells of that role (the fault study's N-1 runs
+    among ``fault``)."""
+    if not blocks:
+        return True
+    return any(b == cell.role or (cell.role == "main" and b == f"main:{cell.size}")
+               for b in blocks)
+
+
 def _shard(text: str) -> tuple[int, int]:
     try:
         i, n = (int(x) for x in text.split("/"))
@@ -173,6 +204,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="run only slice I of N of the runs (run k of the plan's order when "
                    "k %% N == I-1); the slices of N machines or sittings merge with "
                    f"'{PROG} report' (default: 1/1)")
+    p.add_argument("--only", type=_blocks, default=(), metavar="BLOCK,BLOCK",
+                   help="run only the runs of these blocks of the plan: main (main:N for one "
+                   "size), ablation, service, fault; the plan stays whole, so a sitting takes "
+                   "the block it has time for and the others follow with --resume (default: "
+                   "every block)")
     p.add_argument("--swarm-up", type=Path, default=None, metavar="PATH",
                    help="the swarm-up executable (default: the one beside this Python)")
     p.add_argument("--allow-dirty", action="store_true",
@@ -204,6 +240,8 @@ class ExperimentConfig:
     output: Path
     resume: bool
     shard: tuple[int, int]
+    only: tuple[str, ...]
+    """Blocks of the plan to run (:func:`in_blocks`); empty: all."""
     processes: str | int | None
     swarm_up: Path
     git: dict
@@ -281,6 +319,7 @@ def validate(args: argparse.Namespace) -> ExperimentConfig:
                          "changes (every run from a clean commit) or give --allow-dirty")
     return ExperimentConfig(plan=plan, output=out.expanduser().resolve(),
                             resume=args.resume is not None, shard=args.shard,
+                            only=args.only,
                             processes=args.processes, swarm_up=swarm_up, git=git)
 
 
@@ -404,7 +443,7 @@ def experiment(cfg: ExperimentConfig, argv: list[str]) -> int:
     _write_json(out / "plan.json", {"experiment": PROG, "schema_version": SCHEMA_VERSION,
                                     "settings": plan.settings()})
     runs = [(k, c, s) for k, (c, s) in enumerate(plan.runs_in_order())
-            if k % cfg.shard[1] == cfg.shard[0] - 1]
+            if k % cfg.shard[1] == cfg.shard[0] - 1 and in_blocks(c, cfg.only)]
     todo = [(k, c, s) for k, c, s in runs
             if not cfg.resume or (load_record(record_path(out, c.label, s)) or {}).get(
                 "exit_code") != EXIT_OK]
@@ -413,7 +452,8 @@ def experiment(cfg: ExperimentConfig, argv: list[str]) -> int:
     with stop_on_signals() as stop:
         view = BenchView(tty=sys.stdout.isatty(), prog=PROG)
         view.say(f"{len(plan.cells())} cells x {plan.runs} runs = {len(plan.runs_in_order())} "
-                 f"runs of {plan.duration_s:g} simulated s; shard {cfg.shard[0]}/{cfg.shard[1]}: "
+                 f"runs of {plan.duration_s:g} simulated s; shard {cfg.shard[0]}/{cfg.shard[1]}"
+                 f"{', blocks ' + ','.join(cfg.only) if cfg.only else ''}: "
                  f"{len(runs)} runs, {len(runs) - len(todo)} already done; records in "
                  f"{out / RECORDS}")
         view.say(f"estimate: about {estimate_wall_s(plan, [c for _, c, _ in todo]) / 3600:.1f} "
@@ -481,6 +521,9 @@ def recheck_parser() -> argparse.ArgumentParser:
     p.add_argument("dir", type=Path, metavar="DIR", help="the experiment directory")
     p.add_argument("--seed", type=cli.non_negative_int, default=None, metavar="S",
                    help="the seed to run again (default: the plan's first)")
+    p.add_argument("--only", type=_blocks, default=(), metavar="BLOCK,BLOCK",
+                   help="re-run only the cells of these blocks: main (main:N for one size), "
+                   "ablation, service, fault (default: every block)")
     p.add_argument("--swarm-up", type=Path, default=None, metavar="PATH",
                    help="the swarm-up executable (default: the one beside this Python)")
     p.add_argument("--allow-dirty", action="store_true",
@@ -517,7 +560,7 @@ def recheck_main(argv: list[str]) -> int:
                          "changes or give --allow-dirty")
     swarm_up = swarm_up_path(args.swarm_up)
     todo = []
-    for cell in plan.cells():
+    for cell in (c for c in plan.cells() if in_blocks(c, args.only)):
         rec = load_record(record_path(out, cell.label, seed))
         if rec is not None and rec.get("exit_code") == EXIT_OK:
             todo.append((cell, rec))

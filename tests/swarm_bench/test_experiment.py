@@ -485,6 +485,39 @@ def test_resume_skips_the_runs_it_has_and_runs_only_its_shard(tmp_path, monkeypa
     assert [(n, seed) for n, seed, _, _ in ran] == expected
 
 
+def test_only_runs_the_blocks_named_and_keeps_the_plan_whole(tmp_path, monkeypatch):
+    import swarm_bench.bench as bench
+    from swarm_bench import experiment
+
+    ran = []
+
+    def fake_run(bcfg, n, r, stop, view):
+        ran.append((n, bcfg.seed, bcfg.extra_args))
+        return {**fake_record("?", "?", bcfg.coordination, n, bcfg.seed, 2.0),
+                "interrupted": False}
+
+    monkeypatch.setattr(bench, "run_swarm_up", fake_run)
+    base = ["--sizes", "20,50", "--runs", "2", "--no-faults", "--no-ablations",
+            "--service-times", "60"]
+    out = tmp_path / "x"
+    argv = ["--output", str(out), *base, "--only", "main:50,service"]
+    cfg = validate(build_parser().parse_args(argv))
+    assert experiment.experiment(cfg, argv) == 0  # every run of its blocks ended well
+    # 2 variants x 2 seeds at 50 robots, then the same with a service time of 60 s
+    assert [n for n, _, _ in ran] == [50] * 8
+    assert sum("--service-time" in a for _, _, a in ran) == 4
+    assert not any(n == 20 for n, _, _ in ran)
+    # the other block follows with --resume under the same plan
+    ran.clear()
+    argv = ["--resume", str(out), *base]
+    assert experiment.experiment(validate(build_parser().parse_args(argv)), argv) == 0
+    assert [n for n, _, _ in ran] == [20] * 4
+    res = subprocess.run([str(SWARM_EXPERIMENT), "--output", str(tmp_path / "z"),
+                          "--only", "main:x"], capture_output=True, text=True, timeout=60)
+    assert res.returncode == 2 and "--only" in res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1
+
+
 def test_resume_with_another_plan_is_refused(tmp_path):
     out = tmp_path / "x"
     write_fake_sweep(out)
