@@ -9,6 +9,8 @@
                      [--only BLOCK,BLOCK]
                      [--processes per-robot|K] [--swarm-up PATH]
     swarm-experiment report DIR [DIR ...] [--output DIR]
+    swarm-experiment recheck DIR [--seed S] [--only BLOCK,BLOCK]
+    swarm-experiment table DIR [DIR ...] [--output FILE]
 
 A *variant* is a coordination mode plus a recorded set of overrides (:data:`VARIANTS`): flags of
 ``swarm-up`` (the coordinator's policy) and navigator parameters (written into a copy of
@@ -154,7 +156,8 @@ def build_parser() -> argparse.ArgumentParser:
         "and sizes (with ablations and faults): runs swarm-up for every cell, keeps one record "
         "per run and writes a report directory (Markdown, PNG and SVG figures, JSON). "
         f"'{PROG} report DIR...' rebuilds the report from records without simulating; "
-        f"'{PROG} recheck DIR' runs one seed of every cell again at this commit.",
+        f"'{PROG} recheck DIR' runs one seed of every cell again at this commit; "
+        f"'{PROG} table DIR...' prints the headline table of reports.",
         "experiment", "runs", (20, 50, 100), 5,
         "runs per cell; run r uses seed S+r in every variant")
     p.set_defaults(duration=900.0)
@@ -622,6 +625,38 @@ def report_main(argv: list[str]) -> int:
     return EXIT_OK
 
 
+def table_parser() -> argparse.ArgumentParser:
+    """The ``swarm-experiment table`` argument parser."""
+    p = cli.ArgumentParser(
+        prog=f"{PROG} table", allow_abbrev=False,
+        description="Print the headline table of one or more experiment reports (Markdown): "
+        "one row per arm, world, swarm size and service time, with throughput, Jain's index "
+        "and the robots without a task (mean ± 95 %% interval) and each arm's paired "
+        "difference from decentralized with its Holm-corrected p, read from each DIR's "
+        "experiment.json alone.",
+        epilog="Exit codes: 0 written, 2 bad input (a DIR without a report).")
+    p.add_argument("dirs", type=Path, nargs="+", metavar="DIR",
+                   help="report directories (each with its experiment.json)")
+    p.add_argument("--output", type=Path, default=None, metavar="FILE",
+                   help="write the table to FILE (default: print it)")
+    return p
+
+
+def table_main(argv: list[str]) -> int:
+    """``swarm-experiment table DIR...``: the headline table (exit 0 or 2)."""
+    from swarm_bench.experiment_table import headline
+
+    args = table_parser().parse_args(argv)
+    text = headline(args.dirs)
+    if args.output is None:
+        print(text, end="", flush=True)
+    else:
+        if not args.output.expanduser().resolve().parent.is_dir():
+            raise InputError(f"--output: directory '{args.output.parent}' does not exist")
+        args.output.write_text(text)
+    return EXIT_OK
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``swarm-experiment``; returns the exit code (0, 1, 2 or 130)."""
     from swarm_bench.bench import command_main
@@ -630,6 +665,8 @@ def main(argv: list[str] | None = None) -> int:
     args = list(sys.argv[1:] if argv is None else argv)
     if args[:1] == ["report"]:
         return run_cli(f"{PROG} report", lambda: report_main(args[1:]))
+    if args[:1] == ["table"]:
+        return run_cli(f"{PROG} table", lambda: table_main(args[1:]))
     if args[:1] == ["recheck"]:
         return run_cli(f"{PROG} recheck", lambda: recheck_main(args[1:]))
     return command_main(PROG, args, lambda a: validate(build_parser().parse_args(a)),

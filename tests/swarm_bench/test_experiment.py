@@ -738,6 +738,24 @@ def test_a_service_time_sweep_of_three_arms_is_planned_run_and_tested(tmp_path):
     write_report([c], c)
     for name in ("report.md", "experiment.json", "service_time.png", "service_time.svg"):
         assert (out / name).read_bytes() == (c / name).read_bytes(), name
+    # the headline table reads the same figures back: one row per arm and service time
+    res = subprocess.run([str(SWARM_EXPERIMENT), "table", str(c)], capture_output=True,
+                         text=True, timeout=60)
+    assert res.returncode == 0, res.stderr
+    rows = [line.split(" | ") for line in res.stdout.splitlines()
+            if line.startswith("| ") and "robots" not in line]
+    assert [(r[2], r[3]) for r in rows] == [
+        (t, v) for t in ("0", "15", "60") for v in arms.split(",")]
+    pipelined60 = next(r for r in rows if r[2] == "60" and r[3] == "centralized-pipelined")
+    summary = next(s for s in doc["summary"] if s["label"] == "centralized-pipelined-n20-w60")
+    assert pipelined60[5] == (f"{summary['throughput']['mean']:.0f} ± "
+                              f"{summary['throughput']['ci95']:.0f}")
+    assert pipelined60[6] == (f"{row['diff']:.0f} ± {row['ci95']:.0f}, "
+                              f"{row['p_holm']:.3f} (5)")
+    assert rows[0][6] == "-"  # the reference is not compared with itself
+    bad = subprocess.run([str(SWARM_EXPERIMENT), "table", str(tmp_path)], capture_output=True,
+                         text=True, timeout=60)
+    assert bad.returncode == 2 and "DIR" in bad.stderr and "Traceback" not in bad.stderr
 
 
 def test_a_placed_victim_is_read_off_the_no_fault_run_of_the_same_seed(tmp_path):
