@@ -246,7 +246,7 @@ METRICS_KEPT = (
     "min_separation_m", "holding_time_s", "late_ticks", "goal_wait_timeouts", "late_goals",
     "reproducible", "coordinator_wait_s", "reservation_conflicts", "coordinator_starts",
     "cpu_percent", "peak_rss_mb_per_robot", "restarts", "faults", "fault_log", "ended_by",
-    "service_time_s", "waiting_s", "waiting_per_task_s")
+    "service_time_s", "waiting_s", "waiting_per_task_s", "coordinator_lapses")
 """The metrics a record keeps (``metrics.json`` has more: per-robot details, tables)."""
 
 

@@ -1091,6 +1091,11 @@ def _fault_section(plan: Plan, summaries: list[dict], figures: dict,
             if placed.get(s["label"]):
                 lines.append("  (the victims, placed from the no-fault run: " + "; ".join(
                     f"seed {seed} `{spec}`" for seed, spec in sorted(placed[s["label"]])) + ")")
+            noticed = detections(plan, s["label"], records)
+            if noticed:
+                lines.append("  the coordinator noticed the victim (its `coordinator_lapses`, "
+                             "after the fault): " + "; ".join(
+                                 f"seed {seed} {text}" for seed, text in noticed))
         if f"fault_{k}" in figures:
             lines += ["", f"![fault {k}]({figures[f'fault_{k}']})"]
         if f"fault_lost_{k}" in figures:
@@ -1107,6 +1112,44 @@ def _fault_section(plan: Plan, summaries: list[dict], figures: dict,
     return lines + _stats_table(
         stats, "fault", "Paired tests of the faults (A: without the fault, or the first mode's "
         "tasks lost; B: with it, or the second mode's)", None)
+
+
+def detections(plan: Plan, label: str, records: list[dict]) -> list[tuple[int, str]]:
+    """How long the coordinator took to notice each killed robot of a faulted cell's runs.
+
+    For every run of ``label`` (a centralized fault cell) whose record keeps
+    ``coordinator_lapses`` (``metrics.json``): per ``kill-robot`` victim of its fault (the placed
+    one where ``fault_resolved`` says so), the first lapse of that robot at or after the kill,
+    as ``"<robot>: <s> s (<reason>)"`` [s simulated after the kill], or ``"<robot>: not within
+    the run"`` (a robot that held no workstation, or whose lease had not run out by the end).
+
+    Returns:
+        ``(seed, text)`` in order of seed; empty for decentralized cells and records without
+        the key.
+    """
+    from swarm_common.faults import KILL_ROBOT, parse_faults
+
+    out = []
+    for r in sorted((r for r in records if r.get("label") == label
+                     and r.get("exit_code") == EXIT_OK), key=lambda r: r["seed"]):
+        lapses = (r.get("metrics") or {}).get("coordinator_lapses")
+        spec = r.get("fault_resolved") or r.get("fault")
+        if lapses is None or not spec:
+            continue
+        robots = tuple(f"Srobot{i}" for i in range(1, int(r["size"]) + 1))
+        try:
+            faults = parse_faults(spec, robots)
+        except InputError:
+            continue
+        texts = []
+        for f in (f for f in faults if f.kind == KILL_ROBOT):
+            hit = next((e for e in lapses if e.get("robot") == f.robot
+                        and float(e.get("t_s", -1.0)) >= f.at), None)
+            texts.append(f"{f.robot}: not within the run" if hit is None else
+                         f"{f.robot}: {float(hit['t_s']) - f.at:.1f} s ({hit.get('reason')})")
+        if texts:
+            out.append((int(r["seed"]), ", ".join(texts)))
+    return out
 
 
 def _fault_effects(plan: Plan, summaries: list[dict], figs: dict) -> dict[int, dict]:

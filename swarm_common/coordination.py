@@ -40,6 +40,11 @@ ASSIGNMENT_KINDS = ("go", "wait", "ack")
 EVENT_RESERVATION = "reservation"
 EVENT_TASK = "task"
 EVENT_COORDINATOR = "coordinator"
+EVENT_LAPSE = "lapse"
+LAPSE_REASONS = ("lease", "silence", "dead")
+"""Why a robot lost its workstation (:data:`EVENT_LAPSE`): its window's ``lease`` ran out
+(pipelined), it held the workstation in ``silence`` too long (reserve), or the supervisor said
+it is ``dead`` (reserve: a ``kill-robot`` fault)."""
 
 
 class ContractError(ValueError):
@@ -130,12 +135,14 @@ class CoordinatorEvent:
     """One reservation or task event, as it goes onto ``/swarm/events``.
 
     Attributes:
-        kind: ``reservation`` | ``task`` | ``coordinator``.
+        kind: ``reservation`` | ``task`` | ``coordinator`` | ``lapse``.
         robot: namespace without ``/`` ("" for ``coordinator``).
         t_ns: [ns] simulated time the event takes effect.
         fields: the kind's own values, strings: ``reservation``: ``action`` (``reserve`` |
             ``release``), ``resource``; ``task``: ``workstation``, ``t_start``, ``duration_s``;
-            ``coordinator``: ``state`` (``up``).
+            ``coordinator``: ``state`` (``up``); ``lapse`` (the coordinator took a robot's
+            workstation from it: how it noticed a robot that died or fell silent):
+            ``workstation``, ``reason`` (:data:`LAPSE_REASONS`).
         epoch: the coordinator's run id.
     """
 
@@ -156,6 +163,9 @@ class CoordinatorEvent:
             return f"{self.robot} {self.fields.get('action')} {self.fields.get('resource')}"
         if self.kind == EVENT_TASK:
             return f"{self.robot} reached {self.fields.get('workstation')}"
+        if self.kind == EVENT_LAPSE:
+            return (f"{self.robot} lost {self.fields.get('workstation')} "
+                    f"({self.fields.get('reason')})")
         return f"coordinator {self.fields.get('state', '')}"
 
 

@@ -29,13 +29,19 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
-from swarm_common.coordination import EVENT_COORDINATOR, EVENT_RESERVATION, EVENT_TASK
+from swarm_common.coordination import (
+    EVENT_COORDINATOR,
+    EVENT_LAPSE,
+    EVENT_RESERVATION,
+    EVENT_TASK,
+)
 from swarm_common.faults import EVENT_NAME as FAULT
 
 SPAWN = "spawn"
 COLLISION = "collision"
 LATE = "late"
-KINDS = (SPAWN, COLLISION, LATE, FAULT, EVENT_RESERVATION, EVENT_TASK, EVENT_COORDINATOR)
+KINDS = (SPAWN, COLLISION, LATE, FAULT, EVENT_RESERVATION, EVENT_TASK, EVENT_COORDINATOR,
+         EVENT_LAPSE)
 """Every event kind, i.e. every status ``name`` on ``/swarm/events``."""
 
 ROBOT_ROBOT, ROBOT_WALL = "robot_robot", "robot_wall"

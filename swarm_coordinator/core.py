@@ -98,6 +98,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from swarm_common.coordination import (
+    EVENT_LAPSE,
     EVENT_RESERVATION,
     EVENT_TASK,
     Assignment,
@@ -748,6 +749,8 @@ class CoordinatorCore:
                 booked.remove(ns)
                 rob.lapsed, rob.workstation = name, ""
                 self.expired += 1
+                out.events.append(CoordinatorEvent(EVENT_LAPSE, ns, t, {
+                    "workstation": name, "reason": "lease"}, self.epoch))
                 lapsed = True
             if lapsed:
                 self._dispatch_head(name, t, out)
@@ -769,6 +772,9 @@ class CoordinatorCore:
             if not (dead or silent):
                 continue
             rob.dead = dead
+            out.events.append(CoordinatorEvent(EVENT_LAPSE, ns, t, {
+                "workstation": rob.workstation, "reason": "dead" if dead else "silence"},
+                self.epoch))
             if rob.workstation:
                 self.expired += 1
                 rob.lapsed = rob.workstation

@@ -85,6 +85,9 @@ Definitions (``docs/ARCHITECTURE.md``, ``/<ns>/nav_status``):
   it took effect. Zero in a reproducible run; counted in *reproducible*.
 - *reservation conflicts*: the :func:`swarm_common.coordination.check_reservations` violations
   in the coordinator's events (a resource reserved while another robot held it); must be 0.
+- *coordinator lapses*: the coordinator's ``lapse`` events (centralized; how it noticed a robot
+  that died or fell silent): robot, simulated time [s], the workstation it lost, and why
+  (``lease``, ``silence``, ``dead``: :data:`swarm_common.coordination.LAPSE_REASONS`).
 - *communication load* (``comm``): the messages, and their serialized (CDR) bytes, that cross
   between a robot and a central node: the coordinator's three topics (every request, every
   assignment, one ``state`` copy per robot per coordinator start) and the map distribution
@@ -107,6 +110,7 @@ from pathlib import Path
 
 from swarm_common.coordination import (
     EVENT_COORDINATOR,
+    EVENT_LAPSE,
     EVENT_RESERVATION,
     EVENT_TASK,
     check_reservations,
@@ -192,6 +196,7 @@ class RunRecorder:
     spawn_events: int = 0
     period_s: float = 0.1  # [s] the control tick (late goals)
     reservation_events: list[dict[str, str]] = field(default_factory=list)
+    lapse_events: list[dict[str, str]] = field(default_factory=list)  # the coordinator's lapses
     coordinator_epochs: set[str] = field(default_factory=set)  # one per coordinator start
     # epochs whose "up" event came: that coordinator has synced and answers requests
     coordinator_serving: set[str] = field(default_factory=set)
@@ -306,6 +311,8 @@ class RunRecorder:
                 self.fault_log.append(injected)
         elif kind == EVENT_RESERVATION:
             self.reservation_events.append(dict(values))
+        elif kind == EVENT_LAPSE:
+            self.lapse_events.append(dict(values))
         elif kind == EVENT_TASK:
             t, start = parse_stamp(values.get("t", "")), parse_stamp(values.get("t_start", ""))
             if rec is not None and t is not None and start is not None:
@@ -833,13 +840,22 @@ class FaultFigures:
 
 def _coordination_fields(recorder: RunRecorder, centralized: bool,
                          sim_time_s: float | None) -> dict:
-    """``coordinator_wait_s`` .. ``coordinator_starts`` of ``metrics.json``."""
+    """``coordinator_wait_s`` .. ``coordinator_lapses`` of ``metrics.json``."""
     events = recorder.reservation_events
+    lapses = []
+    for e in recorder.lapse_events:
+        t = parse_stamp(e.get("t", ""))
+        if t is not None:
+            lapses.append({"robot": e.get("robot", ""), "t_s": round(t / NS_PER_S, 3),
+                           "workstation": e.get("workstation", ""),
+                           "reason": e.get("reason", "")})
+    lapses.sort(key=lambda d: (d["t_s"], d["robot"]))
     return {
         "coordinator_wait_s": _spot_wait_s(events, sim_time_s) if centralized else None,
         "reservation_events": len(events),
         "reservation_conflicts": len(check_reservations(events)) if centralized else None,
         "coordinator_starts": recorder.coordinator_starts,
+        "coordinator_lapses": lapses if centralized else None,
     }
 
 

@@ -920,3 +920,39 @@ def test_the_fault_report_compares_with_n_minus_1_and_tests_equivalence(tmp_path
     assert rows[1]["what"] == "kill-robot:3@360, against 19 robots" and rows[1]["diff"] < 0
     report = (out / "report.md").read_text()
     assert "against a margin of ±" in report and "![tasks lost 1](fault_lost_1.png)" in report
+
+
+def test_the_report_says_when_the_coordinator_noticed_the_victim(tmp_path):
+    """``coordinator_lapses`` of a centralized fault run: the victim's first lapse at or after
+    the kill, in simulated seconds after it (another robot's lapse, and the victim's before
+    the kill, do not count); a victim never noticed says so; decentralized runs say nothing."""
+    from swarm_bench.bench import _write_json
+    from swarm_bench.experiment_report import detections, write_report
+
+    argv = ["--output", str(tmp_path / "a"), "--sizes", "20", "--no-ablations",
+            "--fault-size", "20", "--fault-spec", "kill-robot:@approach@360",
+            "--variants", "decentralized,centralized-pipelined", "--runs", "2"]
+    plan = validate(build_parser().parse_args(argv)).plan
+    out = tmp_path / "a"
+    (out / "records").mkdir(parents=True)
+    _write_json(out / "plan.json", {"settings": plan.settings()})
+    lapses = {0: [{"robot": "Srobot5", "t_s": 100.0, "workstation": "L1", "reason": "lease"},
+                  {"robot": "Srobot9", "t_s": 200.0, "workstation": "L2", "reason": "lease"},
+                  {"robot": "Srobot5", "t_s": 661.5, "workstation": "L1", "reason": "lease"}],
+              1: []}
+    for cell, seed in plan.runs_in_order():
+        rec = fake_record(cell.label, cell.variant, cell.mode, cell.size, seed, 3.0,
+                          role=cell.role, fault=cell.fault)
+        if cell.fault:
+            rec["fault_resolved"] = f"kill-robot:Srobot{5 + seed}@360"
+            if cell.mode == "centralized":
+                rec["metrics"]["coordinator_lapses"] = lapses[seed]
+        _write_json(record_path(out, cell.label, seed), rec)
+    write_report([out], out)
+    doc = json.loads((out / "experiment.json").read_text())
+    assert detections(plan, "centralized-pipelined-n20-f1", doc["records"]) == [
+        (0, "Srobot5: 301.5 s (lease)"), (1, "Srobot6: not within the run")]
+    assert detections(plan, "decentralized-n20-f1", doc["records"]) == []
+    report = (out / "report.md").read_text()
+    assert ("the coordinator noticed the victim (its `coordinator_lapses`, after the fault): "
+            "seed 0 Srobot5: 301.5 s (lease); seed 1 Srobot6: not within the run") in report

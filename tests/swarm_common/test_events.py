@@ -3,7 +3,12 @@ reader."""
 
 import pytest
 
-from swarm_common.coordination import EVENT_COORDINATOR, EVENT_RESERVATION, EVENT_TASK
+from swarm_common.coordination import (
+    EVENT_COORDINATOR,
+    EVENT_LAPSE,
+    EVENT_RESERVATION,
+    EVENT_TASK,
+)
 from swarm_common.events import (
     COLLISION,
     KINDS,
@@ -73,4 +78,4 @@ def test_decode_robot_event_dispatches_by_kind_and_strips_the_leading_slash():
 def test_every_kind_is_listed_once():
     assert len(set(KINDS)) == len(KINDS)
     assert {SPAWN, COLLISION, LATE, EVENT_NAME, EVENT_RESERVATION, EVENT_TASK,
-            EVENT_COORDINATOR} == set(KINDS)
+            EVENT_COORDINATOR, EVENT_LAPSE} == set(KINDS)

@@ -375,6 +375,10 @@ def test_a_dead_robot_loses_its_workstation_to_the_next_waiter():
     assert core.holder_of("workstation:loader1") == waiting[0]
     assert core.expired == 1
     assert check_reservations(reservations(first + events)) == []
+    # how it noticed: the supervisor's word, at the first batch after the death
+    lapses = [e.values() for e in events if e.kind == "lapse"]
+    assert [(v["robot"], v["workstation"], v["reason"], v["t"]) for v in lapses] == [
+        (holder, "loader1", "dead", "60.000000000")]
 
 
 def test_a_silent_robot_loses_its_workstation_after_the_timeout_and_its_task_still_counts():
@@ -480,8 +484,11 @@ def test_pipelined_never_reads_the_fault_schedule_a_silent_robot_loses_its_windo
     # r2 speaks at 30 s; r1, silent since its window began at 1 s, keeps it until 61 s
     core.handle([done("r2", "U1", 30 * T, seq=2)])
     assert [r for _, _, r in core.windows("L1")] == ["r1"]
-    out, _ = core.handle([ready("r3", t=62 * T)])
+    out, events = core.handle([ready("r3", t=62 * T)])
     assert core.expired == 1
+    # noticed by the lease: 61 s after its window began, at the first batch after that
+    assert [(e.robot, e.fields["workstation"], e.fields["reason"], e.t_ns)
+            for e in events if e.kind == "lapse"] == [("r1", "L1", "lease", 62 * T)]
     assert [r for _, _, r in core.windows("L1")] == ["r3"]
     assert (out[0].robot, out[0].kind, out[0].target) == ("r3", "go", "L1")
     # r1 gets there after all: its task counts

@@ -282,7 +282,9 @@ def test_centralized_tasks_waiting_conflicts_and_communication_load():
                            "t": "130.100000000", "epoch": "e"}),
           ("reservation", {"robot": "r1", "action": "reserve", "resource": "spot:B.0",
                            "t": "150.000000000", "epoch": "e"}),
-          ("coordinator", {"state": "up", "t": "0.000000000", "epoch": "e"})]
+          ("coordinator", {"state": "up", "t": "0.000000000", "epoch": "e"}),
+          ("lapse", {"robot": "r2", "workstation": "A", "reason": "lease",
+                     "t": "190.500000000", "epoch": "e"})]
     for kind, values in ev:
         rec.on_event(kind, values)
     rec.on_comm("request", "r1", 200)
@@ -305,6 +307,8 @@ def test_centralized_tasks_waiting_conflicts_and_communication_load():
     assert m["throughput_after_warmup_per_hour"] == pytest.approx(1 / (80 / 3600))
     assert m["coordinator_wait_s"] == pytest.approx(130.1 + 50.0)  # r1's spot open to the end
     assert m["reservation_conflicts"] == 0 and m["coordinator_starts"] == 1
+    assert m["coordinator_lapses"] == [{"robot": "r2", "t_s": 190.5, "workstation": "A",
+                                        "reason": "lease"}]
     c = m["comm"]
     assert (c["messages"], c["bytes"]) == (1 + 1 + 2 + 3, 200 + 220 + 120 + 3000)
     assert c["by_topic"]["map"] == {"messages": 3, "bytes": 3000, "messages_per_s": 0.015,
