@@ -17,8 +17,8 @@ A *variant* is a coordination mode plus a recorded set of overrides (:data:`VARI
 ``params/navigator.yaml`` passed with ``--nav-params``). Every cell is a (variant, size, fault)
 triple; every run of a cell is one seed, the same seeds in every variant:
 
-- the main variants (``--variants``, default decentralized and centralized-scheduler) at every
-  ``--sizes``;
+- the main variants (``--variants``, default decentralized, centralized-scheduler and
+  centralized-pipelined) at every ``--sizes``;
 - the ablations (``--ablations``) at ``--ablation-size``;
 - every ``--fault-spec`` (default :data:`DEFAULT_FAULTS`, after the warm-up) at ``--fault-size``
   in the main variants (a spec that kills the coordinator only in the centralized ones), with

@@ -76,7 +76,7 @@ VARIANTS = {v.name: v for v in (
             what="the route's workstation only, first come first served, queues parked in the "
             "hall (the coordinator before the scheduler)"),
 )}
-MAIN_VARIANTS = ("decentralized", "centralized-scheduler")
+MAIN_VARIANTS = ("decentralized", "centralized-scheduler", "centralized-pipelined")
 ABLATIONS = ("decentralized-no-swap", "centralized-fifo-hall", "centralized-scheduler-hall")
 
 

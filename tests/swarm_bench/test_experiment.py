@@ -32,6 +32,8 @@ from swarm_bench.experiment_stats import (
 from swarm_common.errors import InputError
 
 SWARM_EXPERIMENT = Path(sys.executable).parent / "swarm-experiment"
+TWO_ARMS = ("--variants", "decentralized,centralized-scheduler")
+"""The first two main arms: the mechanics tests keep to them (their fake rates name them)."""
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 
@@ -195,17 +197,20 @@ def test_defaults_cells_and_the_same_seeds_in_every_variant(tmp_path):
     plan = cfg.plan
     assert plan.sizes == (20, 50, 100) and plan.runs == 5 and plan.duration_s == 900.0
     assert plan.warmup_s == 300.0 and plan.ablation_size == 50 and plan.fault_size == 50
-    assert plan.variants == ("decentralized", "centralized-scheduler")
+    # the three main arms: decentralized, the Open-RMF-like scheduler, the pipelined one
+    assert plan.variants == ("decentralized", "centralized-scheduler", "centralized-pipelined")
     assert plan.faults == ("kill-robot:3@360", "kill-coordinator@360+30")
     labels = [c.label for c in plan.cells()]
-    assert labels[:2] == ["decentralized-n20", "centralized-scheduler-n20"]
-    assert labels[6:9] == ["decentralized-no-swap-n50", "centralized-fifo-hall-n50",
-                           "centralized-scheduler-hall-n50"]
+    assert labels[:3] == ["decentralized-n20", "centralized-scheduler-n20",
+                          "centralized-pipelined-n20"]
+    assert labels[9:12] == ["decentralized-no-swap-n50", "centralized-fifo-hall-n50",
+                            "centralized-scheduler-hall-n50"]
     # the coordinator's death runs only where there is a coordinator
-    assert labels[9:] == ["decentralized-n50-f1", "centralized-scheduler-n50-f1",
-                          "centralized-scheduler-n50-f2"]
+    assert labels[12:] == ["decentralized-n50-f1", "centralized-scheduler-n50-f1",
+                           "centralized-pipelined-n50-f1", "centralized-scheduler-n50-f2",
+                           "centralized-pipelined-n50-f2"]
     runs = plan.runs_in_order()
-    assert len(runs) == 12 * 5
+    assert len(runs) == 17 * 5
     seeds = {}
     for cell, seed in runs:
         seeds.setdefault(cell.label, []).append(seed)
@@ -213,7 +218,8 @@ def test_defaults_cells_and_the_same_seeds_in_every_variant(tmp_path):
     none = validate(build_parser().parse_args(["--output", str(tmp_path / "w"), "--no-faults",
                                                "--no-ablations", "--sizes", "5"]))
     assert [c.label for c in none.plan.cells()] == ["decentralized-n5",
-                                                    "centralized-scheduler-n5"]
+                                                    "centralized-scheduler-n5",
+                                                    "centralized-pipelined-n5"]
     assert plan_from_settings(plan.settings()) == plan
 
 
@@ -278,7 +284,7 @@ def write_fake_sweep(out, sizes=(20,), seeds=range(5), rates=None, missing=(),
                      ablations=False):
     from swarm_bench.bench import _write_json
 
-    argv = ["--output", str(out), "--sizes", ",".join(map(str, sizes)), "--no-faults",
+    argv = ["--output", str(out), *TWO_ARMS, "--sizes", ",".join(map(str, sizes)), "--no-faults",
             "--warmup", "300", *(["--ablation-size", str(sizes[0])] if ablations
                                  else ["--no-ablations"])]
     plan = validate(build_parser().parse_args(argv)).plan
@@ -404,7 +410,7 @@ def test_faults_are_tested_paired_per_mode_and_between_the_modes(tmp_path):
     from swarm_bench.experiment_report import write_report
 
     out = tmp_path / "a"
-    argv = ["--output", str(out), "--sizes", "20", "--no-ablations", "--fault-spec",
+    argv = ["--output", str(out), *TWO_ARMS, "--sizes", "20", "--no-ablations", "--fault-spec",
             "kill-robot:3@360", "--fault-size", "20", "--warmup", "300"]
     plan = validate(build_parser().parse_args(argv)).plan
     (out / "records").mkdir(parents=True)
@@ -469,7 +475,7 @@ def test_resume_skips_the_runs_it_has_and_runs_only_its_shard(tmp_path, monkeypa
                 "interrupted": False}
 
     monkeypatch.setattr(bench, "run_swarm_up", fake_run)
-    argv = ["--resume", str(out), "--sizes", "20", "--no-faults", "--no-ablations"]
+    argv = ["--resume", str(out), *TWO_ARMS, "--sizes", "20", "--no-faults", "--no-ablations"]
     cfg = validate(build_parser().parse_args(argv))
     assert experiment.experiment(cfg, argv) == 0
     assert ran == [(20, 3, "centralized", ("--assignment", "nearest-free",
@@ -478,7 +484,7 @@ def test_resume_skips_the_runs_it_has_and_runs_only_its_shard(tmp_path, monkeypa
     # a shard runs its own slice only: runs 1, 3, 5, 7, 9 of 10 (k % 2 == 1)
     ran.clear()
     fresh = tmp_path / "y"
-    argv = ["--output", str(fresh), "--sizes", "20", "--no-faults", "--no-ablations",
+    argv = ["--output", str(fresh), *TWO_ARMS, "--sizes", "20", "--no-faults", "--no-ablations",
             "--shard", "2/2"]
     assert experiment.experiment(validate(build_parser().parse_args(argv)), argv) == 0
     expected = [(c.size, s) for k, (c, s) in enumerate(plan.runs_in_order()) if k % 2 == 1]
@@ -497,7 +503,7 @@ def test_only_runs_the_blocks_named_and_keeps_the_plan_whole(tmp_path, monkeypat
                 "interrupted": False}
 
     monkeypatch.setattr(bench, "run_swarm_up", fake_run)
-    base = ["--sizes", "20,50", "--runs", "2", "--no-faults", "--no-ablations",
+    base = [*TWO_ARMS, "--sizes", "20,50", "--runs", "2", "--no-faults", "--no-ablations",
             "--service-times", "60"]
     out = tmp_path / "x"
     argv = ["--output", str(out), *base, "--only", "main:50,service"]
@@ -521,8 +527,8 @@ def test_only_runs_the_blocks_named_and_keeps_the_plan_whole(tmp_path, monkeypat
 def test_resume_with_another_plan_is_refused(tmp_path):
     out = tmp_path / "x"
     write_fake_sweep(out)
-    res = subprocess.run([str(SWARM_EXPERIMENT), "--resume", str(out), "--sizes", "20",
-                          "--no-faults", "--no-ablations", "--runs", "3"],
+    res = subprocess.run([str(SWARM_EXPERIMENT), "--resume", str(out), *TWO_ARMS, "--sizes",
+                          "20", "--no-faults", "--no-ablations", "--runs", "3"],
                          capture_output=True, text=True, timeout=60)
     assert res.returncode == 2 and "--resume" in res.stderr and "runs" in res.stderr
     assert len(res.stderr.strip().splitlines()) == 1
@@ -581,7 +587,7 @@ def test_help_exits_0():
 def test_tiny_sweep_writes_the_report(tmp_path):
     out = tmp_path / "report"
     # one size (several sizes in one report: the fake sweeps above), both modes, a fault
-    argv = [str(SWARM_EXPERIMENT), "--sizes", "2", "--duration", "12", "--runs", "2",
+    argv = [str(SWARM_EXPERIMENT), *TWO_ARMS, "--sizes", "2", "--duration", "12", "--runs", "2",
             "--warmup", "5", "--output", str(out), "--no-ablations", "--allow-dirty",
             "--fault-spec", "kill-coordinator@8+3", "--fault-size", "2"]
     res = subprocess.run(argv, capture_output=True, text=True, cwd=tmp_path, timeout=1500)
@@ -818,7 +824,7 @@ def test_the_ablations_are_reported_as_a_factorial_with_no_chain_shares(tmp_path
 
     ablations = ("decentralized-no-swap,centralized-fifo,centralized-fifo-hall,"
                  "centralized-scheduler-hall,centralized-pipelined-spots")
-    argv = ["--output", str(tmp_path / "a"), "--sizes", "20", "--no-faults",
+    argv = ["--output", str(tmp_path / "a"), *TWO_ARMS, "--sizes", "20", "--no-faults",
             "--ablations", ablations, "--ablation-size", "20"]
     plan = validate(build_parser().parse_args(argv)).plan
     out = tmp_path / "a"
@@ -874,7 +880,7 @@ def test_equivalence_and_cumulative_loss_by_hand():
 
 
 def test_the_fault_study_runs_more_seeds_and_an_n_minus_1_cell(tmp_path):
-    argv = ["--output", str(tmp_path / "x"), "--sizes", "20", "--no-ablations",
+    argv = ["--output", str(tmp_path / "x"), *TWO_ARMS, "--sizes", "20", "--no-ablations",
             "--fault-size", "20", "--fault-spec", "kill-robot:@approach@360",
             "--fault-runs", "10", "--fault-n-minus-1"]
     plan = validate(build_parser().parse_args(argv)).plan
