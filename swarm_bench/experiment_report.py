@@ -242,7 +242,8 @@ def comparisons(plan: Plan, figs: dict) -> list[dict]:
     The family: the primary and co-primary measures of decentralized against each centralized
     arm (:data:`CENTRAL_ARMS`) at every size and, where swept, at every service time, the
     primary measure of every ablation pair, the secondary measures for the main pairs at every
-    size, and per fault: each variant's tasks
+    size (each pair once: the world's own service time at the service-time size is the main
+    pair), and per fault: each variant's tasks
     after the fault without it against with it (does the fault cost tasks?) and, where both
     main variants have it, their tasks lost against each other (does it cost one mode more?).
     Tasks lost are :func:`swarm_bench.experiment_stats.fault_effect`'s, per seed.
@@ -272,7 +273,9 @@ def comparisons(plan: Plan, figs: dict) -> list[dict]:
                             *((f"-w{t:g}", f"service time {t:g} s")
                               for t in plan.service_times)]:
             pairs += [(f"decentralized-n{n}{label}", f"{v}-n{n}{label}", n, "service", what)
-                      for v in against]
+                      for v in against  # a main pair is tested once, not again here
+                      if not any(p[:2] == (f"decentralized-n{n}{label}", f"{v}-n{n}{label}")
+                                 for p in pairs)]
     if plan.ablation_size is not None:
         n = plan.ablation_size
         if all(f"{v}-n{n}" in figs for v in HORIZON[:2]):
@@ -881,8 +884,11 @@ def _service_section(plan: Plan, summaries: list[dict], records: list[dict],
     lines += [""]
     if "service_time" in figures:
         lines += [f"![service time]({figures['service_time']})", ""]
-    lines += _stats_table(stats, "service", "Paired differences by service time",
-                          (PRIMARY, *CO_PRIMARY))
+    own_pairs = [dict(r, role="service", what="the world's service time") for r in stats
+                 if r["role"] == "main" and r["size"] == plan.service_size
+                 and r["measure"] in (PRIMARY, *CO_PRIMARY)]  # tested once, as main pairs
+    lines += _stats_table(own_pairs + [r for r in stats if r["role"] == "service"], "service",
+                          "Paired differences by service time", (PRIMARY, *CO_PRIMARY))
     return lines
 
 

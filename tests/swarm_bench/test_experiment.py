@@ -722,8 +722,11 @@ def test_a_service_time_sweep_of_three_arms_is_planned_run_and_tested(tmp_path):
     doc = json.loads((out / "experiment.json").read_text())
     service = [r for r in doc["statistics"] if r["role"] == "service"]
     assert {(r["b"], r["measure"]) for r in service} >= {
-        ("centralized-pipelined-n20-w60", "throughput"), ("centralized-scheduler-n20", "jain")}
-    assert len(service) == 3 * 2 * 3  # 3 service times x 2 arms x 3 measures
+        ("centralized-pipelined-n20-w60", "throughput"), ("centralized-scheduler-n20-w15", "jain")}
+    # 15 and 60 s x 2 arms x 3 measures; 0 s, the world's own, is the main pairs, tested once
+    assert len(service) == 2 * 2 * 3
+    tested = [(r["a"], r["b"], r["measure"]) for r in doc["statistics"]]
+    assert len(tested) == len(set(tested))
     row = next(r for r in service if r["b"] == "centralized-pipelined-n20-w60"
                and r["measure"] == "throughput")
     assert row["a"] == "decentralized-n20-w60" and -30.0 < row["diff"] < -20.0
@@ -735,6 +738,7 @@ def test_a_service_time_sweep_of_three_arms_is_planned_run_and_tested(tmp_path):
     section = report.split("## Service time")[1].split("## Secondary")[0]
     assert "| 0 s: throughput, Jain, without a task | 15 s:" in section
     assert "![service time](service_time.png)" in section
+    assert "| centralized-scheduler-n20 (the world's service time) | Jain's index" in section
     # the main tables keep to the main cells
     primary = report.split("## Primary measures")[1].split("## Service time")[0]
     assert "-w15" not in primary
