@@ -1097,7 +1097,7 @@ def _fault_section(plan: Plan, summaries: list[dict], figures: dict,
             if placed.get(s["label"]):
                 lines.append("  (the victims, placed from the no-fault run: " + "; ".join(
                     f"seed {seed} `{spec}`" for seed, spec in sorted(placed[s["label"]])) + ")")
-            noticed = detections(plan, s["label"], records)
+            noticed = detections(s["label"], records)
             if noticed:
                 lines.append("  the coordinator noticed the victim (its `coordinator_lapses`, "
                              "after the fault): " + "; ".join(
@@ -1120,7 +1120,7 @@ def _fault_section(plan: Plan, summaries: list[dict], figures: dict,
         "tasks lost; B: with it, or the second mode's)", None)
 
 
-def detections(plan: Plan, label: str, records: list[dict]) -> list[tuple[int, str]]:
+def detections(label: str, records: list[dict]) -> list[tuple[int, str]]:
     """How long the coordinator took to notice each killed robot of a faulted cell's runs.
 
     For every run of ``label`` (a centralized fault cell) whose record keeps

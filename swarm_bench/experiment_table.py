@@ -19,6 +19,7 @@ import json
 from pathlib import Path
 
 from swarm_bench.experiment_plan import VARIANTS, plan_from_settings
+from swarm_bench.experiment_report import _fmt, _p, own_service_time
 from swarm_common.errors import InputError
 
 REFERENCE = "decentralized"
@@ -26,27 +27,6 @@ REFERENCE = "decentralized"
 MEASURES = (("throughput", "throughput [tasks/h]", 0), ("jain", "Jain's index", 3),
             ("idle_robots", "robots without a task", 1))
 """(summary key, column title, decimals) of the table's measures."""
-
-
-def _fmt(stat: dict | None, digits: int) -> str:
-    if not stat or stat.get("mean") is None:
-        return "-"
-    text = f"{stat['mean']:.{digits}f}"
-    return text if stat.get("ci95") is None else f"{text} ± {stat['ci95']:.{digits}f}"
-
-
-def _p(p: float | None) -> str:
-    return "-" if p is None else ("< 0.001" if p < 0.001 else f"{p:.3f}")
-
-
-def _own_service(doc: dict, size: int | None) -> float:
-    """[s] the world's own service time as the main runs at ``size`` recorded it (0 if none)."""
-    for r in doc.get("records", []):
-        m = r.get("metrics") or {}
-        if r.get("role") == "main" and (size is None or r.get("size") == size) \
-                and m.get("service_time_s") is not None:
-            return float(m["service_time_s"])
-    return 0.0
 
 
 def rows_of(path: Path) -> list[dict]:
@@ -71,7 +51,7 @@ def rows_of(path: Path) -> list[dict]:
         summaries, stats = doc["summary"], doc["statistics"]
     except (ValueError, KeyError, TypeError) as exc:
         raise InputError(f"DIR: '{doc_path}' is not an experiment report ({exc})") from None
-    own = _own_service(doc, plan.service_size)
+    own = own_service_time(plan, doc.get("records", []))
     world = Path(str(plan.world)).stem if "/" in str(plan.world) else str(plan.world)
     variant = {s["label"]: s["variant"] for s in summaries}
     pairs = {(s["b"], s["measure"]): s for s in stats

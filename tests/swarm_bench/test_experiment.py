@@ -960,9 +960,9 @@ def test_the_report_says_when_the_coordinator_noticed_the_victim(tmp_path):
         _write_json(record_path(out, cell.label, seed), rec)
     write_report([out], out)
     doc = json.loads((out / "experiment.json").read_text())
-    assert detections(plan, "centralized-pipelined-n20-f1", doc["records"]) == [
+    assert detections("centralized-pipelined-n20-f1", doc["records"]) == [
         (0, "Srobot5: 301.5 s (lease)"), (1, "Srobot6: not within the run")]
-    assert detections(plan, "decentralized-n20-f1", doc["records"]) == []
+    assert detections("decentralized-n20-f1", doc["records"]) == []
     report = (out / "report.md").read_text()
     assert ("the coordinator noticed the victim (its `coordinator_lapses`, after the fault): "
             "seed 0 Srobot5: 301.5 s (lease); seed 1 Srobot6: not within the run") in report
