@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 import rclpy
 import yaml
+from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import OccupancyGrid, Odometry
@@ -30,8 +31,10 @@ from nav_msgs.msg import Path as PathMsg
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
 from std_srvs.srv import Trigger
 
+from swarm_common import topics
 from swarm_common.nav_status import OUTCOMES, TERMINAL, TOOK_ANOTHER
 from swarm_common.stamps import NS_PER_S, format_stamp, parse_stamp
 from swarm_scene.robot_model import load_robot
@@ -57,6 +60,7 @@ STATUS_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
+TRUTH_WINDOW = 2  # [ticks] how far the simulator may run ahead of the probe's ground truth
 EVENTS_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
@@ -137,6 +141,13 @@ class Swarm:
         plans: also record every robot's plans (``/<ns>/plan``, in :attr:`plans`), read from
             before the navigators start, so that none is missed.
 
+    Without faults in ``sim_args`` the probe loses no tick of ground truth, however starved
+    this process is: it publishes the latest tick it has every robot's truth of on
+    ``/swarm/record/progress`` and the simulator holds each tick until that is at most
+    ``TRUTH_WINDOW`` ticks behind (``swarm-sim --record-window``, as for ``swarm-up
+    --record``). A robot muted by a fault has no truth to wait for, so with faults the truth
+    is what arrived.
+
     Attributes:
         next_goal: ``next_goal(ns, status)``, asked at a goal end when nothing is queued for
             ``ns``: a :class:`Goal` or a pose to send it to, or None (no goal coming).
@@ -164,6 +175,9 @@ class Swarm:
         self.results: dict[tuple[str, str], Status] = {}
         self.truth: dict[str, dict[int, tuple[float, float, float]]] = {
             ns: {} for ns in self.names}
+        self.truth_window = "--faults" not in self.sim_args
+        self._truth_last = dict.fromkeys(self.names, -1)  # [ns] each robot's latest truth
+        self._truth_progress = -1  # [ns] the latest tick of every robot's truth, published
         self.events: list[DiagnosticStatus] = []
         self.next_goal: Callable[[str, Status], tuple | None] | None = None
         self._last_goal_ns = dict.fromkeys(self.names, 0)
@@ -206,6 +220,11 @@ class Swarm:
                                          lambda m, ns=ns: self._on_plan(ns, m), STATUS_QOS)
         node.create_subscription(DiagnosticArray, "/swarm/events",
                                  lambda m: self.events.extend(m.status), EVENTS_QOS)
+        window = []
+        if self.truth_window:
+            self.progress_pub = node.create_publisher(Clock, topics.RECORD_PROGRESS.name,
+                                                      LATCHED)
+            window = ["--record-window", str(TRUTH_WINDOW)]
         n = str(len(self.names))
         # The start gate also waits for the probe's subscriptions to the simulator's topics
         # (every ground truth and /swarm/events) to be matched: the simulator publishes the
@@ -214,7 +233,7 @@ class Swarm:
         self.sim = start(["swarm-sim", "--world", self.world, "--swarm-size", n, "--rtf", "0",
                           "--seed", "3", "--wait-for", n, "--wait-for-reader", "behaviour_probe",
                           "--reader-subscriptions", str(len(self.names) + 1),
-                          "--summary", str(self.summary_path), *self.sim_args],
+                          "--summary", str(self.summary_path), *window, *self.sim_args],
                          self.dir / "sim.log")
         self.nav = start(["python", "-m", "swarm_up.group", "--namespaces",
                           ",".join(self.names), "--params-dir", str(params)],
@@ -282,6 +301,13 @@ class Swarm:
         p, q = msg.pose.pose.position, msg.pose.pose.orientation
         t = msg.header.stamp.sec * NS_PER_S + msg.header.stamp.nanosec
         self.truth[ns][t] = (p.x, p.y, 2.0 * math.atan2(q.z, q.w))
+        if self.truth_window and t > self._truth_last[ns]:
+            self._truth_last[ns] = t
+            progress = min(self._truth_last.values())
+            if progress > self._truth_progress:
+                self._truth_progress = progress
+                self.progress_pub.publish(Clock(clock=Time(sec=progress // NS_PER_S,
+                                                           nanosec=progress % NS_PER_S)))
 
     # -- the lockstep commander -----------------------------------------------------------------
 
