@@ -37,6 +37,7 @@ from std_srvs.srv import Trigger
 from swarm_common import topics
 from swarm_common.nav_status import OUTCOMES, TERMINAL, TOOK_ANOTHER
 from swarm_common.stamps import NS_PER_S, format_stamp, parse_stamp
+from swarm_record.mcap_format import TickProgress
 from swarm_scene.robot_model import load_robot
 from tests.support.ros import ros_context, spin_until, start, stop
 
@@ -176,8 +177,7 @@ class Swarm:
         self.truth: dict[str, dict[int, tuple[float, float, float]]] = {
             ns: {} for ns in self.names}
         self.truth_window = "--faults" not in self.sim_args
-        self._truth_last = dict.fromkeys(self.names, -1)  # [ns] each robot's latest truth
-        self._truth_progress = -1  # [ns] the latest tick of every robot's truth, published
+        self._truth_progress = TickProgress(self.names, TICK_NS)  # the recorder's, per robot
         self.events: list[DiagnosticStatus] = []
         self.next_goal: Callable[[str, Status], tuple | None] | None = None
         self._last_goal_ns = dict.fromkeys(self.names, 0)
@@ -301,13 +301,10 @@ class Swarm:
         p, q = msg.pose.pose.position, msg.pose.pose.orientation
         t = msg.header.stamp.sec * NS_PER_S + msg.header.stamp.nanosec
         self.truth[ns][t] = (p.x, p.y, 2.0 * math.atan2(q.z, q.w))
-        if self.truth_window and t > self._truth_last[ns]:
-            self._truth_last[ns] = t
-            progress = min(self._truth_last.values())
-            if progress > self._truth_progress:
-                self._truth_progress = progress
-                self.progress_pub.publish(Clock(clock=Time(sec=progress // NS_PER_S,
-                                                           nanosec=progress % NS_PER_S)))
+        progress = self._truth_progress.on_message(ns, t) if self.truth_window else None
+        if progress is not None:
+            self.progress_pub.publish(Clock(clock=Time(sec=progress // NS_PER_S,
+                                                       nanosec=progress % NS_PER_S)))
 
     # -- the lockstep commander -----------------------------------------------------------------
 
