@@ -68,6 +68,7 @@ from swarm_common.lockstep import COMING, GoalHandshake, poll_period
 from swarm_common.nav_status import TERMINAL
 from swarm_common.stamps import NS_PER_S
 from swarm_common.supervision import LOST, RobotsLost
+from swarm_ros.latched import LatchedReader
 from swarm_ros.messages import key_values, occupancy_grid_msg, stamp_ns, time_msg
 from swarm_ros.navigator import navigator_interface
 from swarm_ros.qos import publisher, subscription
@@ -583,42 +584,23 @@ class BaselineCommanderNode(Node):
         self._goals = 0
         # Publishers, subscribers, client and the runner's poll timer (swarm_commander's).
         self._goal_pub = publisher(self, PoseStamped, topics.GOAL_POSE)
-        self._heard = False
-        self._status_sub = self._status_reader()
-        self.status_rematches = 0
-        self._rematch_s = float(status_rematch_s)
-        self._watched_since: float | None = None  # as the real commander: from the first check
-        self._rematch_timer = self.create_timer(
-            self._rematch_s / 5, self._rematch_status,
-            clock=RclpyClock(clock_type=ClockType.STEADY_TIME))
+        self._status_reader = LatchedReader(self, DiagnosticStatus, topics.NAV_STATUS,
+                                            self._on_nav_status, rematch_s=status_rematch_s,
+                                            qos=topics.NAV_STATUS_COMMANDER_READER_QOS)
         self._cancel_client = self.create_client(Trigger, topics.CANCEL_SERVICE)
         self.create_timer(CommanderConfig.idle_period, self._on_timer,
                           clock=RclpyClock(clock_type=ClockType.STEADY_TIME))
 
-    def _status_reader(self):
-        return subscription(self, DiagnosticStatus, topics.NAV_STATUS, self._on_nav_status,
-                            qos=topics.NAV_STATUS_COMMANDER_READER_QOS)
-
-    def _rematch_status(self) -> None:
-        if self._heard:
-            self.destroy_timer(self._rematch_timer)
-            return
-        now = time.monotonic()
-        if self._watched_since is None:
-            self._watched_since = now
-        if now - self._watched_since < self._rematch_s:
-            return
-        self.destroy_subscription(self._status_sub)
-        self._status_sub = self._status_reader()
-        self._watched_since = now
-        self.status_rematches += 1
+    @property
+    def status_rematches(self) -> int:
+        """How many times the ``nav_status`` reader was made again."""
+        return self._status_reader.rematches
 
     def _on_timer(self) -> None:
         pass  # the runner's poll while nothing is due: nothing to retry here
 
     def _on_nav_status(self, msg: DiagnosticStatus) -> None:
         _Cpu.begin()
-        self._heard = True
         values = {kv.key: kv.value for kv in msg.values}
         state = values.get("state") or msg.message
         if self._sent is not None and values.get("goal_id") != self._sent:

@@ -67,6 +67,7 @@ from swarm_common.coordination import (
 from swarm_common.errors import EXIT_BAD_INPUT, EXIT_RUNTIME
 from swarm_common.geometry import yaw_to_quaternion
 from swarm_common.stamps import NS_PER_S
+from swarm_ros.latched import REMATCH_S, LatchedReader
 from swarm_ros.qos import publisher, subscription
 
 _OUTCOME = {TaskResult.SUCCEEDED: "succeeded", TaskResult.FAILED: "failed",
@@ -89,6 +90,8 @@ class CoordinatedConfig:
         period_ns: [ns] the simulator's control tick.
         resend_goal: [s] wall: an unconfirmed hand-over is given to the navigator again after
             this long (a navigator restarted meanwhile lost it).
+        state_rematch_s: [s] wall: until the coordinator's latched ``state`` arrives, its reader
+            is made again this often (:class:`swarm_ros.latched.LatchedReader`).
     """
 
     wait_timeout: float = 30.0
@@ -99,6 +102,7 @@ class CoordinatedConfig:
     outages: tuple[tuple[int, int | None], ...] = ()
     period_ns: int = NS_PER_S // 10
     resend_goal: float = 3.0
+    state_rematch_s: float = REMATCH_S
 
 
 class CoordinatedRunner:
@@ -143,8 +147,8 @@ class CoordinatedRunner:
         self._assignment_sub = subscription(navigator, String, topics.ASSIGNMENT,
                                             self._on_assignment,
                                             qos=topics.ASSIGNMENT_READER_QOS)
-        self._state_sub = subscription(navigator, String, topics.COORDINATOR_STATE,
-                                       self._on_state)
+        self._state_reader = LatchedReader(navigator, String, topics.COORDINATOR_STATE,
+                                           self._on_state, rematch_s=cfg.state_rematch_s)
         self._decline = navigator.create_client(Trigger, topics.CANCEL_SERVICE)
         self._coming = navigator.create_client(Trigger, topics.GOAL_COMING_SERVICE)
         self._timer = navigator.create_timer(
@@ -435,24 +439,29 @@ def _pose_msg(pose: tuple[float, float, float]) -> PoseStamped:
     return msg
 
 
-def wait_for_coordinator(node, timeout_s: float, spin_once: Callable[[float], None]) -> bool:
+def wait_for_coordinator(node, timeout_s: float, spin_once: Callable[[float], None],
+                         rematch_s: float = REMATCH_S) -> bool:
     """Spin until a coordinator's latched ``state`` is received (before commanders exist, so
     that the simulator's start gate opens only with the coordinator there).
 
     Args:
-        node: a node to create the temporary subscription on.
+        node: a node to create the temporary reader on (a
+            :class:`swarm_ros.latched.LatchedReader`: made again every ``rematch_s`` until the
+            state arrives, eProsima/Fast-DDS#3822).
         timeout_s: [s] wall.
         spin_once: spins the executor that holds ``node`` once, with a timeout [s].
+        rematch_s: [s] wall, > 0 (:data:`swarm_ros.latched.REMATCH_S`).
 
     Returns:
         True once seen, False after ``timeout_s``.
     """
     seen = []
-    sub = subscription(node, String, topics.COORDINATOR_STATE, seen.append)
+    reader = LatchedReader(node, String, topics.COORDINATOR_STATE, seen.append,
+                           rematch_s=rematch_s)
     deadline = time.monotonic() + timeout_s
     try:
         while not seen and time.monotonic() < deadline:
             spin_once(0.1)
     finally:
-        node.destroy_subscription(sub)
+        reader.destroy()
     return bool(seen)

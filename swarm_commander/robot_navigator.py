@@ -69,7 +69,6 @@ from builtin_interfaces.msg import Duration, Time
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from rclpy._rclpy_pybind11 import RCLError  # what a call on a shut-down context raises
-from rclpy.clock import Clock, ClockType
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from std_srvs.srv import Trigger
@@ -77,16 +76,16 @@ from std_srvs.srv import Trigger
 from swarm_common import topics
 from swarm_common.nav_status import NavState, NavStatusRecord, decode
 from swarm_common.stamps import NS_PER_S, format_stamp
-from swarm_ros.qos import publisher, subscription
+from swarm_ros.latched import REMATCH_S, LatchedReader
+from swarm_ros.qos import publisher
 
 __all__ = ["BasicNavigator", "NavFeedback", "TaskResult"]
 
 MAP_FRAME = "map"
 
-STATUS_REMATCH_S = 10.0
+STATUS_REMATCH_S = REMATCH_S
 """[s] wall: how long the commander waits for its first ``nav_status`` before it makes the reader
-again (eProsima/Fast-DDS#3822); long beside discovery on one host (well under a second), short
-beside the commander's ``wait_timeout`` (120 s)."""
+again (:class:`swarm_ros.latched.LatchedReader`, eProsima/Fast-DDS#3822)."""
 
 
 class TaskResult(IntEnum):
@@ -219,41 +218,15 @@ class BasicNavigator(Node):
         self._goal_pub = None
         if connect:
             self.connect()
-        self._status_sub = self._status_reader()
-        self.status_rematches = 0
-        """How many times the ``nav_status`` reader was made again (:data:`STATUS_REMATCH_S`)."""
-        self._rematch_s = float(status_rematch_s)
-        self._watched_since: float | None = None  # [s] monotonic: the first check of the reader
-        self._rematch_timer = self.create_timer(self._rematch_s / 5, self._rematch_status,
-                                                clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self._status_reader = LatchedReader(self, DiagnosticStatus, topics.NAV_STATUS,
+                                            self._on_nav_status, rematch_s=status_rematch_s,
+                                            qos=topics.NAV_STATUS_COMMANDER_READER_QOS)
         self._cancel_client = self.create_client(Trigger, topics.CANCEL_SERVICE)
 
-    def _status_reader(self):
-        return subscription(self, DiagnosticStatus, topics.NAV_STATUS, self._on_nav_status,
-                            qos=topics.NAV_STATUS_COMMANDER_READER_QOS)
-
-    def _rematch_status(self) -> None:
-        """Until the first ``nav_status``: replace the reader once it has been spun
-        ``status_rematch_s`` without a status (module docstring). The time counts from the
-        first check, not from the reader's making: a group process makes all its nodes before
-        it spins any, and its 500 commanders' readers were all remade at once, the moment it
-        began to spin, before any could take what had arrived."""
-        if self._nav_status_received:
-            self.destroy_timer(self._rematch_timer)
-            return
-        now = time.monotonic()
-        if self._watched_since is None:
-            self._watched_since = now
-        if now - self._watched_since < self._rematch_s:
-            return
-        topic, writers = self._status_sub.topic_name, self._status_sub.get_publisher_count()
-        log = self.warn if writers else self.debug
-        log(f"no status on {topic} within {self._rematch_s:g} s (wall) of spinning its reader "
-            f"({writers} writer(s) matched); making the reader again (eProsima/Fast-DDS#3822)")
-        self.destroy_subscription(self._status_sub)
-        self._status_sub = self._status_reader()
-        self._watched_since = now
-        self.status_rematches += 1
+    @property
+    def status_rematches(self) -> int:
+        """How many times the ``nav_status`` reader was made again (:data:`STATUS_REMATCH_S`)."""
+        return self._status_reader.rematches
 
     def connect(self) -> None:
         """Create the ``goal_pose`` publisher (idempotent): the navigator sees a commander."""
@@ -398,11 +371,12 @@ class BasicNavigator(Node):
         Returns:
             True once the navigator answered, False if ``timeout_sec`` passed first.
         """
+        topic = self._status_reader.subscription.topic_name
         if not self._nav_status_received:
-            self.info(f"Waiting for the navigator on {self._status_sub.topic_name}...")
+            self.info(f"Waiting for the navigator on {topic}...")
         if not self._spin_until(lambda: self.navigator_ready, timeout_sec):
             within = "" if timeout_sec is None else f" within {timeout_sec:g} s"
-            self.error(f"No navigator answered on {self._status_sub.topic_name}{within}")
+            self.error(f"No navigator answered on {topic}{within}")
             return False
         self.info("Nav2 is ready for use!")
         return True
