@@ -90,8 +90,6 @@ class CoordinatedConfig:
         period_ns: [ns] the simulator's control tick.
         resend_goal: [s] wall: an unconfirmed hand-over is given to the navigator again after
             this long (a navigator restarted meanwhile lost it).
-        state_rematch_s: [s] wall: until the coordinator's latched ``state`` arrives, its reader
-            is made again this often (:class:`swarm_ros.latched.LatchedReader`).
     """
 
     wait_timeout: float = 30.0
@@ -102,7 +100,6 @@ class CoordinatedConfig:
     outages: tuple[tuple[int, int | None], ...] = ()
     period_ns: int = NS_PER_S // 10
     resend_goal: float = 3.0
-    state_rematch_s: float = REMATCH_S
 
 
 class CoordinatedRunner:
@@ -148,7 +145,7 @@ class CoordinatedRunner:
                                             self._on_assignment,
                                             qos=topics.ASSIGNMENT_READER_QOS)
         self._state_reader = LatchedReader(navigator, String, topics.COORDINATOR_STATE,
-                                           self._on_state, rematch_s=cfg.state_rematch_s)
+                                           self._on_state)
         self._decline = navigator.create_client(Trigger, topics.CANCEL_SERVICE)
         self._coming = navigator.create_client(Trigger, topics.GOAL_COMING_SERVICE)
         self._timer = navigator.create_timer(

@@ -15,7 +15,7 @@ from swarm_common import topics
 from swarm_common.topics import LATCHED, Topic
 from swarm_ros.latched import LatchedReader
 from swarm_ros.qos import publisher
-from tests.support.ros import ros_context
+from tests.support.ros import ros_context, spin_until
 
 pytestmark = pytest.mark.node
 
@@ -24,18 +24,20 @@ _COUNTER = itertools.count(1)
 
 @pytest.fixture
 def node():
-    """A node on an executor of its own context; ``node.spin_for(s, until)`` spins it."""
+    """A node on an executor of its own context: ``node.spin_for(s)`` spins it ``s`` wall
+    seconds, ``node.spin_until(condition, timeout, what)`` as ``tests.support.ros``'s."""
     with ros_context() as (ctx, executor):
         n = rclpy.create_node(f"latched_test_{next(_COUNTER)}", context=ctx)
         executor.add_node(n)
-        n.spin_for = lambda s, until=lambda: False: _spin(executor, s, until)
+        n.spin_for = lambda s: _spin(executor, s)
+        n.spin_until = lambda *args: spin_until(executor, *args)
         yield n
 
 
-def _spin(executor, seconds: float, until) -> None:
-    """Spin for ``seconds`` wall, or until ``until()`` holds (no error: the caller asserts)."""
+def _spin(executor, seconds: float) -> None:
+    """Spin for ``seconds`` wall."""
     deadline = time.monotonic() + seconds
-    while not until() and time.monotonic() < deadline:
+    while time.monotonic() < deadline:
         executor.spin_once(timeout_sec=0.02)
 
 
@@ -52,7 +54,7 @@ def test_a_silent_topic_gets_a_new_reader_until_a_message_arrives(node):
     writer = rclpy.create_node(f"latched_writer_{next(_COUNTER)}", context=node.context)
     try:
         publisher(writer, String, topic).publish(String(data="up"))  # before any match
-        node.spin_for(20.0, until=lambda: bool(got))
+        node.spin_until(lambda: bool(got), 20.0, "the latched message")
         assert [m.data for m in got] == ["up"]  # the remade reader takes the history
         assert reader.received
         node.spin_for(0.6)  # the timer would fire at least twice more
