@@ -78,6 +78,7 @@ ABLATION_PAIRS = (  # (A, B, what B differs from A in): a chain from decentraliz
 )
 GAP = ("decentralized", "centralized-scheduler", "the whole gap")
 CENTRAL_ARMS = ("centralized-scheduler", "centralized-pipelined")
+"""The centralized arms decentralized is compared with, each on its own (the main pairs)."""
 FACTORIALS = (  # (name, (factor A: level 0, level 1), (factor B: ...), cells [a][b])
     ("mode x goal flexibility", ("mode", "decentralized", "centralized"),
      ("goal", "fixed", "flexible"),
@@ -93,7 +94,8 @@ FACTORIALS = (  # (name, (factor A: level 0, level 1), (factor B: ...), cells [a
 HORIZON = ("centralized-scheduler", "centralized-pipelined-spots",
            "reservation horizon: held from dispatch (reserve) against time windows (pipelined), "
            "nearest-free, near spots")
-"""The centralized arms decentralized is compared with, each on its own (the main pairs)."""
+"""The reservation horizon's pair: the same assignment and waiting spots, a workstation held from
+dispatch to arrival against booked by time window (variant, variant, what it isolates)."""
 
 
 # ------------------------------------------------------------------------------------ loading
