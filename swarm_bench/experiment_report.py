@@ -243,11 +243,14 @@ def comparisons(plan: Plan, figs: dict) -> list[dict]:
 
     The family: the primary and co-primary measures of decentralized against each centralized
     arm (:data:`CENTRAL_ARMS`) at every size and, where swept, at every service time, the
-    primary measure of every ablation pair, the secondary measures for the main pairs at every
+    primary measure of every ablation pair, the factorials' main effects and interactions and
+    the reservation horizon (throughput and Jain's index), the secondary measures for the main
+    pairs at every
     size (each pair once: the world's own service time at the service-time size is the main
-    pair), and per fault: each variant's tasks
-    after the fault without it against with it (does the fault cost tasks?) and, where both
-    main variants have it, their tasks lost against each other (does it cost one mode more?).
+    pair), and per fault: each variant's tasks after the fault without it against with it
+    (does the fault cost tasks?), against one robot fewer where that ran, and the tasks lost
+    of decentralized against each centralized arm (of the first two variants where the plan
+    has not both main ones) where both ran it (does it cost one mode more?).
     Tasks lost are :func:`swarm_bench.experiment_stats.fault_effect`'s, per seed.
     """
     rows = []
@@ -295,7 +298,9 @@ def comparisons(plan: Plan, figs: dict) -> list[dict]:
             rows.append({"a": a, "b": b, "size": n, "role": role, "what": what,
                          "measure": key, **st})
     rows += _factorial_rows(plan, figs)
-    rows += _fault_comparisons(plan, figs, main or list(plan.variants[:2]))
+    lost_pairs = ([(main[0], v) for v in against] if len(main) == 2
+                  else [tuple(plan.variants[:2])] if len(plan.variants) >= 2 else [])
+    rows += _fault_comparisons(plan, figs, lost_pairs)
     adjusted = holm([r["p_t"] for r in rows])
     for r, p in zip(rows, adjusted, strict=True):
         r["p_holm"] = p
@@ -332,8 +337,10 @@ FAULT_AFTER = "tasks after the fault"
 FAULT_LOST = "tasks lost to the fault"
 
 
-def _fault_comparisons(plan: Plan, figs: dict, main: list[str]) -> list[dict]:
-    """The fault rows of :func:`comparisons` (role ``fault``, ``what`` the spec)."""
+def _fault_comparisons(plan: Plan, figs: dict,
+                       lost_pairs: list[tuple[str, str]]) -> list[dict]:
+    """The fault rows of :func:`comparisons` (role ``fault``, ``what`` the spec); the tasks
+    lost are compared between the variants of each of ``lost_pairs``."""
     rows, n = [], plan.fault_size
     for k, (spec, fault_s) in enumerate(zip(plan.faults, plan.fault_times, strict=True),
                                         start=1):
@@ -359,10 +366,11 @@ def _fault_comparisons(plan: Plan, figs: dict, main: list[str]) -> list[dict]:
                 rows.append({"a": f"{v}-n{n - 1}", "b": f"{v}-n{n}-f{k}", "size": n,
                              "role": "fault", "what": f"{spec}, against {n - 1} robots",
                              "measure": FAULT_AFTER, **paired(one_less, after["hit"])})
-        if len(main) == 2 and all(v in lost for v in main):
-            rows.append({"a": f"{main[0]}-n{n}-f{k}", "b": f"{main[1]}-n{n}-f{k}", "size": n,
-                         "role": "fault", "what": spec, "measure": FAULT_LOST,
-                         **paired(lost[main[0]], lost[main[1]])})
+        for a, b in lost_pairs:
+            if a in lost and b in lost:
+                rows.append({"a": f"{a}-n{n}-f{k}", "b": f"{b}-n{n}-f{k}", "size": n,
+                             "role": "fault", "what": spec, "measure": FAULT_LOST,
+                             **paired(lost[a], lost[b])})
     return rows
 
 

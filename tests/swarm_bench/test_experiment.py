@@ -403,19 +403,19 @@ def test_the_ablation_chain_adds_up_to_the_whole_gap(tmp_path):
     assert "instead of the hall -6 tasks/h (-25 %)" in line
 
 
-def test_faults_are_tested_paired_per_mode_and_between_the_modes(tmp_path):
-    """A dead robot at 360 s costs decentralized seed s s + 1 tasks, centralized 2 (s + 1):
-    hand-computed, tasks lost 3 and 6 on average, decentralized 3 fewer (per seed 1..5)."""
+def write_fault_sweep(out: Path, cost: dict[str, int]) -> None:
+    """A fake sweep of ``cost``'s variants at 20 robots with a dead robot at 360 s
+    (``kill-robot:3@360``): every run completes a task every 1/3.0 s (:func:`fake_record`), and
+    the faulted run of variant v and seed s misses the first ``cost[v] * (s + 1)`` tasks after
+    the fault."""
     from swarm_bench.bench import _write_json
-    from swarm_bench.experiment_report import write_report
 
-    out = tmp_path / "a"
-    argv = ["--output", str(out), *TWO_ARMS, "--sizes", "20", "--no-ablations", "--fault-spec",
-            "kill-robot:3@360", "--fault-size", "20", "--warmup", "300"]
+    argv = ["--output", str(out), "--variants", ",".join(cost), "--sizes", "20",
+            "--no-ablations", "--fault-spec", "kill-robot:3@360", "--fault-size", "20",
+            "--warmup", "300"]
     plan = validate(build_parser().parse_args(argv)).plan
     (out / "records").mkdir(parents=True)
     _write_json(out / "plan.json", {"settings": plan.settings()})
-    cost = {"decentralized": 1, "centralized-scheduler": 2}
     for cell, seed in plan.runs_in_order():
         rec = fake_record(cell.label, cell.variant, cell.mode, cell.size, seed, 3.0,
                           cell.role, cell.fault)
@@ -424,6 +424,15 @@ def test_faults_are_tested_paired_per_mode_and_between_the_modes(tmp_path):
             drop = [t for t in times if t >= 360][:cost[cell.variant] * (seed + 1)]
             rec["metrics"]["task_times_s"] = [t for t in times if t not in drop]
         _write_json(record_path(out, cell.label, seed), rec)
+
+
+def test_faults_are_tested_paired_per_mode_and_between_the_modes(tmp_path):
+    """A dead robot at 360 s costs decentralized seed s s + 1 tasks, centralized 2 (s + 1):
+    hand-computed, tasks lost 3 and 6 on average, decentralized 3 fewer (per seed 1..5)."""
+    from swarm_bench.experiment_report import write_report
+
+    out = tmp_path / "a"
+    write_fault_sweep(out, {"decentralized": 1, "centralized-scheduler": 2})
     write_report([out], out)
     rows = [r for r in json.loads((out / "experiment.json").read_text())["statistics"]
             if r["role"] == "fault"]
@@ -442,6 +451,25 @@ def test_faults_are_tested_paired_per_mode_and_between_the_modes(tmp_path):
     assert "### Paired tests of the faults" in report
     assert "| decentralized-n20-f1 | centralized-scheduler-n20-f1 (kill-robot:3@360) | " \
            "tasks lost to the fault | 5 | -3.0 ± 2.0 |" in report
+
+
+def test_with_three_arms_the_tasks_lost_are_tested_against_each_centralized_arm(tmp_path):
+    """Decentralized loses s + 1 tasks to the fault, the scheduler 2 (s + 1), the pipelined arm
+    3 (s + 1) (seed s = 0..4): decentralized loses 3 fewer than the scheduler and 6 fewer than
+    the pipelined arm on average, per seed -1..-5 and -2..-10."""
+    from swarm_bench.experiment_report import write_report
+
+    out = tmp_path / "a"
+    write_fault_sweep(out, {"decentralized": 1, "centralized-scheduler": 2,
+                            "centralized-pipelined": 3})
+    write_report([out], out)
+    rows = [r for r in json.loads((out / "experiment.json").read_text())["statistics"]
+            if r["role"] == "fault" and r["measure"] == "tasks lost to the fault"]
+    assert [(r["a"], r["b"]) for r in rows] == [
+        ("decentralized-n20-f1", "centralized-scheduler-n20-f1"),
+        ("decentralized-n20-f1", "centralized-pipelined-n20-f1")]
+    assert rows[0]["diffs"] == [-1.0, -2.0, -3.0, -4.0, -5.0]
+    assert rows[1]["diffs"] == [-2.0, -4.0, -6.0, -8.0, -10.0] and rows[1]["diff"] == -6.0
 
 
 def test_shards_merge_into_one_report(tmp_path):
