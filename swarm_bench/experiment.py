@@ -42,6 +42,7 @@ Exit codes: 0 every run ended well, 1 a run failed (the experiment goes on), 2 b
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import sys
@@ -371,22 +372,50 @@ def run_dir_of(out: Path, label: str, seed: int, size: int) -> Path:
 def fault_for(out: Path, cell: Cell, seed: int, world: str) -> str:
     """The concrete ``--faults`` spec of a fault cell's run: a placed victim
     (:mod:`swarm_bench.experiment_faults`) read off the no-fault run of the same seed and
-    variant.
+    variant: its record's ``victim_positions``, else its run directory's track.
 
     Raises:
-        InputError: that run is not in ``out`` yet.
+        InputError: neither is in ``out``.
     """
-    from swarm_bench.experiment_faults import placement_of, resolve_spec
+    from swarm_bench.experiment_faults import (
+        placed_times,
+        positions_at,
+        resolve_spec,
+        time_key,
+    )
 
-    if not placement_of(cell.fault):
+    times = placed_times(cell.fault)
+    if not times:
         return cell.fault
     from swarm_scene.poi import poi_for_world
     from swarm_scene.world import resolve_world
 
     poi = poi_for_world(resolve_world(world))
     docks = np.array([w.pose[:2] for w in poi.workstations], float).reshape(-1, 2)
-    base = run_dir_of(out, f"{cell.variant}-n{cell.size}", seed, cell.size)
-    return resolve_spec(cell.fault, base / "sim_summary.json", docks)
+    label = f"{cell.variant}-n{cell.size}"
+    kept = (load_record(record_path(out, label, seed)) or {}).get("victim_positions") or {}
+    if not all(time_key(t) in kept for t in times):
+        summary = run_dir_of(out, label, seed, cell.size) / "sim_summary.json"
+        try:
+            kept = positions_at(summary, times)
+        except InputError as exc:
+            raise InputError(
+                f"--fault-spec '{cell.fault}': the victim's place needs the no-fault run "
+                f"'{label}' seed {seed} of this experiment, with its record's "
+                f"victim_positions or its track ({exc}): run it first") from None
+    return resolve_spec(cell.fault, kept, docks)
+
+
+def placement_times(plan: Plan, cell: Cell) -> list[float]:
+    """The times [s] simulated at which a run of ``cell`` places the victim of a fault cell:
+    those of every placed fault of its variant at its size, if ``cell`` is that no-fault run
+    (else empty)."""
+    from swarm_bench.experiment_faults import placed_times
+
+    if cell.fault or cell.label != f"{cell.variant}-n{cell.size}":
+        return []
+    return sorted({t for c in plan.cells() if c.fault and c.variant == cell.variant
+                   and c.size == cell.size for t in placed_times(c.fault)})
 
 
 def variant_args(out: Path, cell: Cell, fault: str | None = None) -> tuple[str, ...]:
@@ -438,6 +467,7 @@ def experiment(cfg: ExperimentConfig, argv: list[str]) -> int:
         say_outcome,
         stop_on_signals,
     )
+    from swarm_bench.experiment_faults import positions_at
     from swarm_bench.experiment_report import write_report
 
     out = cfg.output
@@ -498,6 +528,11 @@ def experiment(cfg: ExperimentConfig, argv: list[str]) -> int:
                 record = slim_record(rec, cell, seed, git, machine)
                 if fault and fault != cell.fault:
                     record["fault_resolved"] = fault
+                if times := placement_times(plan, cell):
+                    with contextlib.suppress(InputError):  # fault_for says so, if it matters
+                        record["victim_positions"] = positions_at(
+                            run_dir_of(out, cell.label, seed, cell.size) / "sim_summary.json",
+                            times)
                 _write_json(record_path(out, cell.label, seed), record)
         finally:
             view.close()

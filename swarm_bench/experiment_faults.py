@@ -13,7 +13,9 @@ workstation, in the hall, not robot 3 wherever it happens to be. A fault spec ma
 A run and its no-fault run of the same seed are the same simulation up to the fault (the same
 seed gives the same run), so the victim is read off the no-fault run's ground truth at the
 fault's time (the simulator's ``track``, :mod:`swarm_metrics.waiting`), and the fault run gets
-the concrete spec (``kill-robot:17@360``). Ties go to the lower robot number.
+the concrete spec (``kill-robot:17@360``). Ties go to the lower robot number. The no-fault run's
+record keeps those positions (``victim_positions``), so a sweep sliced across sittings or
+machines places its fault runs from the records alone.
 """
 
 from __future__ import annotations
@@ -73,39 +75,72 @@ def choose_victim(xy: np.ndarray, docks: np.ndarray, where: str,
     return int(np.argmin(score))
 
 
-def resolve_spec(spec: str, summary_path: Path, docks: np.ndarray, prefix: str = "Srobot"
-                 ) -> str:
-    """The concrete spec of a placed one, from the no-fault run's simulator summary.
+def _placed(spec: str):
+    """Every placement of ``spec``: (its match, where, the fault's time [s] simulated)."""
+    for m in _PLACED.finditer(spec):
+        at = re.match(r"(?:/[^@]*)?@(?P<at>[0-9.]+)", spec[m.end():])
+        yield m, m.group("where"), float(at.group("at")) if at else 0.0
+
+
+def placed_times(spec: str) -> list[float]:
+    """The times [s] simulated of ``spec``'s placed faults, in order (empty: none placed)."""
+    return [t for _m, _where, t in _placed(spec)]
+
+
+def time_key(t: float) -> str:
+    """The key of a fault's time in :func:`positions_at`'s answer (``"360"``)."""
+    return f"{t:g}"
+
+
+def positions_at(summary_path: Path, times: list[float]) -> dict[str, list[list[float]]]:
+    """The robots' positions at each of ``times`` in a no-fault run's simulator summary.
+
+    Args:
+        summary_path: the run's ``sim_summary.json`` (its ``track``: ``period_s`` and ``xy``,
+            one (N, 2) list [m] in ``map`` per tick, the first at ``period_s``).
+        times: [s] simulated.
+
+    Returns:
+        ``{time_key(t): (N, 2) list}`` [m], what a run's record keeps as
+        ``victim_positions`` so that the fault runs can be placed from the records alone.
+
+    Raises:
+        InputError: the summary or its track is missing, or the run ended before a time.
+    """
+    try:
+        track = json.loads(Path(summary_path).read_text())["track"]
+        period, xy = float(track.get("period_s") or 1.0), track.get("xy") or []
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        raise InputError(f"no track in '{summary_path}'") from None
+    out = {}
+    for t in times:
+        k = int(round(t / period)) - 1
+        if not 0 <= k < len(xy):
+            raise InputError(f"the run of '{summary_path}' ended before {t:g} s")
+        out[time_key(t)] = xy[k]
+    return out
+
+
+def resolve_spec(spec: str, positions: dict[str, list], docks: np.ndarray,
+                 prefix: str = "Srobot") -> str:
+    """The concrete spec of a placed one, from the no-fault run of the same seed.
 
     Args:
         spec: the ``--fault-spec`` (returned as it is when it names no placement).
-        summary_path: the no-fault run of the same seed's ``sim_summary.json``.
+        positions: that run's robots' positions at the faults' times (:func:`positions_at`).
         docks: (K, 2) the world's docking positions [m].
         prefix: the robots' namespace prefix (robot i + 1 is ``<prefix><i + 1>``).
 
     Raises:
-        InputError: that run or its track is missing, or ends before the fault.
+        InputError: ``positions`` lacks a fault's time.
     """
-    places = placement_of(spec)
-    if not places:
-        return spec
-    try:
-        track = json.loads(Path(summary_path).read_text())["track"]
-    except (OSError, ValueError, KeyError, TypeError):
-        raise InputError(f"--fault-spec '{spec}': no track in '{summary_path}' (the no-fault "
-                         "run of this seed must run first, in this experiment)") from None
     chosen: list[int] = []
     out = spec
-    for m in list(_PLACED.finditer(spec)):
-        after = spec[m.end():]
-        at = re.match(r"(?:/[^@]*)?@(?P<at>[0-9.]+)", after)
-        t = float(at.group("at")) if at else 0.0
-        k = int(round(t / float(track.get("period_s") or 1.0))) - 1
-        xy = track.get("xy") or []
-        if not 0 <= k < len(xy):
-            raise InputError(f"--fault-spec '{spec}': the no-fault run ended before {t:g} s")
-        victim = choose_victim(np.asarray(xy[k], dtype=float), np.asarray(docks, float),
-                               m.group("where"), tuple(chosen))
+    for m, where, t in list(_placed(spec)):
+        if time_key(t) not in positions:
+            raise InputError(f"--fault-spec '{spec}': no positions at {t:g} s")
+        victim = choose_victim(np.asarray(positions[time_key(t)], dtype=float),
+                               np.asarray(docks, float), where, tuple(chosen))
         chosen.append(victim)
         out = out.replace(m.group(0), f":{prefix}{victim + 1}", 1)
     return out

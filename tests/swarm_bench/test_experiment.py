@@ -828,10 +828,54 @@ def test_a_placed_victim_is_read_off_the_no_fault_run_of_the_same_seed(tmp_path)
     # the farthest from every dock at 3 s is (40, 40), robot 4, then (-30, -30) at 2 s
     assert fault_for(tmp_path, cells["decentralized-n5-f2"], 0, plan.world) == \
         "kill-robot:Srobot4@3,kill-nav:Srobot1@2+2"
-    with pytest.raises(InputError, match="must run first"):
+    with pytest.raises(InputError, match="seed 1 of this experiment.*run it first"):
         fault_for(tmp_path, cells["decentralized-n5-f1"], 1, plan.world)
     assert variant_args(tmp_path, cells["decentralized-n5-f1"], "kill-robot:Srobot2@3") == (
         "--faults", "kill-robot:Srobot2@3")
+
+
+def test_the_no_fault_record_keeps_the_victims_place_for_a_later_sitting(tmp_path, monkeypatch):
+    """A sweep sliced across sittings: the no-fault run at the fault size keeps the robots'
+    positions at the placed fault's time in its record, so the fault run of a later sitting is
+    placed with its run directory gone; the N-1 run and the fault run keep none."""
+    import shutil
+
+    import swarm_bench.bench as bench
+    from swarm_bench import experiment
+    from swarm_scene.poi import poi_for_world
+    from swarm_scene.world import resolve_world
+
+    ran = []
+    out = tmp_path / "x"
+    base = ["--variants", "decentralized", "--sizes", "5", "--runs", "1", "--no-ablations",
+            "--fault-size", "5", "--fault-spec", "kill-robot:@station@3", "--fault-n-minus-1"]
+    w = poi_for_world(resolve_world("slim_blockage")).workstations[0]
+    far = [w.pose[0] + 3.0, w.pose[1]]
+
+    def fake_run(bcfg, n, r, stop, view):
+        ran.append((n, bcfg.extra_args))
+        run = bcfg.run_dir / f"n{n}-r{r}"
+        run.mkdir(parents=True, exist_ok=True)
+        at_3s = [far] * n
+        at_3s[3] = [w.pose[0] + 0.05, w.pose[1]]  # robot 4 docked at 3 s
+        (run / "sim_summary.json").write_text(json.dumps(
+            {"track": {"period_s": 1.0, "xy": [[far] * n, [far] * n, at_3s]}}))
+        return {**fake_record("?", "?", bcfg.coordination, n, bcfg.seed, 2.0),
+                "interrupted": False}
+
+    monkeypatch.setattr(bench, "run_swarm_up", fake_run)
+    argv = ["--output", str(out), *base, "--only", "main"]
+    assert experiment.experiment(validate(build_parser().parse_args(argv)), argv) == 0
+    kept = json.loads(record_path(out, "decentralized-n5", 0).read_text())["victim_positions"]
+    assert list(kept) == ["3"] and kept["3"][3] == [w.pose[0] + 0.05, w.pose[1]]
+    shutil.rmtree(out / "runs")  # the next sitting: records only
+    argv = ["--resume", str(out), *base, "--only", "fault"]
+    assert experiment.experiment(validate(build_parser().parse_args(argv)), argv) == 0
+    assert ran[1:] == [(4, ()), (5, ("--faults", "kill-robot:Srobot4@3"))]
+    hit = json.loads(record_path(out, "decentralized-n5-f1", 0).read_text())
+    fewer = json.loads(record_path(out, "decentralized-n4", 0).read_text())
+    assert hit["fault_resolved"] == "kill-robot:Srobot4@3"
+    assert "victim_positions" not in hit and "victim_positions" not in fewer
 
 
 def test_factorial_effects_by_hand():
