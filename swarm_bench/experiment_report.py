@@ -245,12 +245,11 @@ def comparisons(plan: Plan, figs: dict) -> list[dict]:
     arm (:data:`CENTRAL_ARMS`) at every size and, where swept, at every service time, the
     primary measure of every ablation pair, the factorials' main effects and interactions and
     the reservation horizon (throughput and Jain's index), the secondary measures for the main
-    pairs at every
-    size (each pair once: the world's own service time at the service-time size is the main
-    pair), and per fault: each variant's tasks after the fault without it against with it
-    (does the fault cost tasks?), against one robot fewer where that ran, and the tasks lost
-    of decentralized against each centralized arm (of the first two variants where the plan
-    has not both main ones) where both ran it (does it cost one mode more?).
+    pairs at every size (each pair once: the world's own service time at the service-time size
+    is the main pair), and per fault: each variant's tasks after the fault without it against
+    with it (does the fault cost tasks?), against one robot fewer where that ran, and the tasks
+    lost of decentralized against each centralized arm (of the first two variants where the
+    plan has not both main ones) where both ran it (does it cost one mode more?).
     Tasks lost are :func:`swarm_bench.experiment_stats.fault_effect`'s, per seed.
     """
     rows = []
