@@ -40,7 +40,7 @@ def placement_of(spec: str) -> list[str]:
     Raises:
         InputError: an unknown placement (names ``--fault-spec``).
     """
-    out = [m.group("where") for m in _PLACED.finditer(spec)]
+    out = [where for _m, where, _t in _placed(spec)]
     for where in out:
         if where not in PLACEMENTS:
             raise InputError(f"--fault-spec: unknown placement '@{where}' in '{spec}' "
