@@ -367,9 +367,10 @@ def _fault_comparisons(plan: Plan, figs: dict,
                              "measure": FAULT_AFTER, **paired(one_less, after["hit"])})
         for a, b in lost_pairs:
             if a in lost and b in lost:
+                # no "B vs A": a ratio of two losses near 0 (or below it) says nothing
                 rows.append({"a": f"{a}-n{n}-f{k}", "b": f"{b}-n{n}-f{k}", "size": n,
                              "role": "fault", "what": spec, "measure": FAULT_LOST,
-                             **paired(lost[a], lost[b])})
+                             **paired(lost[a], lost[b]), "rel": None})
     return rows
 
 
