@@ -65,7 +65,15 @@ PRIMARY = "throughput"
 CO_PRIMARY = ("jain", "idle_robots")
 """Fairness beside throughput: tested for the main pair in the same Holm family and shown in
 the primary section (how evenly the tasks are shared, and the robots that finish none)."""
-SECONDARY = ("ttt_mean", "ttt_p95", "holding_per_robot", "comm_bytes")
+SECONDARY = ("ttt_km_median", "ttt_km_p95", "waiting_per_task", "comm_bytes")
+"""Tested for the main pairs in the Holm family: the time to task after the warm-up with the
+tasks still open at the end counted (Kaplan-Meier median and 95th percentile: a mean or
+percentile of the completed tasks alone leaves out the robots that wait longest) and the waiting
+per task from ground truth (the same definition in every mode; "holding + waiting" is not)."""
+SECONDARY_UNCENSORED = ("ttt_mean", "ttt_p95", "holding_per_robot", "comm_bytes")
+"""The secondary measures tested where a run's record lacks each robot's task times or the
+waiting per task (records before 2026-11-28): the completed tasks' time to task and the
+holding + waiting per robot."""
 ALPHA = 0.05
 ABLATION_PAIRS = (  # (A, B, what B differs from A in): a chain from decentralized to the
     # centralized scheduler, so the differences A - B add up to the whole gap
@@ -245,7 +253,8 @@ def comparisons(plan: Plan, figs: dict) -> list[dict]:
     arm (:data:`CENTRAL_ARMS`) at every size and, where swept, at every service time, the
     primary measure of every ablation pair, the factorials' main effects and interactions and
     the reservation horizon (throughput and Jain's index), the secondary measures for the main
-    pairs at every size (each pair once: the world's own service time at the service-time size
+    pairs at every size (:data:`SECONDARY`, or :data:`SECONDARY_UNCENSORED` where a run's record
+    predates them) (each pair once: the world's own service time at the service-time size
     is the main pair), and per fault: each variant's tasks after the fault without it against
     with it (does the fault cost tasks?), against one robot fewer where that ran, and the tasks
     lost of decentralized against each centralized arm (of the first two variants where the
@@ -253,6 +262,9 @@ def comparisons(plan: Plan, figs: dict) -> list[dict]:
     Tasks lost are :func:`swarm_bench.experiment_stats.fault_effect`'s, per seed.
     """
     rows = []
+    secondary = (SECONDARY if all(f.get("censored_ttt") for runs in figs.values()
+                                  for f in runs.values())
+                 else SECONDARY_UNCENSORED)
     main = [v for v in ("decentralized", "centralized-scheduler") if v in plan.variants]
     pairs = []
     against = [v for v in CENTRAL_ARMS if v in plan.variants]
@@ -288,7 +300,7 @@ def comparisons(plan: Plan, figs: dict) -> list[dict]:
     for a, b, n, role, what in pairs:
         if a not in figs or b not in figs:
             continue
-        measures = {"main": (PRIMARY, *CO_PRIMARY, *SECONDARY),
+        measures = {"main": (PRIMARY, *CO_PRIMARY, *secondary),
                     "service": (PRIMARY, *CO_PRIMARY),
                     "factorial": (PRIMARY, "jain")}.get(role, (PRIMARY,))
         for key in measures:

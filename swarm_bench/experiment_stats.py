@@ -120,8 +120,10 @@ def run_figures(record: dict, warmup_s: float) -> dict | None:
         ``ttt_km_p95`` [s] (:func:`km_quantiles` of :func:`task_intervals`; None for records
         without each robot's task times), ``waiting_per_task`` [s] (the metrics'
         ``waiting_per_task_s``: time without progress toward the task's workstation, from
-        ground truth, the same in every mode; None for records without it), ``standstills`` (the
-        simulator's episodes of >= 60 s), ``min_separation`` [m], ``sim_time``, ``robots``.
+        ground truth, the same in every mode; None for records without it), ``censored_ttt``
+        (whether the record has both: each robot's task times and the waiting per task),
+        ``standstills`` (the simulator's episodes of >= 60 s), ``min_separation`` [m],
+        ``sim_time``, ``robots``.
     """
     m = record.get("metrics")
     if record.get("exit_code") != EXIT_OK or not isinstance(m, dict):
@@ -165,6 +167,7 @@ def run_figures(record: dict, warmup_s: float) -> dict | None:
         "waiting_per_task": m.get("waiting_per_task_s"),
         "ttt_km_median": km[0],
         "ttt_km_p95": km[1],
+        "censored_ttt": bool(robot_times) and m.get("waiting_per_task_s") is not None,
         "rtf": m.get("rtf"),
         "tasks": m.get("tasks_completed"),
         "reproducible": m.get("reproducible"),

@@ -384,6 +384,45 @@ def test_fairness_is_co_primary_in_the_holm_family(tmp_path, monkeypatch):
     assert "| robots without a task | 5 |" in primary
 
 
+def test_the_secondary_tests_count_the_open_tasks_where_the_records_allow(tmp_path,
+                                                                         monkeypatch):
+    """With each robot's task times and the waiting per task in every record, the main pair's
+    secondary tests are the Kaplan-Meier time to task (open tasks counted) and the waiting per
+    task; records without them keep the completed tasks' mean and 95th percentile and the
+    holding + waiting (the same number of tests either way)."""
+    import tests.swarm_bench.test_experiment as me
+    from swarm_bench.experiment_report import SECONDARY, SECONDARY_UNCENSORED, write_report
+
+    def timed(label, variant, mode, size, seed, rate, make=fake_record, **kw):
+        rec = make(label, variant, mode, size, seed, rate, **kw)
+        period = 40.0 if mode == "decentralized" else 70.0  # every robot, one task per period
+        rec["metrics"]["robot_task_times"] = [
+            [period * k for k in range(1, int(900 // period) + 1)]] * size
+        rec["metrics"]["waiting_per_task_s"] = 5.0 if mode == "decentralized" else 9.0
+        return rec
+
+    write_fake_sweep(tmp_path / "old")
+    write_report([tmp_path / "old"], tmp_path / "old")
+    old = json.loads((tmp_path / "old" / "experiment.json").read_text())
+    monkeypatch.setattr(me, "fake_record", timed)
+    write_fake_sweep(tmp_path / "new")
+    write_report([tmp_path / "new"], tmp_path / "new")
+    new = json.loads((tmp_path / "new" / "experiment.json").read_text())
+    measures = {doc_name: [r["measure"] for r in doc["statistics"] if r["role"] == "main"]
+                for doc_name, doc in (("old", old), ("new", new))}
+    assert measures["old"][3:] == list(SECONDARY_UNCENSORED)
+    assert measures["new"][3:] == list(SECONDARY)
+    rows = {r["measure"]: r for r in new["statistics"] if r["role"] == "main"}
+    # every interval after the warm-up is one period; the open ones are shorter (censored)
+    assert rows["ttt_km_median"]["diff"] == pytest.approx(40.0 - 70.0)
+    assert rows["ttt_km_p95"]["diff"] == pytest.approx(40.0 - 70.0)
+    assert rows["waiting_per_task"]["diff"] == pytest.approx(5.0 - 9.0)
+    report = (tmp_path / "new" / "report.md").read_text()
+    tests = report.split("### Paired differences of the secondary measures")[1]
+    assert "| time to task after warm-up, open tasks counted: median [s] | 5 |" in tests
+    assert "holding + waiting" not in tests.split("##")[0]
+
+
 def test_the_ablation_chain_adds_up_to_the_whole_gap(tmp_path):
     from swarm_bench.experiment_report import write_report
 
