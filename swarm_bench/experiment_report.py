@@ -72,7 +72,7 @@ percentile of the completed tasks alone leaves out the robots that wait longest)
 per task from ground truth (the same definition in every mode; "holding + waiting" is not)."""
 SECONDARY_UNCENSORED = ("ttt_mean", "ttt_p95", "holding_per_robot", "comm_bytes")
 """The secondary measures tested where a run's record lacks each robot's task times or the
-waiting per task (records before 2026-11-28): the completed tasks' time to task and the
+waiting per task (older records, kept readable): the completed tasks' time to task and the
 holding + waiting per robot."""
 ALPHA = 0.05
 ABLATION_PAIRS = (  # (A, B, what B differs from A in): a chain from decentralized to the
@@ -254,7 +254,7 @@ def comparisons(plan: Plan, figs: dict) -> list[dict]:
     primary measure of every ablation pair, the factorials' main effects and interactions and
     the reservation horizon (throughput and Jain's index), the secondary measures for the main
     pairs at every size (:data:`SECONDARY`, or :data:`SECONDARY_UNCENSORED` where a run's record
-    predates them) (each pair once: the world's own service time at the service-time size
+    lacks what they need; each pair once: the world's own service time at the service-time size
     is the main pair), and per fault: each variant's tasks after the fault without it against
     with it (does the fault cost tasks?), against one robot fewer where that ran, and the tasks
     lost of decentralized against each centralized arm (of the first two variants where the
