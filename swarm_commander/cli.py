@@ -55,7 +55,7 @@ from swarm_commander.route import (
     world_service_time,
 )
 from swarm_common import cli
-from swarm_common.errors import EXIT_BAD_INPUT, EXIT_OK, EXIT_RUNTIME, InputError, run_cli
+from swarm_common.errors import EXIT_OK, InputError, run_cli
 from swarm_common.geometry import pose2d, yaw_to_quaternion
 from swarm_common.stamps import NS_PER_S
 from swarm_ros.session import node_session
@@ -201,14 +201,8 @@ class CommanderRunner:
                 self._deadline = time.monotonic() + self.cfg.wait_timeout
                 return
             elif time.monotonic() >= self._deadline:
-                status = self.nav.get_namespace().rstrip("/") + "/nav_status"
-                if self.nav.nav_status_received:
-                    goal = self.nav.get_namespace().rstrip("/") + "/goal_pose"
-                    self._fail(EXIT_RUNTIME, f"{self.label}: the navigator publishes {status} "
-                               f"but nothing subscribes {goal} within {self.cfg.wait_timeout:g} s")
-                else:
-                    self._fail(EXIT_BAD_INPUT, f"{self.label}: no navigator answered on {status} "
-                               f"within {self.cfg.wait_timeout:g} s")
+                code, why = self.nav.not_ready_reason(self.cfg.wait_timeout)
+                self._fail(code, f"{self.label}: {why}")
                 return
             else:
                 return

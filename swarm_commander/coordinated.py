@@ -64,7 +64,6 @@ from swarm_common.coordination import (
     spot_resource,
     workstation_resource,
 )
-from swarm_common.errors import EXIT_BAD_INPUT, EXIT_RUNTIME
 from swarm_common.geometry import yaw_to_quaternion
 from swarm_common.stamps import NS_PER_S
 from swarm_ros.latched import REMATCH_S, LatchedReader
@@ -202,12 +201,10 @@ class CoordinatedRunner:
                 self._started = True
                 self._request("ready")
             elif now >= self._deadline and not self.nav.navigator_ready:
-                status = self.nav.get_namespace().rstrip("/") + "/nav_status"
-                self.error = (f"{self.label}: no navigator answered on {status} within "
-                              f"{self.cfg.wait_timeout:g} s")
+                code, why = self.nav.not_ready_reason(self.cfg.wait_timeout)
+                self.error = f"{self.label}: {why}"
                 self.stop()
-                self.finished.set_result(EXIT_BAD_INPUT if not self.nav.nav_status_received
-                                         else EXIT_RUNTIME)
+                self.finished.set_result(code)
             return
         if self._resync and self._heard_by_coordinator():
             self._resync_now()

@@ -414,6 +414,28 @@ class BasicNavigator(Node):
         """True once any ``nav_status`` was received from the navigator."""
         return self._nav_status_received
 
+    def not_ready_reason(self, waited_s: float) -> tuple[int, str]:
+        """Why :attr:`navigator_ready` is still False after ``waited_s`` [s] wall, for a
+        commander that gives up.
+
+        Returns:
+            ``(exit code, sentence)``: 2 (:data:`~swarm_common.errors.EXIT_BAD_INPUT`, a wrong
+            namespace is the usual cause) when no ``nav_status`` came, with how often its reader
+            was made again and how many writers it matched; 1
+            (:data:`~swarm_common.errors.EXIT_RUNTIME`) when one came but nothing subscribes
+            ``goal_pose``.
+        """
+        from swarm_common.errors import EXIT_BAD_INPUT, EXIT_RUNTIME
+
+        ns = self.get_namespace().rstrip("/")
+        if self._nav_status_received:
+            return EXIT_RUNTIME, (f"the navigator publishes {ns}/nav_status but nothing "
+                                  f"subscribes {ns}/goal_pose within {waited_s:g} s")
+        writers = self._status_reader.subscription.get_publisher_count()
+        return EXIT_BAD_INPUT, (f"no navigator answered on {ns}/nav_status within "
+                                f"{waited_s:g} s ({writers} writer(s) matched, the reader "
+                                f"made again {self._status_reader.rematches} time(s))")
+
     @property
     def status_stamp_ns(self) -> int | None:
         """[ns] simulated time of the navigator's latest ``nav_status`` (None before one)."""

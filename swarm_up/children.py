@@ -290,11 +290,18 @@ def sim_argv(cfg: RunConfig) -> list[str]:
 
 
 def _per_robot_specs(cfg: RunConfig, env: dict[str, str]) -> list:
-    """One navigator process (and one commander process) per local robot."""
+    """One navigator process (and one commander process) per local robot.
+
+    A robot that a fault kills gets processes that own no shared-memory port, and every
+    commander runs without one too (:func:`shm_free_env`): a commander has been seen deaf to its
+    navigator's ``nav_status`` (delivered by shared memory) for 120 s while the coordinator's
+    ``state`` (loopback UDP) reached it, and in centralized mode the coordinator then waits for
+    that robot's first word for good (docs/HISTORY.md, "A commander deaf to its navigator").
+    Its traffic, a status at 2 Hz simulated and a goal per task, is light.
+    """
     from swarm_up.supervisor import ChildSpec
 
     logs, params, specs = cfg.run_dir / "logs", cfg.run_dir / "params", []
-    # A robot that a fault kills gets processes that own no shared-memory port.
     killed, free_env = fault_killed_robots(cfg), shm_free_env(env)
     robot_env = {ns: free_env if ns in killed else env for ns in cfg.local_robots}
     nav = command("swarm-nav", "swarm_nav.node")
@@ -314,7 +321,7 @@ def _per_robot_specs(cfg: RunConfig, env: dict[str, str]) -> list:
                 if cfg.faults:
                     argv += ["--faults", str(faults_file(cfg))]
             specs.append(ChildSpec(f"cmd_{ns}", tuple(argv), logs / f"cmd_{ns}.log",
-                                   kind="cmd", robots=(ns,), env=robot_env[ns]))
+                                   kind="cmd", robots=(ns,), env=free_env))
     return specs
 
 

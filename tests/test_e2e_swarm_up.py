@@ -67,6 +67,15 @@ def _tail(path: Path, n: int) -> str:
     return "\n".join(f"  {ln}" for ln in lines[-n:]) or "  <empty>"
 
 
+def _has_error(path: Path) -> bool:
+    """Whether a log has an error line (a program's ``error:``, an ``[ERROR]``, a traceback)."""
+    try:
+        text = path.read_text(errors="replace")
+    except OSError:
+        return False
+    return re.search(r"error:|\[ERROR\]|^Traceback", text, re.MULTILINE) is not None
+
+
 class SwarmUp:
     """One ``swarm-up`` run: started in a session of its own, output to files in ``tmp_path``.
 
@@ -156,14 +165,18 @@ class SwarmUp:
             raise AssertionError(f"no metrics in {path}: {exc}\n{self.diagnostics()}") from None
 
     def diagnostics(self, n: int = 12, logs: tuple[str, ...] | None = None) -> str:
-        """The tail of swarm-up's stdout/stderr and of ``RUN/logs/*.log`` (or only ``logs``)."""
-        parts = [f"command: {' '.join(self.argv)}",
-                 f"--- swarm-up stdout:\n{_tail(self.out_path, n)}",
-                 f"--- swarm-up stderr:\n{_tail(self.err_path, n)}"]
+        """The tail of ``RUN/logs/*.log`` (or only ``logs``) and of swarm-up's stdout/stderr.
+
+        What says most comes last, where a CI excerpt of the end still shows it: the logs
+        with an error line after the others, swarm-up's own output at the end."""
         paths = (sorted(self.logs.glob("*.log")) if logs is None
                  else [self.logs / f"{name}.log" for name in logs])
+        paths.sort(key=lambda path: _has_error(path))  # stable: by name within each kind
+        parts = [f"command: {' '.join(self.argv)}"]
         for path in paths:
             parts.append(f"--- {path}:\n{_tail(path, n)}")
+        parts += [f"--- swarm-up stdout:\n{_tail(self.out_path, n)}",
+                  f"--- swarm-up stderr:\n{_tail(self.err_path, n)}"]
         return "\n".join(parts)
 
     # -------------------------------------------------------------- stopping

@@ -148,7 +148,8 @@ def test_unknown_namespace_exits_2_within_the_wait_timeout(ns, world):
     elapsed = time.monotonic() - t0
     assert res.returncode == 2
     assert res.stderr.splitlines() == [
-        f"swarm-commander: error: {ns}: no navigator answered on /{ns}/nav_status within 1 s"]
+        f"swarm-commander: error: {ns}: no navigator answered on /{ns}/nav_status within 1 s "
+        "(0 writer(s) matched, the reader made again 0 time(s))"]
     assert res.stdout == ""
     assert 1.0 <= elapsed < 10.0
 

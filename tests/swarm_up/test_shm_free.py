@@ -1,6 +1,7 @@
-"""The processes that fault injection may SIGKILL run Fast DDS without shared memory
-(:func:`swarm_up.children.shm_free_env`): which children get it, what it sets, and that such a
-process still talks to ordinary ones while it maps no ``/dev/shm`` file of Fast DDS."""
+"""The processes that fault injection may SIGKILL, and the commanders, run Fast DDS without
+shared memory (:func:`swarm_up.children.shm_free_env`): which children get it, what it sets, and
+that such a process still talks to ordinary ones while it maps no ``/dev/shm`` file of Fast
+DDS."""
 
 from __future__ import annotations
 
@@ -65,14 +66,18 @@ def shm_free_children(run: RunConfig) -> set[str]:
             if s.env.get(PROFILES_ENV) != os.environ.get(PROFILES_ENV)}
 
 
-def test_only_the_children_a_fault_kills_go_without_shared_memory(cfg):  # noqa: F811
+def test_the_children_a_fault_kills_and_the_commanders_go_without_shared_memory(cfg):  # noqa: F811
+    commanders = {f"cmd_{ns}" for ns in cfg.robots}
+    assert commanders and cfg.commanders
     faults = parse_faults("kill-nav:2@10,kill-robot:3@20,freeze:1@5+5", cfg.robots)
     cfg = replace(cfg, faults=faults, coordination="centralized")
-    assert shm_free_children(cfg) == {"coordinator", "nav_Srobot2", "cmd_Srobot2",
-                                      "nav_Srobot3", "cmd_Srobot3"}
-    # Without kill faults, only the coordinator (anyone may kill it; its traffic is light).
+    assert shm_free_children(cfg) == {"coordinator", "nav_Srobot2", "nav_Srobot3"} | commanders
+    # Without kill faults: the coordinator (anyone may kill it) and the commanders (their
+    # traffic is light), every navigator keeps shared memory.
     cfg = replace(cfg, faults=parse_faults("freeze:1@5+5", cfg.robots))
-    assert shm_free_children(cfg) == {"coordinator"}
+    assert shm_free_children(cfg) == {"coordinator"} | commanders
+    cfg = replace(cfg, coordination="decentralized")
+    assert shm_free_children(cfg) == commanders
 
 
 PEER = textwrap.dedent("""
