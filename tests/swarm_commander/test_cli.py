@@ -154,6 +154,20 @@ def test_unknown_namespace_exits_2_within_the_wait_timeout(ns, world):
     assert 1.0 <= elapsed < 10.0
 
 
+def test_a_coordinated_commander_without_a_navigator_exits_2_saying_what_it_matched(ns, world):
+    """``--coordinated`` with neither coordinator nor navigator: it starts anyway after the
+    wait for the coordinator, connects anyway after the wait for the link, and gives up after
+    the wait for the navigator, naming the ``nav_status`` writers its reader matched."""
+    res = commander(ns, "--world", str(world), "--coordinated", "--wait-timeout", "1", *WALL)
+    assert res.returncode == 2, res.stderr
+    assert res.stderr.splitlines()[-1] == (
+        f"swarm-commander: error: {ns}: no navigator answered on /{ns}/nav_status within 1 s "
+        "(0 writer(s) matched, the reader made again 0 time(s))"), res.stderr
+    assert res.stdout.splitlines() == [
+        f"[{ns}] no coordinator after 1 s; starting anyway",
+        f"[{ns}] not linked to the coordinator after 1 s; connecting to the navigator anyway"]
+
+
 @pytest.mark.parametrize("poi", ["workstations: []\n", None])
 def test_world_without_workstations_exits_2(tmp_path, poi):
     world = tmp_path / "empty.world"
