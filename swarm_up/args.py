@@ -601,12 +601,13 @@ def _check_hosts(args: argparse.Namespace, robots: tuple[str, ...]
 
 
 def _check_peers(args: argparse.Namespace, faults) -> None:
-    """``--peers`` only between several hosts, without the Discovery Server, and without faults
-    that kill processes.
+    """``--peers`` only between several hosts, without the Discovery Server, without faults
+    that kill processes, and without centralized coordination.
 
-    A process a fault may SIGKILL runs without Fast DDS's shared memory, which under the range
-    LOCALHOST rmw_fastrtps does not allow (:func:`swarm_up.children.shm_free_env`): such a process
-    could not reach the peers.
+    A process a fault may SIGKILL, and the coordinator, run without Fast DDS's shared memory,
+    which under the range LOCALHOST rmw_fastrtps does not allow
+    (:func:`swarm_up.children.shm_free_env`): such a process could not reach the peers, and the
+    coordinator must reach every host's commanders.
 
     Raises:
         InputError: one of those combinations.
@@ -618,6 +619,10 @@ def _check_peers(args: argparse.Namespace, faults) -> None:
     if args.discovery_server is not None:
         raise InputError("--peers: not with --discovery-server (the server already decides "
                          "who is discovered)")
+    if args.coordination == "centralized":
+        raise InputError("--peers: not with --coordination centralized (the coordinator runs "
+                         "without shared memory, which the discovery range LOCALHOST does not "
+                         "allow, and could not reach the other hosts)")
     from swarm_common.faults import KILL_COORDINATOR, KILL_NAV, KILL_ROBOT
 
     killing = [f.label() for f in faults if f.kind in (KILL_NAV, KILL_ROBOT, KILL_COORDINATOR)]

@@ -250,6 +250,8 @@ def test_peers_are_refused_where_they_cannot_work(tmp_path):
             ([], "--peers: only with --hosts N > 1"),
             (["--hosts", "2", "--discovery-server", "10.0.0.1:11811"], "not with --discovery"),
             (["--hosts", "2", "--faults", "kill-nav:1@10"], "not with faults that kill"),
+            (["--hosts", "2", "--coordination", "centralized"],
+             "not with --coordination centralized"),
             (["--hosts", "2", "--peers", "10.0.0.1;x"], "must be HOST,HOST")):
         peers = [] if "--peers" in extra else ["--peers", "10.0.0.2"]
         done = subprocess.run([str(BIN / "swarm-up"), *RUN, *extra, *peers,
