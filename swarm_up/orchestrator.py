@@ -173,6 +173,10 @@ class Orchestrator:
             if not ev.restarted:
                 self._dead[ev.name] = ev.code
                 what = "keeps crashing, last exit code" if ev.gave_up else "exited with code"
+                if self._commander_needed(ev):
+                    return Outcome(EXIT_RUNTIME, f"{ev.name} {what} {ev.code} and is not "
+                                   "restarted: the coordinator would wait for its robot for good; "
+                                   f"logs: {self._log_of(ev.name)}", "commander failed")
                 warn(f"{ev.name} {what} {ev.code}; not restarted; logs: {self._log_of(ev.name)}")
             self._say_lost(ev)
         if sim_code is not None:
@@ -294,6 +298,16 @@ class Orchestrator:
 
             self._announcer = Announcer()
         return self._announcer
+
+    def _commander_needed(self, ev) -> bool:
+        """Whether the run cannot go on after ``ev``, a child that ended and is not restarted:
+        a commander process of a centralized run that failed (not one a fault killed). Its
+        robot would never ask the coordinator again, which then waits for it at every sync and
+        never gets back a workstation it holds: the run would hang rather than end."""
+        state = self.sup.children[ev.name]
+        return (state.spec.kind == "cmd" and self.cfg.coordination == "centralized"
+                and ev.code != EXIT_OK and not (ev.planned or state.retired)
+                and not self.sup.stopping)
 
     def _say_lost(self, ev) -> None:
         """A navigator process that crashed (not one a fault killed): tell the simulator that

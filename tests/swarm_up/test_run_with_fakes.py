@@ -128,6 +128,16 @@ rclpy.try_shutdown()
 '''
 
 FAKE_COMMANDER = r'''
+import os, signal, sys, time
+signal.signal(signal.SIGINT, lambda *a: sys.exit(0))
+if sys.argv[1] == os.environ.get("FAKE_CMD_EXIT_2"):  # as a commander that gives up
+    time.sleep(1.0)
+    print(f"swarm-commander: error: {sys.argv[1]}: no navigator answered", file=sys.stderr)
+    sys.exit(2)
+time.sleep(1000)
+'''
+
+FAKE_COORDINATOR = r'''
 import signal, sys, time
 signal.signal(signal.SIGINT, lambda *a: sys.exit(0))
 time.sleep(1000)
@@ -148,7 +158,8 @@ def setup(tmp_path):
     bin_dir = tmp_path / "bin"
     bin_dir.mkdir()
     for name, body in (("swarm-sim", FAKE_SIM), ("swarm-nav", FAKE_NAV),
-                       ("swarm-commander", FAKE_COMMANDER)):
+                       ("swarm-commander", FAKE_COMMANDER),
+                       ("swarm-coordinator", FAKE_COORDINATOR)):
         path = bin_dir / name
         path.write_text(f"#!{sys.executable}\n{body}")
         path.chmod(0o755)
@@ -313,6 +324,30 @@ def test_navigators_that_keep_crashing_fail_the_run(setup):
     assert proc.returncode == 1
     assert "keeps crashing" in err
     assert f"every navigator process exited (nav_Srobot1: code 1); logs: {tmp_path}" in err
+    assert "Traceback" not in err
+
+
+@pytest.mark.parametrize("coordination", ["centralized", "decentralized"])
+def test_a_commander_that_gives_up_ends_a_centralized_run_only(setup, coordination):
+    """Centralized, the coordinator would wait for that robot for good: the run ends at once
+    with the error; decentralized, its robot idles and the run goes on to its duration."""
+    tmp_path, env = setup
+    env["FAKE_CMD_EXIT_2"] = "Srobot2"
+    proc = _start(_argv(tmp_path, "--duration", "8", "--commanders", "--coordination",
+                        coordination), env, tmp_path)
+    out, err = _finish(proc, 60)
+    log = tmp_path / "run" / "logs" / "cmd_Srobot2.log"
+    m = json.loads((tmp_path / "metrics.json").read_text())
+    if coordination == "centralized":
+        assert proc.returncode == 1, out + err
+        assert err.strip().splitlines()[-1] == (
+            "swarm-up: error: cmd_Srobot2 exited with code 2 and is not restarted: the "
+            f"coordinator would wait for its robot for good; logs: {log}"), err
+        assert m["ended_by"] == "commander failed"
+    else:
+        assert proc.returncode == 0, out + err
+        assert f"cmd_Srobot2 exited with code 2; not restarted; logs: {log}" in err
+        assert m["ended_by"] == "duration"
     assert "Traceback" not in err
 
 
