@@ -3,8 +3,8 @@
 Every test session claims its own ``ROS_DOMAIN_ID`` (an flock on ``/tmp/swarm_wb_domain_<id>.lock``
 held for the whole session) and sets ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, so two test runs
 on one machine never hear each other.  Processes started by tests inherit both.  The session
-removes orphaned Fast DDS shared-memory files before it starts, and the ones its own processes
-left behind when it ends.
+removes orphaned Fast DDS shared-memory files before it starts, the ones its own processes left
+behind before each test that starts ROS participants, and when it ends.
 """
 
 from __future__ import annotations
@@ -63,6 +63,20 @@ SLOW_TIERS = ("node", "e2e", "slow")
 
 
 ROS_TIERS = ("node", "e2e")
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item):
+    """Before a test that starts ROS participants (and its fixtures): remove the Fast DDS files
+    this session's killed processes left that no live process uses. The session keeps one
+    ``ROS_DOMAIN_ID``, so later participants take the same port numbers: after processes of
+    the domain were killed, a run's commander was seen to hear nothing of its navigator for
+    120 s (docs/HISTORY.md, "A commander deaf to its navigator"). Files there before the
+    session, and those of live processes, are kept."""
+    if not any(item.get_closest_marker(m) for m in ROS_TIERS):
+        return
+    if shm.snapshot() - _SHM_BEFORE:
+        shm.clean_stale(_SHM_BEFORE, min_age_s=1.0, ignore_pids=frozenset({os.getpid()}))
 
 
 def pytest_collection_modifyitems(config, items):
