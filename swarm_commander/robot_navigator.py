@@ -74,6 +74,7 @@ from rclpy.node import Node
 from std_srvs.srv import Trigger
 
 from swarm_common import topics
+from swarm_common.errors import EXIT_BAD_INPUT, EXIT_RUNTIME
 from swarm_common.nav_status import NavState, NavStatusRecord, decode
 from swarm_common.stamps import NS_PER_S, format_stamp
 from swarm_ros.latched import REMATCH_S, LatchedReader
@@ -425,8 +426,6 @@ class BasicNavigator(Node):
             (:data:`~swarm_common.errors.EXIT_RUNTIME`) when one came but nothing subscribes
             ``goal_pose``.
         """
-        from swarm_common.errors import EXIT_BAD_INPUT, EXIT_RUNTIME
-
         ns = self.get_namespace().rstrip("/")
         if self._nav_status_received:
             return EXIT_RUNTIME, (f"the navigator publishes {ns}/nav_status but nothing "
